@@ -1,0 +1,238 @@
+"""Constraint map ``f(u) = l^2``, its Jacobian and stress-contracted Hessian, and projection.
+
+Only *active* bars (those with at least one free coordinate at an end) are constraints; a bar
+between two pins is a constant and is left out (its self-stress component is reported as 0).
+
+Shapes: ``u`` (M,) free coordinates, ``J`` (Ea, M) with ``Ea`` the number of active bars,
+``H_sigma`` (M, M).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from engine.errors import NoNearbySolution
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+#: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
+DENSE_MAX_FREE = 600
+
+
+class Constraints:
+    """The constraint system of a linkage: sparsity pattern computed once, values on demand.
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> c = Constraints(build_preset("four-bar"))
+    >>> c.jacobian(c.linkage.coordinates()).shape
+    (3, 4)
+    """
+
+    def __init__(self, linkage: Linkage) -> None:
+        self.linkage = linkage
+        self.bars = np.flatnonzero(linkage.active)  # (Ea,) indices into all bars
+        ends = linkage.ends[self.bars]
+        self._i, self._j = ends[:, 0], ends[:, 1]
+        self.n_constraints = len(self.bars)
+        self.n_free = linkage.n_free
+        self.targets = linkage.lengths[self.bars] ** 2  # (Ea,) L^2
+
+    @property
+    def use_sparse(self) -> bool:
+        """True when the linkage is large enough for sparse matrices."""
+        return self.n_free > DENSE_MAX_FREE
+
+    @cached_property
+    def _pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """COO pattern of J: row, column, which end (+1 for i, -1 for j), axis."""
+        d = self.linkage.dimension
+        fi = self.linkage.free_index
+        rows = np.repeat(np.arange(self.n_constraints), d)
+        axes = np.tile(np.arange(d), self.n_constraints)
+        ci = fi[self._i].ravel()  # (Ea*d,)
+        cj = fi[self._j].ravel()
+        keep_i, keep_j = ci >= 0, cj >= 0
+        r = np.concatenate([rows[keep_i], rows[keep_j]])
+        c = np.concatenate([ci[keep_i], cj[keep_j]])
+        s = np.concatenate([np.ones(keep_i.sum()), -np.ones(keep_j.sum())])
+        ax = np.concatenate([axes[keep_i], axes[keep_j]])
+        return r, c, s, ax
+
+    def bar_vectors(self, u: np.ndarray) -> np.ndarray:
+        """``p_i - p_j`` for each active bar, (Ea, d)."""
+        pos = self.linkage.positions_of(u)
+        return pos[self._i] - pos[self._j]
+
+    def squared_lengths(self, u: np.ndarray) -> np.ndarray:
+        """``f(u) = l^2``, (Ea,)."""
+        diff = self.bar_vectors(u)
+        return np.einsum("ij,ij->i", diff, diff)
+
+    def residual(self, u: np.ndarray) -> np.ndarray:
+        """``l(u) - L`` for each active bar, (Ea,)."""
+        return np.sqrt(self.squared_lengths(u)) - self.linkage.lengths[self.bars]
+
+    def jacobian(self, u: np.ndarray, sparse: bool | None = None) -> np.ndarray | sp.csr_matrix:
+        """Analytic Jacobian ``J = d(l^2)/du``, (Ea, M): ``2 (p_i - p_j)`` on the coordinates of
+        end ``i`` and its negative on those of end ``j`` (fixed coordinates dropped)."""
+        sparse = self.use_sparse if sparse is None else sparse
+        r, c, s, ax = self._pattern
+        vals = 2.0 * s * self.bar_vectors(u)[r, ax]
+        shape = (self.n_constraints, self.n_free)
+        if sparse:
+            return sp.csr_matrix((vals, (r, c)), shape=shape)
+        jac = np.zeros(shape)
+        jac[r, c] = vals  # each (bar, coordinate) pair occurs once: a bar's ends differ
+        return jac
+
+    def stress_hessian(
+        self, sigma: np.ndarray, sparse: bool | None = None
+    ) -> np.ndarray | sp.csr_matrix:
+        """``H_sigma = sum_a sigma_a Hess(l_a^2)``, (M, M), for a stress ``sigma`` (Ea,).
+
+        ``Hess(l_a^2) = 2 (e_i - e_j)(e_i - e_j)^T (x) I_d``, restricted to free coordinates; it
+        does not depend on ``u``.
+        """
+        sparse = self.use_sparse if sparse is None else sparse
+        d = self.linkage.dimension
+        fi = self.linkage.free_index
+        w = np.repeat(2.0 * np.asarray(sigma, dtype=float), d)  # (Ea*d,)
+        ci = fi[self._i].ravel()
+        cj = fi[self._j].ravel()
+        blocks = ((ci, ci, w), (cj, cj, w), (ci, cj, -w), (cj, ci, -w))
+        rows, cols, vals = [], [], []
+        for a, b, v in blocks:
+            keep = (a >= 0) & (b >= 0)
+            rows.append(a[keep])
+            cols.append(b[keep])
+            vals.append(v[keep])
+        hess = sp.coo_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.n_free, self.n_free),
+        ).tocsr()  # duplicates are summed
+        return hess if sparse else hess.toarray()
+
+    def max_residual(self, u: np.ndarray) -> float:
+        """``max_a |l_a(u) - L_a|`` (0 without constraints)."""
+        res = self.residual(u)
+        return float(np.max(np.abs(res))) if res.size else 0.0
+
+
+@dataclass(frozen=True)
+class ProjectionResult:
+    """Outcome of :func:`project`.
+
+    ``positions`` (V, d) is the projected configuration, ``residual`` the largest bar-length
+    error there, ``distance`` the 2-norm of the displacement of the free coordinates.
+    """
+
+    success: bool
+    message: str
+    positions: np.ndarray
+    residual: float
+    input_residual: float
+    distance: float
+    iterations: int
+
+
+def _min_norm_step(jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
+    """Minimum-norm least-squares solution of ``J du = rhs``."""
+    if sp.issparse(jac):
+        return spla.lsmr(jac, rhs, atol=1e-14, btol=1e-14, maxiter=20 * sum(jac.shape))[0]
+    return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+
+
+def project(
+    linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60
+) -> ProjectionResult:
+    """Project the given positions onto the constraint set ``l(u) = L``.
+
+    Gauss-Newton with minimum-norm steps (the step lies in the row space of ``J``, so the
+    iteration moves as little as it can: near a regular solution it converges to the nearest
+    point of the configuration space up to second order) and a backtracking line search on
+    ``||l^2 - L^2||``.
+
+    Returns a result with ``success=False`` when the residual cannot be brought below
+    ``residual_atol`` (for example when the lengths admit no configuration nearby).
+
+    Examples
+    --------
+    >>> from engine.linkage import BarSpec, VertexSpec, build_linkage
+    >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [2, 0])],
+    ...                    [BarSpec("r", ["P", "A"], 1.0)])
+    >>> res = project(lk)
+    >>> res.success, res.positions[1].round(9).tolist()
+    (True, [1.0, 0.0])
+    """
+    tol = tolerances or Tolerances()
+    cons = Constraints(linkage)
+    u0 = linkage.coordinates()
+    u = u0.copy()
+    start = cons.max_residual(u)
+    it = 0
+    message = "converged"
+    if start > tol.residual_atol:
+        g = cons.squared_lengths(u) - cons.targets
+        cost = float(g @ g)
+        for it in range(1, max_iter + 1):
+            step = _min_norm_step(cons.jacobian(u), -g)
+            t = 1.0
+            while t > 1e-10:
+                trial = u + t * step
+                g_trial = cons.squared_lengths(trial) - cons.targets
+                cost_trial = float(g_trial @ g_trial)
+                if cost_trial < cost:
+                    break
+                t *= 0.5
+            else:
+                message = "line search failed: the residual stopped decreasing"
+                break
+            u, g, cost = trial, g_trial, cost_trial
+            if cons.max_residual(u) <= tol.residual_atol:
+                break
+        else:
+            message = f"no convergence in {max_iter} iterations"
+    residual = cons.max_residual(u)
+    success = residual <= tol.residual_atol
+    if not success and message == "converged":
+        message = "did not reach residual_atol"
+    return ProjectionResult(
+        success=success,
+        message=message if not success else "converged",
+        positions=linkage.positions_of(u),
+        residual=residual,
+        input_residual=start,
+        distance=float(np.linalg.norm(u - u0)),
+        iterations=it,
+    )
+
+
+def on_constraints(
+    linkage: Linkage, tolerances: Tolerances | None = None
+) -> tuple[Linkage, ProjectionResult]:
+    """The linkage moved onto its configuration space, or :class:`NoNearbySolution`.
+
+    Raises
+    ------
+    NoNearbySolution
+        When :func:`project` does not succeed; the message gives the residual reached.
+    """
+    tol = tolerances or Tolerances()
+    res = project(linkage, tol)
+    if not res.success:
+        raise NoNearbySolution(
+            "the given positions are not near any configuration with the requested lengths: "
+            f"{res.message}; the largest bar-length error reached is {res.residual:.3g} "
+            f"(residual_atol {tol.residual_atol:.3g}, error at the given positions "
+            f"{res.input_residual:.3g})",
+            loc=("vertices",),
+        )
+    moved = linkage if res.distance == 0.0 else linkage.with_positions(res.positions)
+    return moved, res

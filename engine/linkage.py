@@ -1,0 +1,292 @@
+"""Linkage model: vertices (pinned, sliding or free) joined by bars of fixed length.
+
+Notation (as in the paper): ``V`` vertices in ``d`` dimensions, ``E`` bars. Only the free
+coordinates move; they form the configuration vector ``u`` of length ``M``. A vertex may be
+free, fully fixed (a pin) or fixed along some axes only (a slider).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.errors import InvalidLinkage, LimitExceeded
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Size limits that keep the cost of one analysis bounded."""
+
+    max_vertices: int = 50_000
+    max_bars: int = 200_000
+
+
+@dataclass(frozen=True)
+class VertexSpec:
+    """A vertex as described by a client (validated by :func:`build_linkage`)."""
+
+    id: str
+    position: Sequence[float]
+    fixed: bool | Sequence[bool] = False
+
+
+@dataclass(frozen=True)
+class BarSpec:
+    """A bar as described by a client; ``length=None`` means the current distance."""
+
+    id: str
+    ends: Sequence[str]
+    length: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Linkage:
+    """A validated linkage. Arrays are read-only.
+
+    Attributes
+    ----------
+    dimension : int
+        ``d``, 2 or 3.
+    vertex_ids : tuple of str
+        ``V`` ids, in request order.
+    positions : (V, d) float64
+        The configuration as given.
+    fixed : (V, d) bool
+        True where a coordinate is held fixed.
+    bar_ids : tuple of str
+        ``E`` ids, in request order.
+    ends : (E, 2) int64
+        Vertex indices of the two ends of each bar.
+    lengths : (E,) float64
+        Target lengths ``L``.
+    """
+
+    dimension: int
+    vertex_ids: tuple[str, ...]
+    positions: np.ndarray
+    fixed: np.ndarray
+    bar_ids: tuple[str, ...]
+    ends: np.ndarray
+    lengths: np.ndarray
+    free_index: np.ndarray = field(init=False, repr=False)
+    active: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        free = ~self.fixed
+        index = np.full(self.fixed.shape, -1, dtype=np.int64)
+        index[free] = np.arange(int(free.sum()), dtype=np.int64)
+        # A bar between two fully fixed vertices is a constant: it constrains nothing.
+        fully_fixed = self.fixed.all(axis=1)
+        active = ~(fully_fixed[self.ends[:, 0]] & fully_fixed[self.ends[:, 1]])
+        object.__setattr__(self, "free_index", index)
+        object.__setattr__(self, "active", active)
+        for arr in (self.positions, self.fixed, self.ends, self.lengths, index, active):
+            arr.flags.writeable = False
+
+    @property
+    def n_vertices(self) -> int:
+        """``V``."""
+        return len(self.vertex_ids)
+
+    @property
+    def n_bars(self) -> int:
+        """``E``, counting every bar (also inert ones between two pins)."""
+        return len(self.bar_ids)
+
+    @property
+    def n_free(self) -> int:
+        """``M``, the number of free coordinates."""
+        return int((~self.fixed).sum())
+
+    @property
+    def anything_fixed(self) -> bool:
+        """True when at least one coordinate is held fixed (no trivial rigid motions)."""
+        return bool(self.fixed.any())
+
+    def coordinates(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """The free coordinates ``u`` (M,) of ``positions`` (default: the given ones)."""
+        pos = self.positions if positions is None else positions
+        return np.asarray(pos, dtype=float)[~self.fixed]
+
+    def positions_of(self, u: np.ndarray) -> np.ndarray:
+        """Vertex positions (V, d) with the free coordinates replaced by ``u`` (M,)."""
+        pos = np.array(self.positions, dtype=float)
+        pos[~self.fixed] = u
+        return pos
+
+    def vertex_vectors(self, v: np.ndarray) -> np.ndarray:
+        """Lift a vector over free coordinates (M,) to per-vertex vectors (V, d)."""
+        out = np.zeros(self.fixed.shape)
+        out[~self.fixed] = v
+        return out
+
+    def with_positions(self, positions: np.ndarray) -> Linkage:
+        """The same linkage at other positions (targets unchanged)."""
+        return Linkage(
+            self.dimension,
+            self.vertex_ids,
+            np.array(positions, dtype=float),
+            np.array(self.fixed),
+            self.bar_ids,
+            np.array(self.ends),
+            np.array(self.lengths),
+        )
+
+    def with_lengths(self, lengths: np.ndarray) -> Linkage:
+        """The same linkage with other target lengths (positions unchanged)."""
+        return Linkage(
+            self.dimension,
+            self.vertex_ids,
+            np.array(self.positions),
+            np.array(self.fixed),
+            self.bar_ids,
+            np.array(self.ends),
+            np.array(lengths, dtype=float),
+        )
+
+    def bar_lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """Current bar lengths (E,) at ``positions`` (default: the given ones)."""
+        pos = self.positions if positions is None else positions
+        diff = pos[self.ends[:, 0]] - pos[self.ends[:, 1]]
+        return np.sqrt(np.einsum("ij,ij->i", diff, diff))
+
+
+def _fixed_mask(fixed: bool | Sequence[bool], d: int, k: int) -> np.ndarray:
+    if isinstance(fixed, bool | np.bool_):
+        return np.full(d, bool(fixed))
+    mask = list(fixed)
+    if len(mask) != d or not all(isinstance(b, bool | np.bool_) for b in mask):
+        raise InvalidLinkage(
+            f"fixed must be a boolean or a list of {d} booleans (one per axis)",
+            loc=("vertices", k, "fixed"),
+        )
+    return np.array(mask, dtype=bool)
+
+
+def build_linkage(
+    dimension: int,
+    vertices: Sequence[VertexSpec],
+    bars: Sequence[BarSpec],
+    limits: Limits | None = None,
+    length_atol: float = 1e-9,
+) -> Linkage:
+    """Validate a client description and build a :class:`Linkage`.
+
+    Parameters
+    ----------
+    dimension : int
+        2 or 3.
+    vertices, bars : sequences of specs
+        Ids must be unique; bar ends must name vertices.
+    limits : Limits, optional
+        Size limits (default :class:`Limits`).
+    length_atol : float
+        A bar between two fully fixed vertices must have its target length within this
+        of the pins' distance.
+
+    Raises
+    ------
+    InvalidLinkage, LimitExceeded
+        With ``loc`` naming the offending field.
+
+    Examples
+    --------
+    >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [1, 0])],
+    ...                    [BarSpec("r", ["P", "A"])])
+    >>> lk.n_free, float(lk.lengths[0])
+    (2, 1.0)
+    """
+    limits = limits or Limits()
+    if dimension not in (2, 3):
+        raise InvalidLinkage(f"dimension must be 2 or 3, got {dimension!r}", loc=("dimension",))
+    if len(vertices) == 0:
+        raise InvalidLinkage("a linkage needs at least one vertex", loc=("vertices",))
+    if len(vertices) > limits.max_vertices:
+        raise LimitExceeded(
+            f"{len(vertices)} vertices exceed the limit of {limits.max_vertices}",
+            loc=("vertices",),
+        )
+    if len(bars) > limits.max_bars:
+        raise LimitExceeded(
+            f"{len(bars)} bars exceed the limit of {limits.max_bars}", loc=("bars",)
+        )
+
+    index: dict[str, int] = {}
+    positions = np.empty((len(vertices), dimension))
+    fixed = np.empty((len(vertices), dimension), dtype=bool)
+    for k, v in enumerate(vertices):
+        if v.id in index:
+            raise InvalidLinkage(f"duplicate vertex id {v.id!r}", loc=("vertices", k, "id"))
+        index[v.id] = k
+        pos = np.asarray(v.position, dtype=float)
+        if pos.shape != (dimension,):
+            raise InvalidLinkage(
+                f"position of {v.id!r} has {pos.size} coordinates, expected {dimension}",
+                loc=("vertices", k, "position"),
+            )
+        if not np.all(np.isfinite(pos)):
+            raise InvalidLinkage(
+                f"position of {v.id!r} is not finite", loc=("vertices", k, "position")
+            )
+        positions[k] = pos
+        fixed[k] = _fixed_mask(v.fixed, dimension, k)
+
+    bar_index: dict[str, int] = {}
+    ends = np.empty((len(bars), 2), dtype=np.int64)
+    lengths = np.empty(len(bars))
+    fully_fixed = fixed.all(axis=1)
+    for k, b in enumerate(bars):
+        if b.id in bar_index:
+            raise InvalidLinkage(f"duplicate bar id {b.id!r}", loc=("bars", k, "id"))
+        bar_index[b.id] = k
+        if len(b.ends) != 2:
+            raise InvalidLinkage("a bar has exactly two ends", loc=("bars", k, "ends"))
+        for j, end in enumerate(b.ends):
+            if end not in index:
+                raise InvalidLinkage(
+                    f"bar {b.id!r} names unknown vertex {end!r}", loc=("bars", k, "ends", j)
+                )
+        i0, i1 = index[b.ends[0]], index[b.ends[1]]
+        if i0 == i1:
+            raise InvalidLinkage(
+                f"bar {b.id!r} joins vertex {b.ends[0]!r} to itself", loc=("bars", k, "ends")
+            )
+        ends[k] = (i0, i1)
+        current = float(np.linalg.norm(positions[i0] - positions[i1]))
+        if b.length is None:
+            if current == 0.0:
+                raise InvalidLinkage(
+                    f"bar {b.id!r} has no length and its ends coincide, so its length would be 0",
+                    loc=("bars", k, "length"),
+                )
+            lengths[k] = current
+            continue
+        length = float(b.length)
+        if not np.isfinite(length):
+            raise InvalidLinkage(f"length of {b.id!r} is not finite", loc=("bars", k, "length"))
+        if length <= 0.0:
+            raise InvalidLinkage(
+                f"length of {b.id!r} must be positive, got {length!r}",
+                loc=("bars", k, "length"),
+            )
+        if fully_fixed[i0] and fully_fixed[i1] and abs(current - length) > length_atol * max(
+            1.0, length
+        ):
+            raise InvalidLinkage(
+                f"bar {b.id!r} joins two fixed vertices {current!r} apart but asks for length "
+                f"{length!r}",
+                loc=("bars", k, "length"),
+            )
+        lengths[k] = length
+
+    return Linkage(
+        dimension=dimension,
+        vertex_ids=tuple(v.id for v in vertices),
+        positions=positions,
+        fixed=fixed,
+        bar_ids=tuple(b.id for b in bars),
+        ends=ends,
+        lengths=lengths,
+    )

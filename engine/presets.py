@@ -1,0 +1,288 @@
+"""Named linkages from the paper, each assembled on a point of its configuration space.
+
+Geometry (all planar; angles in radians, measured from the +x axis):
+
+- ``four-bar``: pins ``P1 = (0, 0)``, ``P2 = (a, 0)``; rotor ``L1`` from ``P1`` to ``A`` at angle
+  ``theta``; coupler ``L2`` from ``A`` to ``B``; rotor ``L3`` from ``P2`` to ``B``.
+- ``three-rotor``: pins ``P1 = (0, 0)``, ``P2 = (a, 0)``, ``P3 = P2 + a (cos phi, sin phi)``
+  (``phi = 0`` puts the pins on a line); rotors ``r1, r2, r3`` to tips ``A, B, C``; couplers
+  ``L1`` (``A-B``) and ``L2`` (``B-C``); the middle rotor at angle ``theta``.
+- ``kl-chain``: pins ``P0 .. P{n-1}`` at ``(k a, 0)``; rotors ``r{k}`` of length ``r`` to tips
+  ``T{k}``; bars ``l{k}`` of length ``l`` from ``T{k}`` to ``T{k+1}``; rotor 0 at angle ``theta``.
+- ``gated-kl-chain``: the chain plus a slider pin ``G`` at ``P{gate} + (0, -D)`` (x fixed, y
+  free) held by bar ``D`` from ``P{gate}``, a rocker ``L1`` from ``G`` to ``R`` and a bar ``L2``
+  from ``T{gate}`` to ``R``; the gate rotor at angle ``theta`` (or the first angle from there
+  where the gate assembles).
+
+Where two assemblies exist, ``side = +1`` takes the intersection to the left of the line from the
+first circle's centre to the second's, ``-1`` the other one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.errors import InvalidParameter, UnknownPreset
+from engine.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
+
+Params = dict[str, float]
+
+
+def circle_intersection(
+    c0: np.ndarray, r0: float, c1: np.ndarray, r1: float, side: float
+) -> np.ndarray | None:
+    """Intersection of circles ``|x - c0| = r0`` and ``|x - c1| = r1`` on the given side of
+    ``c0 -> c1``; None when they do not meet."""
+    delta = c1 - c0
+    dist = float(np.hypot(*delta))
+    if dist == 0.0:
+        return None
+    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
+    h2 = r0**2 - along**2
+    if h2 < -1e-12 * max(r0, r1) ** 2:
+        return None
+    e = delta / dist
+    normal = np.array([-e[1], e[0]])
+    return c0 + along * e + np.sign(side or 1.0) * np.sqrt(max(h2, 0.0)) * normal
+
+
+def _polar(angle: float, radius: float) -> np.ndarray:
+    return radius * np.array([np.cos(angle), np.sin(angle)])
+
+
+def _no_assembly(what: str) -> InvalidParameter:
+    return InvalidParameter(f"the lengths admit no assembly {what}", loc=("parameters",))
+
+
+def _four_bar(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+    pin1, pin2 = np.zeros(2), np.array([p["a"], 0.0])
+    tip_a = _polar(p["theta"], p["L1"])
+    tip_b = circle_intersection(tip_a, p["L2"], pin2, p["L3"], p["side"])
+    if tip_b is None:
+        raise _no_assembly(f"at theta = {p['theta']:.6g}; try another theta")
+    vertices = [
+        VertexSpec("P1", pin1.tolist(), True),
+        VertexSpec("P2", pin2.tolist(), True),
+        VertexSpec("A", tip_a.tolist()),
+        VertexSpec("B", tip_b.tolist()),
+    ]
+    bars = [
+        BarSpec("L1", ("P1", "A"), p["L1"]),
+        BarSpec("L2", ("A", "B"), p["L2"]),
+        BarSpec("L3", ("P2", "B"), p["L3"]),
+    ]
+    return vertices, bars
+
+
+def _three_rotor(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+    pins = [np.zeros(2), np.array([p["a"], 0.0])]
+    pins.append(pins[1] + _polar(p["phi"], p["a"]))
+    tip_b = pins[1] + _polar(p["theta"], p["r2"])
+    tip_a = circle_intersection(tip_b, p["L1"], pins[0], p["r1"], p["side1"])
+    tip_c = circle_intersection(tip_b, p["L2"], pins[2], p["r3"], p["side3"])
+    if tip_a is None or tip_c is None:
+        raise _no_assembly(f"at theta = {p['theta']:.6g}; try another theta")
+    vertices = [VertexSpec(f"P{k + 1}", pins[k].tolist(), True) for k in range(3)] + [
+        VertexSpec("A", tip_a.tolist()),
+        VertexSpec("B", tip_b.tolist()),
+        VertexSpec("C", tip_c.tolist()),
+    ]
+    bars = [
+        BarSpec("r1", ("P1", "A"), p["r1"]),
+        BarSpec("r2", ("P2", "B"), p["r2"]),
+        BarSpec("r3", ("P3", "C"), p["r3"]),
+        BarSpec("L1", ("A", "B"), p["L1"]),
+        BarSpec("L2", ("B", "C"), p["L2"]),
+    ]
+    return vertices, bars
+
+
+def _chain_tips(p: Params, n: int, start: int, start_tip: np.ndarray) -> np.ndarray:
+    """Tips of a KL chain (n, 2) solved outwards from rotor ``start``."""
+    pins = np.column_stack([np.arange(n) * p["a"], np.zeros(n)])
+    tips = np.empty((n, 2))
+    tips[start] = start_tip
+    for k in range(start + 1, n):
+        tip = circle_intersection(tips[k - 1], p["l"], pins[k], p["r"], p["side"])
+        if tip is None:
+            raise _no_assembly(f"for rotor {k} (need |r - l| <= |T{k - 1} - P{k}| <= r + l)")
+        tips[k] = tip
+    for k in range(start - 1, -1, -1):
+        tip = circle_intersection(tips[k + 1], p["l"], pins[k], p["r"], -p["side"])
+        if tip is None:
+            raise _no_assembly(f"for rotor {k} (need |r - l| <= |T{k + 1} - P{k}| <= r + l)")
+        tips[k] = tip
+    return tips
+
+
+def _chain_specs(p: Params, n: int, tips: np.ndarray) -> tuple[list[VertexSpec], list[BarSpec]]:
+    vertices = [VertexSpec(f"P{k}", [k * p["a"], 0.0], True) for k in range(n)]
+    vertices += [VertexSpec(f"T{k}", tips[k].tolist()) for k in range(n)]
+    bars = [BarSpec(f"r{k}", (f"P{k}", f"T{k}"), p["r"]) for k in range(n)]
+    bars += [BarSpec(f"l{k}", (f"T{k}", f"T{k + 1}"), p["l"]) for k in range(n - 1)]
+    return vertices, bars
+
+
+def _kl_chain(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+    n = int(p["n"])
+    tips = _chain_tips(p, n, 0, _polar(p["theta"], p["r"]))
+    return _chain_specs(p, n, tips)
+
+
+def _gated_kl_chain(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+    n, gate = int(p["n"]), int(p["gate"])
+    if gate >= n:
+        raise InvalidParameter(f"gate must be a rotor index below n = {n}", loc=("gate",))
+    pin = np.array([gate * p["a"], 0.0])
+    slider = pin + np.array([0.0, -p["D"]])
+    # Scan from theta for an angle at which the gate four-bar assembles.
+    for angle in p["theta"] + np.linspace(0.0, 2 * np.pi, 721)[:-1]:
+        tip = pin + _polar(angle, p["r"])
+        rocker = circle_intersection(tip, p["L2"], slider, p["L1"], p["side"])
+        if rocker is not None:
+            break
+    else:
+        raise _no_assembly("for the gate four-bar at any angle of the gate rotor")
+    tips = _chain_tips(p, n, gate, tip)
+    vertices, bars = _chain_specs(p, n, tips)
+    vertices += [
+        VertexSpec("G", slider.tolist(), [True, False]),
+        VertexSpec("R", rocker.tolist()),
+    ]
+    bars += [
+        BarSpec("D", (f"P{gate}", "G"), p["D"]),
+        BarSpec("L1", ("G", "R"), p["L1"]),
+        BarSpec("L2", (f"T{gate}", "R"), p["L2"]),
+    ]
+    return vertices, bars
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named linkage family."""
+
+    name: str
+    description: str
+    parameters: Mapping[str, float]
+    integers: frozenset[str]
+    build: Callable[[Params], tuple[list[VertexSpec], list[BarSpec]]]
+
+
+_LENGTHS = {"a", "L1", "L2", "L3", "r", "l", "r1", "r2", "r3", "D"}
+_SIDES = {"side", "side1", "side3"}
+
+PRESETS: dict[str, Preset] = {
+    p.name: p
+    for p in (
+        Preset(
+            "four-bar",
+            "Planar four-bar: ground a between pins P1 and P2, rotor L1 (P1-A), coupler L2 (A-B), "
+            "rotor L3 (P2-B); rotor L1 at angle theta. a = L1 = L2 = L3 is the paper's "
+            "equilateral four-bar with three branch points.",
+            {"a": 1.0, "L1": 1.0, "L2": 1.0, "L3": 1.0, "theta": np.pi / 3, "side": 1.0},
+            frozenset(),
+            _four_bar,
+        ),
+        Preset(
+            "three-rotor",
+            "Three rotors r1, r2, r3 on pins P1 = (0,0), P2 = (a,0), P3 = P2 + a(cos phi, sin phi), "
+            "tips joined by couplers L1 (A-B) and L2 (B-C); middle rotor at angle theta. All "
+            "lengths equal and phi off the line give the paper's twelve branch points.",
+            {
+                "a": 1.0,
+                "r1": 1.0,
+                "r2": 1.0,
+                "r3": 1.0,
+                "L1": 1.0,
+                "L2": 1.0,
+                "phi": np.pi / 2,
+                "theta": 1.2,
+                "side1": -1.0,
+                "side3": -1.0,
+            },
+            frozenset(),
+            _three_rotor,
+        ),
+        Preset(
+            "kl-chain",
+            "Kane-Lubensky chain: n rotors of length r on pins spaced a along x, consecutive tips "
+            "joined by bars of length l; rotor 0 at angle theta. r = l = 3a/2 supports the "
+            "spinner soliton.",
+            {"n": 10, "a": 1.0, "r": 1.5, "l": 1.5, "theta": 1.3, "side": 1.0},
+            frozenset({"n"}),
+            _kl_chain,
+        ),
+        Preset(
+            "gated-kl-chain",
+            "Kane-Lubensky chain with the paper's gate on rotor `gate`: a slider pin G held at "
+            "distance D below that rotor's pin by bar D, a rocker L1 (G-R) and a bar L2 from the "
+            "rotor's tip to R. With r = l = 3a/2 and L1 = L2 = 2a the chain is ungated for "
+            "D < 5a/2 and gated above.",
+            {
+                "n": 10,
+                "a": 1.0,
+                "r": 1.5,
+                "l": 1.5,
+                "gate": 5,
+                "D": 2.0,
+                "L1": 2.0,
+                "L2": 2.0,
+                "theta": 1.3,
+                "side": 1.0,
+            },
+            frozenset({"n", "gate"}),
+            _gated_kl_chain,
+        ),
+    )
+}
+
+
+def resolve_parameters(name: str, overrides: Mapping[str, float] | None = None) -> Params:
+    """Defaults of preset ``name`` updated with ``overrides``, validated."""
+    if name not in PRESETS:
+        raise UnknownPreset(
+            f"no preset named {name!r}; known: {', '.join(sorted(PRESETS))}", loc=("name",)
+        )
+    preset = PRESETS[name]
+    params: Params = dict(preset.parameters)
+    for key, value in (overrides or {}).items():
+        if key not in params:
+            raise InvalidParameter(
+                f"unknown parameter {key!r} for {name!r}; known: {', '.join(params)}",
+                loc=(key,),
+            )
+        value = float(value)
+        if not np.isfinite(value):
+            raise InvalidParameter("must be finite", loc=(key,))
+        if key in preset.integers and value != int(value):
+            raise InvalidParameter(f"must be an integer, got {value!r}", loc=(key,))
+        params[key] = value
+    for key, value in params.items():
+        if key in _LENGTHS and value <= 0:
+            raise InvalidParameter(f"length must be positive, got {value!r}", loc=(key,))
+        if key in _SIDES and value not in (1.0, -1.0):
+            raise InvalidParameter(f"must be 1 or -1, got {value!r}", loc=(key,))
+    if "n" in params and not 2 <= params["n"] <= 20_000:
+        raise InvalidParameter("n must lie between 2 and 20000", loc=("n",))
+    if "gate" in params and not 0 <= params["gate"] < params["n"]:
+        raise InvalidParameter(f"gate must lie in [0, n) = [0, {int(params['n'])})", loc=("gate",))
+    return params
+
+
+def build_preset(
+    name: str, overrides: Mapping[str, float] | None = None, limits: Limits | None = None
+) -> Linkage:
+    """Build preset ``name`` with parameter ``overrides``.
+
+    Examples
+    --------
+    >>> lk = build_preset("four-bar", {"L2": 1.1})
+    >>> lk.bar_ids, round(float(lk.lengths[1]), 3)
+    (('L1', 'L2', 'L3'), 1.1)
+    """
+    params = resolve_parameters(name, overrides)
+    vertices, bars = PRESETS[name].build(params)
+    return build_linkage(2, vertices, bars, limits)

@@ -1,0 +1,305 @@
+"""First-order analysis: rank, zero modes, self-stresses, trivial motions, tangent form.
+
+Small linkages use a dense SVD of ``J`` (E_a, M). Large ones use shift-invert Lanczos
+(``eigsh``) on the symmetric augmented matrix ``[[0, J], [J^T, 0]]`` whose eigenvalues are
+``+-s_i`` (the singular values of ``J``) plus ``|M - E_a|`` zeros: working with it rather than
+``J^T J`` keeps the small singular values accurate to ``eps * s_max`` instead of
+``sqrt(eps) * s_max``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from engine.constraints import Constraints
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class TangentForm:
+    """The tangent form ``t(u)`` of a linkage with ``M - E = 1`` (paper, Appendix B).
+
+    ``t_i = det([e_i; J])``. ``direction`` is ``t / |t|`` (M,) with its true sign,
+    ``log10_magnitude`` is ``log10 |t|`` (``-inf`` at a critical point, where ``t = 0``),
+    ``orientation`` is the sign of ``det([w; J])`` for the reported unit zero mode ``w`` (+1, -1,
+    or 0 at a critical point). The sign depends on the order of coordinates and bars (vertex
+    order, then axis; bar order), as the paper notes.
+    """
+
+    direction: np.ndarray
+    log10_magnitude: float
+    orientation: int
+
+
+@dataclass(frozen=True)
+class RigidityResult:
+    """Outcome of :func:`first_order`.
+
+    Attributes
+    ----------
+    rank : int
+        Numerical rank of ``J``.
+    n_free : int
+        ``M``.
+    n_constraints : int
+        ``E_a``, the active bars (``J`` has one row each).
+    trivial_motions : int
+        Dimension of the rigid motions (0 when anything is fixed; 3 in 2D and 6 in 3D for a
+        generic free linkage, fewer when degenerate).
+    expected_dof : int
+        ``M - E_a - trivial_motions`` (the Maxwell count ``M - E`` with rigid motions removed).
+    dof : int
+        Number of nontrivial zero modes, ``M - rank - trivial_motions``.
+    critical : bool
+        ``rank < min(E_a, M - trivial_motions)``.
+    singular_values : (n,) float64
+        Descending. All of them for the dense method; for the sparse method the largest and
+        the smallest ones computed (``singular_values_complete`` is False).
+    zero_modes : (dof, M) float64
+        Orthonormal basis of the nontrivial zero modes (orthogonal to the rigid motions).
+    trivial_basis : (trivial_motions, M) float64
+        Orthonormal basis of the rigid motions.
+    self_stresses : (s, E) float64
+        Orthonormal basis of the left null space of ``J`` over *all* bars (0 on inert bars).
+    method : str
+        ``"dense-svd"`` or ``"sparse-eigsh"``.
+    tangent_form : TangentForm or None
+        Present when ``M - E_a == 1`` and nothing moves rigidly.
+    """
+
+    rank: int
+    n_free: int
+    n_constraints: int
+    trivial_motions: int
+    expected_dof: int
+    dof: int
+    critical: bool
+    singular_values: np.ndarray
+    singular_values_complete: bool
+    zero_modes: np.ndarray
+    trivial_basis: np.ndarray
+    self_stresses: np.ndarray
+    method: str
+    tangent_form: TangentForm | None
+    tolerances: Tolerances
+
+
+def trivial_motions(linkage: Linkage, positions: np.ndarray | None = None) -> np.ndarray:
+    """Orthonormal basis (t, M) of the infinitesimal rigid motions of a linkage with nothing
+    fixed; empty (0, M) as soon as any coordinate is fixed.
+
+    Candidates are the ``d`` translations and the ``d(d-1)/2`` rotations about the centroid;
+    their span is 3 (2D) or 6 (3D) generically, less when the vertices are collinear (3D: 5) or
+    coincide (translations only).
+    """
+    m = linkage.n_free
+    if linkage.anything_fixed or m == 0:
+        return np.zeros((0, m))
+    pos = linkage.positions if positions is None else positions
+    v, d = pos.shape
+    rel = pos - pos.mean(axis=0)
+    radius = np.sqrt(np.mean(np.einsum("ij,ij->i", rel, rel)))
+    cands = [np.tile(np.eye(d)[k], (v, 1)).ravel() / np.sqrt(v) for k in range(d)]
+    if radius > 0.0:
+        gens = [(0, 1)] if d == 2 else [(0, 1), (1, 2), (2, 0)]
+        for a, b in gens:
+            w = np.zeros((v, d))
+            w[:, a], w[:, b] = -rel[:, b], rel[:, a]
+            cands.append(w.ravel() / (radius * np.sqrt(v)))
+    mat = np.array(cands)  # (n_cand, M); nothing fixed, so all V*d coordinates are free
+    _, s, vt = np.linalg.svd(mat, full_matrices=False)
+    keep = s > 1e-9 * s[0]
+    return vt[keep]
+
+
+def _orthonormal_complement(basis: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the part of span(rows of ``within``) orthogonal to ``basis``."""
+    if within.shape[0] == 0 or basis.shape[0] == 0:
+        return within
+    proj = within - (within @ basis.T) @ basis
+    u, s, vt = np.linalg.svd(proj, full_matrices=False)
+    return vt[s > 0.5]
+
+
+def _dense_null_spaces(
+    jac: np.ndarray, rtol: float
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """rank, singular values, right null basis (k, M), left null basis (s, Ea)."""
+    ea, m = jac.shape
+    if ea == 0 or m == 0:
+        return 0, np.zeros(0), np.eye(m), np.eye(ea)
+    u, s, vt = np.linalg.svd(jac, full_matrices=True)
+    rank = int(np.sum(s > rtol * s[0])) if s[0] > 0 else 0
+    return rank, s, vt[rank:], u[:, rank:].T
+
+
+def _sparse_null_spaces(
+    jac: sp.csr_matrix, rtol: float
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """As :func:`_dense_null_spaces`, by shift-invert Lanczos on the augmented matrix."""
+    ea, m = jac.shape
+    n = ea + m
+    aug = sp.bmat([[None, jac], [jac.T, None]], format="csc")
+    s_max = float(spla.eigsh(aug, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0])
+    if s_max <= 0.0:
+        return 0, np.zeros(0), np.eye(m), np.eye(ea)
+    thresh = rtol * s_max
+    shift = -1e-3 * s_max
+    # The zero eigenspace has dimension (Ea - r) + (M - r) >= |M - Ea|; ask for more until some
+    # computed eigenvalue lies clearly above the threshold.
+    k = min(n - 1, abs(m - ea) + 8)
+    lu = spla.splu((aug - shift * sp.identity(n, format="csc")).tocsc())
+    op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
+    while True:
+        vals, vecs = spla.eigsh(aug, k=k, sigma=shift, which="LM", OPinv=op, tol=1e-12)
+        null = np.abs(vals) <= thresh
+        if not null.all() or k >= n - 1:
+            break
+        k = min(n - 1, 2 * k)
+    x = vecs[:, null]
+    left, right = _span_rows(x[:ea].T), _span_rows(x[ea:].T)
+    rank = m - right.shape[0]
+    small = np.sort(-vals[(~null) & (vals < 0)])  # the smallest nonzero singular values
+    zero_sv = np.linalg.norm(jac.T @ left.T, axis=0) if ea <= m else np.zeros(m - rank)
+    svals = np.concatenate([[s_max], small[::-1], np.sort(zero_sv)[::-1]])
+    return rank, svals, right, left
+
+
+def _span_rows(rows: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the row span of ``rows`` (rows that are numerically present)."""
+    if rows.shape[0] == 0:
+        return rows
+    _, s, vt = np.linalg.svd(rows, full_matrices=False)
+    return vt[s > 0.5]
+
+
+def _det_sign_log(lu: spla.SuperLU) -> tuple[int, float]:
+    """Sign and log10 |det| of a matrix from its sparse LU factors."""
+    diag = lu.U.diagonal()
+    if np.any(diag == 0):
+        return 0, -np.inf
+    sign = int(np.prod(np.sign(diag))) * _parity(lu.perm_r) * _parity(lu.perm_c)
+    return sign, float(np.sum(np.log10(np.abs(diag))))
+
+
+def _parity(perm: np.ndarray) -> int:
+    """+1 for an even permutation, -1 for an odd one."""
+    seen = np.zeros(len(perm), dtype=bool)
+    transpositions = 0
+    for start in range(len(perm)):
+        if seen[start]:
+            continue
+        length = 0
+        j = start
+        while not seen[j]:
+            seen[j] = True
+            j = perm[j]
+            length += 1
+        transpositions += length - 1
+    return -1 if transpositions % 2 else 1
+
+
+def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool) -> TangentForm:
+    """Tangent form ``t = det([w; J]) * [w; J]^{-1} e_1`` for ``J`` (M-1, M).
+
+    By linearity of the determinant in its first row, ``x . t = det([x; J])`` for every ``x``;
+    solving with one LU factorisation of the augmented matrix ``B = [w; J]`` gives ``t`` without
+    forming minors. ``w`` should have a component along the zero mode (the zero mode itself is
+    best conditioned).
+    """
+    m = jac.shape[1]
+    if critical:
+        return TangentForm(np.zeros(m), -np.inf, 0)
+    if sp.issparse(jac):
+        aug = sp.vstack([sp.csr_matrix(w.reshape(1, -1)), jac]).tocsc()
+        lu = spla.splu(aug)
+        sign, logdet = _det_sign_log(lu)
+        y = lu.solve(np.eye(1, m, 0).ravel())
+    else:
+        aug = np.vstack([w, jac])
+        lu_piv = sla.lu_factor(aug, check_finite=False)
+        diag = np.diag(lu_piv[0])
+        if np.any(diag == 0):
+            return TangentForm(np.zeros(m), -np.inf, 0)
+        piv_sign = -1 if np.sum(lu_piv[1] != np.arange(m)) % 2 else 1
+        sign = int(np.prod(np.sign(diag))) * piv_sign
+        logdet = float(np.sum(np.log10(np.abs(diag))))
+        y = sla.lu_solve(lu_piv, np.eye(1, m, 0).ravel())
+    norm_y = float(np.linalg.norm(y))
+    if sign == 0 or not np.isfinite(norm_y) or norm_y == 0.0:
+        return TangentForm(np.zeros(m), -np.inf, 0)
+    direction = sign * y / norm_y
+    orientation = int(np.sign(direction @ w)) if direction @ w != 0 else 0
+    return TangentForm(direction, logdet + np.log10(norm_y), orientation)
+
+
+def first_order(
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    sparse: bool | None = None,
+) -> RigidityResult:
+    """Rank, zero modes, self-stresses and trivial motions of ``J`` at the given positions.
+
+    The positions are taken as they are (no projection: see
+    :func:`engine.constraints.on_constraints`).
+
+    Parameters
+    ----------
+    sparse : bool, optional
+        Force the sparse (True) or dense (False) method; default by size.
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> r = first_order(build_preset("four-bar"))
+    >>> r.rank, r.dof, r.critical, r.self_stresses.shape
+    (3, 1, False, (0, 3))
+    """
+    tol = tolerances or Tolerances()
+    cons = Constraints(linkage)
+    u = linkage.coordinates()
+    use_sparse = cons.use_sparse if sparse is None else sparse
+    use_sparse = use_sparse and cons.n_constraints > 0 and cons.n_free > 2
+    jac = cons.jacobian(u, sparse=use_sparse)
+    if use_sparse:
+        rank, svals, right, left = _sparse_null_spaces(jac, tol.rank_rtol)
+        method = "sparse-eigsh"
+    else:
+        rank, svals, right, left = _dense_null_spaces(np.asarray(jac), tol.rank_rtol)
+        method = "dense-svd"
+
+    trivial = trivial_motions(linkage)
+    zero_modes = _orthonormal_complement(trivial, right)
+    m, ea, t = cons.n_free, cons.n_constraints, trivial.shape[0]
+    stresses = np.zeros((left.shape[0], linkage.n_bars))
+    stresses[:, cons.bars] = left
+
+    tform = None
+    if m - ea == 1 and t == 0:
+        critical = rank < ea
+        w = zero_modes[0] if zero_modes.shape[0] == 1 else right[0]
+        tform = tangent_form(jac, w, critical)
+
+    return RigidityResult(
+        rank=rank,
+        n_free=m,
+        n_constraints=ea,
+        trivial_motions=t,
+        expected_dof=m - ea - t,
+        dof=zero_modes.shape[0],
+        critical=rank < min(ea, m - t),
+        singular_values=svals,
+        singular_values_complete=not use_sparse,
+        zero_modes=zero_modes,
+        trivial_basis=trivial,
+        self_stresses=stresses,
+        method=method,
+        tangent_form=tform,
+        tolerances=tol,
+    )

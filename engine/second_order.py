@@ -1,0 +1,204 @@
+"""Second-order analysis at a critical point with one self-stress (paper, Sec. II B).
+
+``Q = Z H_sigma Z^T`` with ``H_sigma = sum_a sigma_a Hess(l_a^2)`` and ``Z`` (k, M) an
+orthonormal basis of the nontrivial zero modes. Note: the main text's ``Q`` has no factor 1/2;
+Appendix A's carries one. We use the main text's.
+
+- ``Q`` definite: ``rigid`` (the critical point is isolated, second-order rigid);
+- ``Q`` indefinite and nonsingular: ``branch``; the branch tangents are the real solutions of
+  ``c^T Q c = 0``;
+- several self-stresses, singular ``Q`` or a non-isolated critical set: ``degenerate`` with a
+  ``reason``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from engine.constraints import Constraints, project
+from engine.linkage import Linkage
+from engine.rigidity import RigidityResult, first_order
+from engine.tolerances import Tolerances
+
+Kind = Literal["regular", "branch", "rigid", "degenerate"]
+
+
+@dataclass(frozen=True)
+class SecondOrderResult:
+    """Outcome of :func:`second_order`.
+
+    Attributes
+    ----------
+    kind : {"regular", "branch", "rigid", "degenerate"}
+    reason : str or None
+        Why the point is degenerate.
+    self_stress : (E,) float64 or None
+        The unit self-stress over all bars.
+    zero_modes : (k, M) float64
+        Orthonormal zero modes; at a critical point with one stress they are the eigenvectors
+        of ``Q``, so ``q`` is diagonal, ordered by decreasing eigenvalue.
+    q : (k, k) float64 or None
+        ``Q`` in the basis ``zero_modes``.
+    q_eigenvalues : (k,) float64 or None
+        Descending.
+    tangents : (n, M) float64
+        Unit branch directions (lines: ``+t`` and ``-t`` are the two rays of each).
+    tangent_coefficients : (n, k) float64
+        The same directions as coefficients ``c`` on ``zero_modes``.
+    rigidity : RigidityResult
+        The first-order analysis it builds on.
+    """
+
+    kind: Kind
+    reason: str | None
+    self_stress: np.ndarray | None
+    zero_modes: np.ndarray
+    q: np.ndarray | None
+    q_eigenvalues: np.ndarray | None
+    tangents: np.ndarray
+    tangent_coefficients: np.ndarray
+    rigidity: RigidityResult
+
+
+def _hessian_norm_bound(hess: np.ndarray | sp.csr_matrix) -> float:
+    """Upper bound on ``||H||_2`` (largest absolute row sum; exact within a factor sqrt(M))."""
+    absolute = abs(hess)
+    sums = np.asarray(absolute.sum(axis=1)).ravel()
+    return float(sums.max()) if sums.size else 0.0
+
+
+def _normalise_sign(vectors: np.ndarray) -> np.ndarray:
+    """Flip each row so that its largest-magnitude entry is positive."""
+    if vectors.size == 0:
+        return vectors
+    idx = np.argmax(np.abs(vectors), axis=1)
+    signs = np.sign(vectors[np.arange(len(vectors)), idx])
+    signs[signs == 0] = 1.0
+    return vectors * signs[:, None]
+
+
+def _stays_critical(
+    linkage: Linkage, direction: np.ndarray, tol: Tolerances, scale: float
+) -> bool:
+    """True when stepping along ``direction`` and projecting back lands on critical points
+    again, for two step sizes and both signs: evidence of a non-isolated critical set."""
+    u0 = linkage.coordinates()
+    for h in (1e-2 * scale, 1e-3 * scale):
+        for sgn in (1.0, -1.0):
+            moved = linkage.with_positions(linkage.positions_of(u0 + sgn * h * direction))
+            proj = project(moved, tol)
+            if not proj.success:
+                return False
+            rig = first_order(linkage.with_positions(proj.positions), tol)
+            if not rig.critical:
+                return False
+    return True
+
+
+def branch_coefficients(eigenvalues: np.ndarray) -> np.ndarray:
+    """Real solutions ``c`` (unit, (n, k)) of ``sum_n lam_n c_n^2 = 0`` in the eigenbasis.
+
+    For each pair of a positive eigenvalue ``lam_p`` and a negative one ``lam_m``,
+    ``c = e_p / sqrt(lam_p) +- e_m / sqrt(-lam_m)`` (normalised). For ``k = 2`` these are the
+    two lines of the cone; for ``k > 2`` they are generators spanning it.
+    """
+    k = len(eigenvalues)
+    pos = np.flatnonzero(eigenvalues > 0)
+    neg = np.flatnonzero(eigenvalues < 0)
+    out = []
+    for p in pos:
+        for n in neg:
+            for sgn in (1.0, -1.0):
+                c = np.zeros(k)
+                c[p] = 1.0 / np.sqrt(eigenvalues[p])
+                c[n] = sgn / np.sqrt(-eigenvalues[n])
+                out.append(c / np.linalg.norm(c))
+    return np.array(out).reshape(-1, k)
+
+
+def second_order(
+    linkage: Linkage, tolerances: Tolerances | None = None, sparse: bool | None = None
+) -> SecondOrderResult:
+    """Classify the configuration (taken as given, see ``on_constraints``) to second order.
+
+    Examples
+    --------
+    >>> from engine.linkage import BarSpec, VertexSpec, build_linkage
+    >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [1, 0]),
+    ...                        VertexSpec("Q", [2, 0], True)],
+    ...                    [BarSpec("a", ["P", "A"]), BarSpec("b", ["A", "Q"])])
+    >>> second_order(lk).kind
+    'rigid'
+    """
+    tol = tolerances or Tolerances()
+    rig = first_order(linkage, tol, sparse=sparse)
+    empty = np.zeros((0, rig.n_free))
+
+    def result(kind: Kind, reason: str | None = None, **kw: object) -> SecondOrderResult:
+        base: dict[str, object] = {
+            "self_stress": None,
+            "zero_modes": _normalise_sign(rig.zero_modes),
+            "q": None,
+            "q_eigenvalues": None,
+            "tangents": empty,
+            "tangent_coefficients": np.zeros((0, rig.dof)),
+        }
+        base.update(kw)
+        return SecondOrderResult(kind=kind, reason=reason, rigidity=rig, **base)  # type: ignore[arg-type]
+
+    if not rig.critical:
+        return result("regular")
+    n_stress = rig.self_stresses.shape[0]
+    if n_stress != 1:
+        return result(
+            "degenerate",
+            f"{n_stress} self-stresses: the second-order condition is a system of "
+            f"{n_stress} quadratic equations, not classified",
+        )
+    if rig.dof == 0:
+        return result("degenerate", "critical with no nontrivial zero mode")
+
+    cons = Constraints(linkage)
+    sigma_full = _normalise_sign(rig.self_stresses)[0]
+    hess = cons.stress_hessian(sigma_full[cons.bars], sparse=sparse)
+    z = rig.zero_modes  # (k, M)
+    hz = hess @ z.T  # (M, k)
+    q = z @ hz
+    q = 0.5 * (q + q.T)
+    lam, vec = np.linalg.eigh(q)
+    order = np.argsort(lam)[::-1]
+    lam, vec = lam[order], vec[:, order]
+    modes = _normalise_sign(vec.T @ z)  # Q-eigenbasis, signs by convention
+    q_diag = modes @ (hess @ modes.T)
+    q_diag = 0.5 * (q_diag + q_diag.T)
+    lam = np.diag(q_diag).copy()
+    fields = {"self_stress": sigma_full, "zero_modes": modes, "q": q_diag, "q_eigenvalues": lam}
+
+    hnorm = _hessian_norm_bound(hess)
+    singular = np.abs(lam) <= tol.q_rtol * max(hnorm, np.finfo(float).tiny)
+    if singular.any():
+        scale = float(np.median(linkage.lengths)) if linkage.n_bars else 1.0
+        null_dir = modes[int(np.argmax(singular))]
+        if _stays_critical(linkage, null_dir, tol, scale):
+            reason = (
+                "non-isolated critical set: the configuration stays critical along a zero mode "
+                "on which Q vanishes"
+            )
+        else:
+            reason = "Q is singular on the zero modes: higher-order analysis is needed"
+        return result("degenerate", reason, **fields)
+    if np.all(lam > 0) or np.all(lam < 0):
+        return result("rigid", **fields)
+    coeffs = branch_coefficients(lam)
+    tangents = coeffs @ modes
+    signs = np.sign(tangents[np.arange(len(tangents)), np.argmax(np.abs(tangents), axis=1)])
+    return result(
+        "branch",
+        tangents=tangents * signs[:, None],
+        tangent_coefficients=coeffs * signs[:, None],
+        **fields,
+    )
