@@ -36,3 +36,7 @@ class UnknownPreset(EngineError):
 
 class InvalidParameter(EngineError):
     """A preset parameter is out of range or its lengths admit no configuration."""
+
+
+class InvalidTolerance(EngineError):
+    """A tolerance is out of range."""

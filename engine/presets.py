@@ -11,8 +11,10 @@ Geometry (all planar; angles in radians, measured from the +x axis):
   ``T{k}``; bars ``l{k}`` of length ``l`` from ``T{k}`` to ``T{k+1}``; rotor 0 at angle ``theta``.
 - ``gated-kl-chain``: the chain plus a slider pin ``G`` at ``P{gate} + (0, -D)`` (x fixed, y
   free) held by bar ``D`` from ``P{gate}``, a rocker ``L1`` from ``G`` to ``R`` and a bar ``L2``
-  from ``T{gate}`` to ``R``; the gate rotor at angle ``theta`` (or the first angle from there
-  where the gate assembles).
+  from ``T{gate}`` to ``R``; the gate rotor at angle ``theta``, the chain solved outwards.
+
+Every preset is assembled at ``theta`` or, where it does not assemble there, at the first angle
+after it (in steps of half a degree) where it does.
 
 Where two assemblies exist, ``side = +1`` takes the intersection to the left of the line from the
 first circle's centre to the second's, ``-1`` the other one.
@@ -29,6 +31,7 @@ from engine.errors import InvalidParameter, UnknownPreset
 from engine.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
 
 Params = dict[str, float]
+Specs = tuple[list[VertexSpec], list[BarSpec]]
 
 
 def circle_intersection(
@@ -53,72 +56,90 @@ def _polar(angle: float, radius: float) -> np.ndarray:
     return radius * np.array([np.cos(angle), np.sin(angle)])
 
 
-def _no_assembly(what: str) -> InvalidParameter:
-    return InvalidParameter(f"the lengths admit no assembly {what}", loc=("parameters",))
+def _first_assembly(
+    theta: float, attempt: Callable[[float], Specs | None], what: str
+) -> Specs:
+    """``attempt(angle)`` at ``theta``, else at the first angle after it (0.5 degree steps)
+    where the linkage assembles; a clear error when it assembles nowhere."""
+    for angle in theta + np.linspace(0.0, 2 * np.pi, 721)[:-1]:
+        specs = attempt(float(angle))
+        if specs is not None:
+            return specs
+    raise InvalidParameter(
+        f"the lengths admit no configuration: {what} assembles at no angle", loc=()
+    )
 
 
-def _four_bar(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+def _four_bar(p: Params) -> Specs:
     pin1, pin2 = np.zeros(2), np.array([p["a"], 0.0])
-    tip_a = _polar(p["theta"], p["L1"])
-    tip_b = circle_intersection(tip_a, p["L2"], pin2, p["L3"], p["side"])
-    if tip_b is None:
-        raise _no_assembly(f"at theta = {p['theta']:.6g}; try another theta")
-    vertices = [
-        VertexSpec("P1", pin1.tolist(), True),
-        VertexSpec("P2", pin2.tolist(), True),
-        VertexSpec("A", tip_a.tolist()),
-        VertexSpec("B", tip_b.tolist()),
-    ]
-    bars = [
-        BarSpec("L1", ("P1", "A"), p["L1"]),
-        BarSpec("L2", ("A", "B"), p["L2"]),
-        BarSpec("L3", ("P2", "B"), p["L3"]),
-    ]
-    return vertices, bars
+
+    def attempt(theta: float) -> Specs | None:
+        tip_a = _polar(theta, p["L1"])
+        tip_b = circle_intersection(tip_a, p["L2"], pin2, p["L3"], p["side"])
+        if tip_b is None:
+            return None
+        vertices = [
+            VertexSpec("P1", pin1.tolist(), True),
+            VertexSpec("P2", pin2.tolist(), True),
+            VertexSpec("A", tip_a.tolist()),
+            VertexSpec("B", tip_b.tolist()),
+        ]
+        bars = [
+            BarSpec("L1", ("P1", "A"), p["L1"]),
+            BarSpec("L2", ("A", "B"), p["L2"]),
+            BarSpec("L3", ("P2", "B"), p["L3"]),
+        ]
+        return vertices, bars
+
+    return _first_assembly(p["theta"], attempt, "the four-bar")
 
 
-def _three_rotor(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+def _three_rotor(p: Params) -> Specs:
     pins = [np.zeros(2), np.array([p["a"], 0.0])]
     pins.append(pins[1] + _polar(p["phi"], p["a"]))
-    tip_b = pins[1] + _polar(p["theta"], p["r2"])
-    tip_a = circle_intersection(tip_b, p["L1"], pins[0], p["r1"], p["side1"])
-    tip_c = circle_intersection(tip_b, p["L2"], pins[2], p["r3"], p["side3"])
-    if tip_a is None or tip_c is None:
-        raise _no_assembly(f"at theta = {p['theta']:.6g}; try another theta")
-    vertices = [VertexSpec(f"P{k + 1}", pins[k].tolist(), True) for k in range(3)] + [
-        VertexSpec("A", tip_a.tolist()),
-        VertexSpec("B", tip_b.tolist()),
-        VertexSpec("C", tip_c.tolist()),
-    ]
-    bars = [
-        BarSpec("r1", ("P1", "A"), p["r1"]),
-        BarSpec("r2", ("P2", "B"), p["r2"]),
-        BarSpec("r3", ("P3", "C"), p["r3"]),
-        BarSpec("L1", ("A", "B"), p["L1"]),
-        BarSpec("L2", ("B", "C"), p["L2"]),
-    ]
-    return vertices, bars
+
+    def attempt(theta: float) -> Specs | None:
+        tip_b = pins[1] + _polar(theta, p["r2"])
+        tip_a = circle_intersection(tip_b, p["L1"], pins[0], p["r1"], p["side1"])
+        tip_c = circle_intersection(tip_b, p["L2"], pins[2], p["r3"], p["side3"])
+        if tip_a is None or tip_c is None:
+            return None
+        vertices = [VertexSpec(f"P{k + 1}", pins[k].tolist(), True) for k in range(3)] + [
+            VertexSpec("A", tip_a.tolist()),
+            VertexSpec("B", tip_b.tolist()),
+            VertexSpec("C", tip_c.tolist()),
+        ]
+        bars = [
+            BarSpec("r1", ("P1", "A"), p["r1"]),
+            BarSpec("r2", ("P2", "B"), p["r2"]),
+            BarSpec("r3", ("P3", "C"), p["r3"]),
+            BarSpec("L1", ("A", "B"), p["L1"]),
+            BarSpec("L2", ("B", "C"), p["L2"]),
+        ]
+        return vertices, bars
+
+    return _first_assembly(p["theta"], attempt, "the three-rotor")
 
 
-def _chain_tips(p: Params, n: int, start: int, start_tip: np.ndarray) -> np.ndarray:
-    """Tips of a KL chain (n, 2) solved outwards from rotor ``start``."""
+def _chain_tips(p: Params, n: int, start: int, start_tip: np.ndarray) -> np.ndarray | None:
+    """Tips of a KL chain (n, 2) solved outwards from rotor ``start``; None if one is missing."""
     pins = np.column_stack([np.arange(n) * p["a"], np.zeros(n)])
     tips = np.empty((n, 2))
     tips[start] = start_tip
     for k in range(start + 1, n):
         tip = circle_intersection(tips[k - 1], p["l"], pins[k], p["r"], p["side"])
         if tip is None:
-            raise _no_assembly(f"for rotor {k} (need |r - l| <= |T{k - 1} - P{k}| <= r + l)")
+            return None
         tips[k] = tip
     for k in range(start - 1, -1, -1):
         tip = circle_intersection(tips[k + 1], p["l"], pins[k], p["r"], -p["side"])
         if tip is None:
-            raise _no_assembly(f"for rotor {k} (need |r - l| <= |T{k + 1} - P{k}| <= r + l)")
+            return None
         tips[k] = tip
     return tips
 
 
-def _chain_specs(p: Params, n: int, tips: np.ndarray) -> tuple[list[VertexSpec], list[BarSpec]]:
+def _chain_specs(p: Params, n: int, tips: np.ndarray) -> Specs:
     vertices = [VertexSpec(f"P{k}", [k * p["a"], 0.0], True) for k in range(n)]
     vertices += [VertexSpec(f"T{k}", tips[k].tolist()) for k in range(n)]
     bars = [BarSpec(f"r{k}", (f"P{k}", f"T{k}"), p["r"]) for k in range(n)]
@@ -126,38 +147,40 @@ def _chain_specs(p: Params, n: int, tips: np.ndarray) -> tuple[list[VertexSpec],
     return vertices, bars
 
 
-def _kl_chain(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+def _kl_chain(p: Params) -> Specs:
     n = int(p["n"])
-    tips = _chain_tips(p, n, 0, _polar(p["theta"], p["r"]))
-    return _chain_specs(p, n, tips)
+
+    def attempt(theta: float) -> Specs | None:
+        tips = _chain_tips(p, n, 0, _polar(theta, p["r"]))
+        return None if tips is None else _chain_specs(p, n, tips)
+
+    return _first_assembly(p["theta"], attempt, "the chain")
 
 
-def _gated_kl_chain(p: Params) -> tuple[list[VertexSpec], list[BarSpec]]:
+def _gated_kl_chain(p: Params) -> Specs:
     n, gate = int(p["n"]), int(p["gate"])
-    if gate >= n:
-        raise InvalidParameter(f"gate must be a rotor index below n = {n}", loc=("gate",))
     pin = np.array([gate * p["a"], 0.0])
     slider = pin + np.array([0.0, -p["D"]])
-    # Scan from theta for an angle at which the gate four-bar assembles.
-    for angle in p["theta"] + np.linspace(0.0, 2 * np.pi, 721)[:-1]:
-        tip = pin + _polar(angle, p["r"])
+
+    def attempt(theta: float) -> Specs | None:
+        tip = pin + _polar(theta, p["r"])
         rocker = circle_intersection(tip, p["L2"], slider, p["L1"], p["side"])
-        if rocker is not None:
-            break
-    else:
-        raise _no_assembly("for the gate four-bar at any angle of the gate rotor")
-    tips = _chain_tips(p, n, gate, tip)
-    vertices, bars = _chain_specs(p, n, tips)
-    vertices += [
-        VertexSpec("G", slider.tolist(), [True, False]),
-        VertexSpec("R", rocker.tolist()),
-    ]
-    bars += [
-        BarSpec("D", (f"P{gate}", "G"), p["D"]),
-        BarSpec("L1", ("G", "R"), p["L1"]),
-        BarSpec("L2", (f"T{gate}", "R"), p["L2"]),
-    ]
-    return vertices, bars
+        tips = None if rocker is None else _chain_tips(p, n, gate, tip)
+        if rocker is None or tips is None:
+            return None
+        vertices, bars = _chain_specs(p, n, tips)
+        vertices += [
+            VertexSpec("G", slider.tolist(), [True, False]),
+            VertexSpec("R", rocker.tolist()),
+        ]
+        bars += [
+            BarSpec("D", (f"P{gate}", "G"), p["D"]),
+            BarSpec("L1", ("G", "R"), p["L1"]),
+            BarSpec("L2", (f"T{gate}", "R"), p["L2"]),
+        ]
+        return vertices, bars
+
+    return _first_assembly(p["theta"], attempt, "the gated chain")
 
 
 @dataclass(frozen=True)
@@ -168,7 +191,7 @@ class Preset:
     description: str
     parameters: Mapping[str, float]
     integers: frozenset[str]
-    build: Callable[[Params], tuple[list[VertexSpec], list[BarSpec]]]
+    build: Callable[[Params], Specs]
 
 
 _LENGTHS = {"a", "L1", "L2", "L3", "r", "l", "r1", "r2", "r3", "D"}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from engine.errors import InvalidParameter
+from engine.errors import InvalidTolerance
 
 
 @dataclass(frozen=True)
@@ -32,4 +32,4 @@ class Tolerances:
         for name in ("rank_rtol", "residual_atol", "q_rtol"):
             value = getattr(self, name)
             if not (value > 0 and value < 1):
-                raise InvalidParameter(f"must lie in (0, 1), got {value!r}", loc=("tolerances", name))
+                raise InvalidTolerance(f"must lie in (0, 1), got {value!r}", loc=("tolerances", name))

@@ -1,0 +1,1 @@
+"""HTTP skin over the engine."""

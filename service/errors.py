@@ -1,0 +1,101 @@
+"""Every error leaves the service as ``application/problem+json`` (RFC 9457)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from engine.errors import (
+    EngineError,
+    InvalidLinkage,
+    InvalidParameter,
+    InvalidTolerance,
+    LimitExceeded,
+    NoNearbySolution,
+    UnknownPreset,
+)
+
+PROBLEM_JSON = "application/problem+json"
+log = logging.getLogger("service")
+
+# Engine error class -> (status, problem type, title, location prefix in the request)
+_ENGINE: dict[type[EngineError], tuple[int, str, str, tuple[str, ...]]] = {
+    InvalidLinkage: (422, "invalid-linkage", "Invalid linkage", ("body", "linkage")),
+    LimitExceeded: (422, "limit-exceeded", "Linkage too large", ("body", "linkage")),
+    NoNearbySolution: (
+        422,
+        "no-nearby-solution",
+        "No configuration near the given positions",
+        ("body", "linkage"),
+    ),
+    InvalidTolerance: (422, "invalid-tolerance", "Invalid tolerance", ("body",)),
+    InvalidParameter: (422, "invalid-parameter", "Invalid preset parameter", ("query",)),
+    UnknownPreset: (404, "unknown-preset", "Unknown preset", ("path",)),
+}
+
+
+def problem(
+    status: int, kind: str, title: str, detail: str, errors: Sequence[dict[str, Any]] = ()
+) -> JSONResponse:
+    body = {
+        "type": f"/problems/{kind}",
+        "title": title,
+        "status": status,
+        "detail": detail,
+        "errors": list(errors),
+    }
+    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON)
+
+
+def _loc_str(loc: Sequence[str | int]) -> str:
+    return ".".join(str(p) for p in loc)
+
+
+async def _validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    errors = [
+        {"loc": [p if isinstance(p, int) else str(p) for p in e.get("loc", ())], "msg": e["msg"]}
+        for e in exc.errors()
+    ]
+    first = errors[0] if errors else {"loc": [], "msg": "invalid request"}
+    detail = f"{_loc_str(first['loc'])}: {first['msg']}"
+    if len(errors) > 1:
+        detail += f" (and {len(errors) - 1} more)"
+    return problem(422, "validation-error", "Request validation failed", detail, errors)
+
+
+async def _engine(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, EngineError)
+    status, kind, title, prefix = next(
+        (v for cls, v in _ENGINE.items() if isinstance(exc, cls)),
+        (422, "invalid-input", "Invalid input", ("body",)),
+    )
+    loc = [*prefix, *exc.loc]
+    return problem(status, kind, title, f"{_loc_str(loc)}: {exc.message}", [
+        {"loc": loc, "msg": exc.message}
+    ])
+
+
+async def _http(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StarletteHTTPException)
+    title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
+    return problem(exc.status_code, f"http-{exc.status_code}", title, str(exc.detail))
+
+
+async def _unhandled(request: Request, exc: Exception) -> JSONResponse:
+    log.exception("unhandled error on %s %s", request.method, request.url.path)
+    return problem(500, "internal-error", "Internal error", "the service failed unexpectedly")
+
+
+def install(app: FastAPI) -> None:
+    """Register the problem+json handlers on ``app``."""
+    app.add_exception_handler(RequestValidationError, _validation)
+    app.add_exception_handler(EngineError, _engine)
+    app.add_exception_handler(StarletteHTTPException, _http)
+    app.add_exception_handler(Exception, _unhandled)

@@ -1,0 +1,26 @@
+"""ASGI app: ``service.main:app``."""
+
+from fastapi import FastAPI
+
+from engine import __version__
+from service import errors
+from service.routers import analysis, health, presets
+
+
+def create_app() -> FastAPI:
+    """Build the application (one per process; tests may build their own)."""
+    app = FastAPI(
+        title="Linkage topology service",
+        version=__version__,
+        description="Configuration-space topology of bar-and-joint linkages: first- and "
+        "second-order analysis at a configuration, presets from the paper. Errors are "
+        "application/problem+json (RFC 9457).",
+    )
+    errors.install(app)
+    app.include_router(health.router)
+    app.include_router(presets.router)
+    app.include_router(analysis.router)
+    return app
+
+
+app = create_app()

@@ -1,0 +1,16 @@
+"""Preset catalogue models."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel
+
+
+class PresetInfo(BaseModel):
+    name: str
+    description: str
+    parameters: dict[str, float]
+
+
+class Health(BaseModel):
+    status: str
+    version: str

@@ -1,0 +1,80 @@
+"""Hypothesis strategies and independent reference computations for the engine tests."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import assume
+from hypothesis import strategies as st
+
+from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+
+
+@st.composite
+def random_linkages(
+    draw: st.DrawFn,
+    dims: tuple[int, ...] = (2, 3),
+    min_vertices: int = 3,
+    max_vertices: int = 7,
+    allow_fixed: bool = True,
+    dof: int | None = None,
+) -> Linkage:
+    """Random linkage with pins, sliders and free vertices at random (generic) positions.
+
+    With ``dof`` set, exactly ``M - dof`` bars with a free end are drawn (``M`` free
+    coordinates), and at least one coordinate is fixed.
+    """
+    d = draw(st.sampled_from(dims))
+    v = draw(st.integers(min_vertices, max_vertices))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    pos = rng.normal(size=(v, d))
+    vertices = []
+    for k in range(v):
+        kind = rng.integers(0, 4) if allow_fixed else 0  # 0,1 free, 2 pinned, 3 slider
+        if kind == 2:
+            fixed: bool | list[bool] = True
+        elif kind == 3:
+            fixed = [bool(b) for b in rng.integers(0, 2, size=d)]
+        else:
+            fixed = False
+        vertices.append(VertexSpec(f"v{k}", pos[k].tolist(), fixed))
+    pairs = [(i, j) for i in range(v) for j in range(i + 1, v)]
+    if dof is None:
+        n_bars = draw(st.integers(1, len(pairs)))
+    else:
+        masks = [np.broadcast_to(np.asarray(vx.fixed, dtype=bool), (d,)) for vx in vertices]
+        pairs = [(i, j) for i, j in pairs if not (masks[i].all() and masks[j].all())]
+        m = int(sum((~mask).sum() for mask in masks))
+        n_bars = m - dof
+        assume(1 <= n_bars <= len(pairs) and m < v * d)
+    chosen = rng.choice(len(pairs), size=n_bars, replace=False)
+    bars = [BarSpec(f"b{k}", (f"v{pairs[c][0]}", f"v{pairs[c][1]}")) for k, c in enumerate(chosen)]
+    return build_linkage(d, vertices, bars)
+
+
+def squared_lengths_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
+    """l^2 of the active bars, computed bar by bar (independent of engine.constraints)."""
+    pos = linkage.positions_of(u)
+    out = []
+    for (i, j), active in zip(linkage.ends, linkage.active, strict=True):
+        if active:
+            out.append(float(np.sum((pos[i] - pos[j]) ** 2)))
+    return np.array(out)
+
+
+def nearest_solution(linkage: Linkage, u0: np.ndarray) -> np.ndarray:
+    """Nearest point to ``u0`` with l = L, by SLSQP (independent of engine.constraints)."""
+    from scipy.optimize import minimize
+
+    targets = linkage.lengths[linkage.active] ** 2
+
+    res = minimize(
+        lambda x: float(np.sum((x - u0) ** 2)),
+        u0,
+        jac=lambda x: 2 * (x - u0),
+        constraints=[{"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets}],
+        method="SLSQP",
+        options={"ftol": 1e-16, "maxiter": 500},
+    )
+    assert np.max(np.abs(squared_lengths_reference(linkage, res.x) - targets)) < 1e-10
+    return res.x
