@@ -176,12 +176,12 @@ def project(
     u0 = linkage.coordinates()
     u = u0.copy()
     start = cons.max_residual(u)
-    it = 0
+    iterations = 0
     message = "converged"
     if start > tol.residual_atol:
         g = cons.squared_lengths(u) - cons.targets
         cost = float(g @ g)
-        for it in range(1, max_iter + 1):
+        for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)
             step = _min_norm_step(cons.jacobian(u), -g)
             t = 1.0
             while t > 1e-10:
@@ -210,7 +210,7 @@ def project(
         residual=residual,
         input_residual=start,
         distance=float(np.linalg.norm(u - u0)),
-        iterations=it,
+        iterations=iterations,
     )
 
 

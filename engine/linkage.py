@@ -14,6 +14,9 @@ import numpy as np
 
 from engine.errors import InvalidLinkage, LimitExceeded
 
+#: Coordinates beyond this magnitude are refused: their squared distances would overflow.
+MAX_COORDINATE = 1e100
+
 
 @dataclass(frozen=True)
 class Limits:
@@ -78,7 +81,7 @@ class Linkage:
         index = np.full(self.fixed.shape, -1, dtype=np.int64)
         index[free] = np.arange(int(free.sum()), dtype=np.int64)
         # A bar between two fully fixed vertices is a constant: it constrains nothing.
-        fully_fixed = self.fixed.all(axis=1)
+        fully_fixed = np.asarray(self.fixed.all(axis=1), dtype=bool)
         active = ~(fully_fixed[self.ends[:, 0]] & fully_fixed[self.ends[:, 1]])
         object.__setattr__(self, "free_index", index)
         object.__setattr__(self, "active", active)
@@ -230,13 +233,19 @@ def build_linkage(
             raise InvalidLinkage(
                 f"position of {v.id!r} is not finite", loc=("vertices", k, "position")
             )
+        if np.any(np.abs(pos) > MAX_COORDINATE):
+            raise InvalidLinkage(
+                f"position of {v.id!r} has a coordinate beyond {MAX_COORDINATE:g} in magnitude "
+                "(squared lengths would overflow)",
+                loc=("vertices", k, "position"),
+            )
         positions[k] = pos
         fixed[k] = _fixed_mask(v.fixed, dimension, k)
 
     bar_index: dict[str, int] = {}
     ends = np.empty((len(bars), 2), dtype=np.int64)
     lengths = np.empty(len(bars))
-    fully_fixed = fixed.all(axis=1)
+    fully_fixed = np.asarray(fixed.all(axis=1), dtype=bool)
     for k, b in enumerate(bars):
         if b.id in bar_index:
             raise InvalidLinkage(f"duplicate bar id {b.id!r}", loc=("bars", k, "id"))
@@ -264,8 +273,11 @@ def build_linkage(
             lengths[k] = current
             continue
         length = float(b.length)
-        if not np.isfinite(length):
-            raise InvalidLinkage(f"length of {b.id!r} is not finite", loc=("bars", k, "length"))
+        if not np.isfinite(length) or length > 2 * MAX_COORDINATE:
+            raise InvalidLinkage(
+                f"length of {b.id!r} is not finite or beyond {2 * MAX_COORDINATE:g}",
+                loc=("bars", k, "length"),
+            )
         if length <= 0.0:
             raise InvalidLinkage(
                 f"length of {b.id!r} must be positive, got {length!r}",

@@ -211,8 +211,9 @@ PRESETS: dict[str, Preset] = {
         ),
         Preset(
             "three-rotor",
-            "Three rotors r1, r2, r3 on pins P1 = (0,0), P2 = (a,0), P3 = P2 + a(cos phi, sin phi), "
-            "tips joined by couplers L1 (A-B) and L2 (B-C); middle rotor at angle theta. All "
+            "Three rotors r1, r2, r3 on pins P1 = (0,0), P2 = (a,0), "
+            "P3 = P2 + a(cos phi, sin phi), tips joined by couplers L1 (A-B) and L2 (B-C); middle "
+            "rotor at angle theta. All "
             "lengths equal and phi off the line give the paper's twelve branch points.",
             {
                 "a": 1.0,

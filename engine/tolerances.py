@@ -21,7 +21,7 @@ class Tolerances:
         ``residual_atol`` of its target (absolute, in length units).
     q_rtol : float
         An eigenvalue ``lam`` of the second-order form ``Q`` counts as zero when
-        ``|lam| <= q_rtol * ||H_sigma||_2`` (relative to the stress-contracted Hessian).
+        ``|lam| <= q_rtol * ||H_sigma||`` (relative to the stress-contracted Hessian's norm).
     """
 
     rank_rtol: float = 1e-8
@@ -32,4 +32,6 @@ class Tolerances:
         for name in ("rank_rtol", "residual_atol", "q_rtol"):
             value = getattr(self, name)
             if not (value > 0 and value < 1):
-                raise InvalidTolerance(f"must lie in (0, 1), got {value!r}", loc=("tolerances", name))
+                raise InvalidTolerance(
+                    f"must lie in (0, 1), got {value!r}", loc=("tolerances", name)
+                )

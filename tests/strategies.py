@@ -68,11 +68,12 @@ def nearest_solution(linkage: Linkage, u0: np.ndarray) -> np.ndarray:
 
     targets = linkage.lengths[linkage.active] ** 2
 
+    constraint = {"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets}
     res = minimize(
         lambda x: float(np.sum((x - u0) ** 2)),
         u0,
         jac=lambda x: 2 * (x - u0),
-        constraints=[{"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets}],
+        constraints=[constraint],
         method="SLSQP",
         options={"ftol": 1e-16, "maxiter": 500},
     )

@@ -1,0 +1,123 @@
+"""The service as deployed: a real uvicorn process on a loopback port."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import httpx
+
+ROOT = Path(__file__).resolve().parents[2]
+HOST = "127.0.0.1"
+STARTUP_TIMEOUT = 20.0
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((HOST, 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until_ready(
+    client: httpx.Client, proc: subprocess.Popen[bytes], stderr_path: Path
+) -> None:
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while True:
+        if proc.poll() is not None:
+            raise AssertionError(
+                f"uvicorn exited with {proc.returncode} before it answered /health:\n"
+                + stderr_path.read_text(errors="replace")
+            )
+        try:
+            if client.get("/health", timeout=1.0).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        if time.monotonic() > deadline:
+            raise AssertionError(
+                f"uvicorn did not answer /health within {STARTUP_TIMEOUT} s:\n"
+                + stderr_path.read_text(errors="replace")
+            )
+        time.sleep(0.1)
+
+
+def stop(proc: subprocess.Popen[bytes]) -> None:
+    if proc.poll() is not None:
+        return
+    proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=5)
+
+
+def test_uvicorn_serves_presets_and_analysis() -> None:
+    port = free_port()
+    base_url = f"http://{HOST}:{port}"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    with tempfile.TemporaryDirectory() as tmp:
+        stderr_path = Path(tmp) / "uvicorn.stderr"
+        with stderr_path.open("wb") as stderr:
+            proc = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "uvicorn",
+                    "service.main:app",
+                    "--host",
+                    HOST,
+                    "--port",
+                    str(port),
+                    "--log-level",
+                    "warning",
+                ],
+                cwd=ROOT,
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=stderr,
+            )
+        # trust_env=False: never route loopback traffic through a proxy from the environment.
+        try:
+            with httpx.Client(base_url=base_url, trust_env=False, timeout=10.0) as client:
+                wait_until_ready(client, proc, stderr_path)
+
+                r = client.get("/v1/presets")
+                assert r.status_code == 200, r.text
+                names = {p["name"] for p in r.json()}
+                assert {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"} <= names
+
+                r = client.get("/v1/presets/four-bar")
+                assert r.status_code == 200, r.text
+                linkage = r.json()
+                assert len(linkage["vertices"]) == 4 and len(linkage["bars"]) == 3
+
+                r = client.post("/v1/analysis/rigidity", json={"linkage": linkage})
+                assert r.status_code == 200, r.text
+                assert r.headers["content-type"].startswith("application/json")
+                result = r.json()
+                assert result["dof"] == 1
+                assert result["critical"] is False
+                assert result["rank"] == 3
+                assert result["trivial_motions"] == 0
+                assert len(result["zero_modes"]) == 1
+
+                linkage["bars"][0]["ends"][1] = "nowhere"
+                r = client.post("/v1/analysis/rigidity", json={"linkage": linkage})
+                assert r.status_code == 422, r.text
+                assert r.headers["content-type"].startswith("application/problem+json")
+                problem = r.json()
+                assert problem["status"] == 422
+                assert problem["type"] and problem["title"] and problem["detail"]
+                assert problem["errors"][0]["loc"] == ["body", "linkage", "bars", 0, "ends", 1]
+
+                assert client.get("/health").status_code == 200
+        finally:
+            stop(proc)
+        assert proc.returncode is not None

@@ -1,0 +1,22 @@
+"""Static checks run with the test suite: ruff on the code, mypy on engine/ and service/."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(args, cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def test_ruff():
+    res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts")
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_mypy():
+    res = run(sys.executable, "-m", "mypy", "engine", "service")
+    assert res.returncode == 0, res.stdout + res.stderr
