@@ -149,6 +149,28 @@ def _min_norm_step(jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray) -> np.ndarr
     return np.linalg.lstsq(jac, rhs, rcond=None)[0]
 
 
+def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
+    """Nudge the free ends of bars whose ends coincide but whose target length is positive.
+
+    There ``J``'s row is exactly zero, so no Gauss-Newton step can move the ends apart; a tiny
+    seeded perturbation (``1e-6`` of the target length) breaks the symmetry reproducibly.
+    """
+    stuck = np.flatnonzero(
+        (np.einsum("ij,ij->i", *(2 * [cons.bar_vectors(u)])) == 0) & (cons.targets > 0)
+    )
+    if stuck.size == 0:
+        return u
+    rng = np.random.default_rng(0)
+    fi = cons.linkage.free_index
+    u = u.copy()
+    for end in (cons._i[stuck], cons._j[stuck]):
+        idx = fi[end].ravel()
+        scale = np.repeat(np.sqrt(cons.targets[stuck]), cons.linkage.dimension)
+        keep = idx >= 0
+        u[idx[keep]] += 1e-6 * scale[keep] * rng.normal(size=int(keep.sum()))
+    return u
+
+
 def project(
     linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60
 ) -> ProjectionResult:
@@ -179,6 +201,7 @@ def project(
     iterations = 0
     message = "converged"
     if start > tol.residual_atol:
+        u = _unstick(cons, u)
         g = cons.squared_lengths(u) - cons.targets
         cost = float(g @ g)
         for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -41,7 +41,12 @@ _ENGINE: dict[type[EngineError], tuple[int, str, str, tuple[str, ...]]] = {
 
 
 def problem(
-    status: int, kind: str, title: str, detail: str, errors: Sequence[dict[str, Any]] = ()
+    status: int,
+    kind: str,
+    title: str,
+    detail: str,
+    errors: Sequence[dict[str, Any]] = (),
+    headers: Mapping[str, str] | None = None,
 ) -> JSONResponse:
     body = {
         "type": f"/problems/{kind}",
@@ -50,7 +55,7 @@ def problem(
         "detail": detail,
         "errors": list(errors),
     }
-    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON)
+    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON, headers=headers)
 
 
 def _loc_str(loc: Sequence[str | int]) -> str:
@@ -85,7 +90,9 @@ async def _engine(request: Request, exc: Exception) -> JSONResponse:
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
-    return problem(exc.status_code, f"http-{exc.status_code}", title, str(exc.detail))
+    return problem(
+        exc.status_code, f"http-{exc.status_code}", title, str(exc.detail), headers=exc.headers
+    )
 
 
 async def _unhandled(request: Request, exc: Exception) -> JSONResponse:

@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+    WrapValidator,
+)
+from pydantic_core import PydanticCustomError
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
@@ -18,6 +27,19 @@ BarValues = dict[str, float]
 """Per-bar values ``{bar_id: value}``."""
 
 
+def _one_fixed_error(value: Any, handler: ValidatorFunctionWrapHandler) -> Any:
+    """Report a bad ``fixed`` once, at the field, instead of once per union member."""
+    try:
+        return handler(value)
+    except ValidationError:
+        raise PydanticCustomError(
+            "fixed_type", "must be a boolean or a list of booleans, one per axis"
+        ) from None
+
+
+Fixed = Annotated[StrictBool | list[StrictBool], WrapValidator(_one_fixed_error)]
+
+
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -25,7 +47,7 @@ class Strict(BaseModel):
 class Vertex(Strict):
     id: Ident
     position: list[Finite] = Field(min_length=1, max_length=3, description="[x, y] or [x, y, z]")
-    fixed: StrictBool | list[StrictBool] = Field(
+    fixed: Fixed = Field(
         False,
         description="false (free), true (pinned) or one boolean per axis (a slider that moves "
         "only along its free axes)",

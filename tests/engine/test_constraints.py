@@ -122,6 +122,18 @@ def test_projection_from_the_paper_example_positions():
     np.testing.assert_allclose(at.positions[1], np.array([0.309, 0.951]) / np.hypot(0.309, 0.951))
 
 
+def test_projection_separates_coincident_ends():
+    """At coincident ends J's row is zero; the projection still finds the nearest solution
+    (each end moves half the length, total displacement L / sqrt(2))."""
+    lk = build_linkage(
+        2, [VertexSpec("a", [0, 0]), VertexSpec("b", [0, 0])], [BarSpec("ab", ("a", "b"), 1.0)]
+    )
+    res = project(lk)
+    assert res.success
+    assert abs(np.linalg.norm(res.positions[0] - res.positions[1]) - 1.0) <= 1e-9
+    assert abs(res.distance - 1 / np.sqrt(2)) <= 1e-5
+
+
 def test_infeasible_lengths_fail_clearly():
     lk = build_linkage(
         2,

@@ -305,14 +305,8 @@ def test_position_as_string(client: Any, linkage: dict[str, Any], url: str) -> N
 def test_fixed_as_string(client: Any, linkage: dict[str, Any], url: str) -> None:
     linkage["vertices"][2]["fixed"] = "yes"
     r = client.post(url, json={"linkage": linkage})
-    body = expect(client, r, None)
-    field: Loc = ["body", "linkage", "vertices", 2, "fixed"]
-    # ``fixed`` is a union (bool | list[bool]): pydantic reports one error per member, and
-    # appends the member's name ("bool", "list[bool]") after the field.
-    assert body["errors"], body
-    for e in body["errors"]:
-        assert e["loc"][: len(field)] == field, e
-        assert len(e["loc"]) <= len(field) + 1, e
+    body = expect(client, r, ["body", "linkage", "vertices", 2, "fixed"])
+    assert len(body["errors"]) == 1 and "boolean" in body["errors"][0]["msg"]
 
 
 @endpoints
@@ -426,6 +420,7 @@ def test_preset_integer_parameter_not_integer(client: Any) -> None:
 def test_get_on_post_route(client: Any, url: str) -> None:
     r = client.get(url)
     expect(client, r, None, status=405)
+    assert r.headers["allow"] == "POST"  # RFC 9110: a 405 names the allowed methods
 
 
 @pytest.mark.parametrize("method", ["PUT", "DELETE"])
