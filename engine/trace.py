@@ -1,0 +1,281 @@
+"""Predictor-corrector tracing of one-degree-of-freedom configuration spaces.
+
+Along a curve ``l(u) = L`` (``M - E = 1``) the unit tangent ``t`` solves ``[t_prev; J] t = e_1``
+(normalised): one LU factorisation of ``J`` augmented by the previous tangent gives the tangent
+with a continued orientation, and ``det([t_prev; J])`` whose sign flips when the path crosses a
+critical point (a branch point passed along a smooth branch: the tangent form ``t(u)`` reverses
+there, paper Appendix B). The predictor steps along ``t``; the corrector is Newton in the
+hyperplane orthogonal to ``t`` through the predicted point, reusing the same factorisation
+(chord Newton). Steps adapt so that the predictor's largest bar strain stays below
+``strain_tol``, the corrected residual below ``residual_atol``, and no step exceeds ``step_max``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from engine.constraints import Constraints
+from engine.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class TraceOptions:
+    """Controls of the tracer.
+
+    Attributes
+    ----------
+    strain_tol : float
+        Largest relative bar strain ``|l - L| / L`` allowed at a predicted point.
+    step_max : float or None
+        Largest distance between consecutive points (free coordinates); default a tenth of
+        the median bar length. Consecutive points are never farther apart than this.
+    max_points : int
+        Budget of points for one curve.
+    max_turn : float
+        Largest angle (radians) between consecutive tangents.
+    """
+
+    strain_tol: float = 1e-2
+    step_max: float | None = None
+    max_points: int = 20_000
+    max_turn: float = 0.35
+
+    def resolved_step_max(self, cons: Constraints) -> float:
+        if self.step_max is not None:
+            return self.step_max
+        return 0.1 * float(np.median(cons.linkage.lengths[cons.bars]))
+
+
+class Factor:
+    """LU of a square matrix (dense or sparse) with solves and the sign of its determinant."""
+
+    def __init__(self, mat: np.ndarray | sp.spmatrix) -> None:
+        self.sparse = sp.issparse(mat)
+        self.ok = True
+        self.sign = 0
+        self.logdet = -np.inf
+        try:
+            if self.sparse:
+                self._lu = spla.splu(sp.csc_matrix(mat))
+                diag = self._lu.U.diagonal()
+                perm = _parity(self._lu.perm_r) * _parity(self._lu.perm_c)
+            else:
+                self._lu_piv = sla.lu_factor(mat, check_finite=False)
+                diag = np.diag(self._lu_piv[0])
+                n = len(diag)
+                perm = -1 if np.sum(self._lu_piv[1] != np.arange(n)) % 2 else 1
+        except (RuntimeError, ValueError, sla.LinAlgError):
+            self.ok = False
+            return
+        if np.any(diag == 0) or not np.all(np.isfinite(diag)):
+            self.ok = False
+            return
+        self.sign = int(np.prod(np.sign(diag))) * perm
+        self.logdet = float(np.sum(np.log(np.abs(diag))))
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self.sparse:
+            return self._lu.solve(rhs)
+        return sla.lu_solve(self._lu_piv, rhs, check_finite=False)
+
+
+def _parity(perm: np.ndarray) -> int:
+    """+1 for an even permutation, -1 for an odd one (cycle count, vectorised per sweep)."""
+    perm = np.asarray(perm)
+    seen = np.zeros(len(perm), dtype=bool)
+    cycles = 0
+    for start in np.flatnonzero(~seen):
+        if seen[start]:
+            continue
+        cycles += 1
+        j = start
+        while not seen[j]:
+            seen[j] = True
+            j = perm[j]
+    return -1 if (len(perm) - cycles) % 2 else 1
+
+
+#: Above this many free coordinates the augmented matrix is factorised with sparse LU (for LU,
+#: unlike SVD, sparse wins early: the Jacobians of chains are banded).
+SPARSE_LU_MIN_FREE = 48
+
+
+def augmented(cons: Constraints, u: np.ndarray, row: np.ndarray) -> np.ndarray | sp.spmatrix:
+    """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage."""
+    jac = cons.jacobian(u, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
+    if sp.issparse(jac):
+        return sp.vstack([sp.csr_matrix(row.reshape(1, -1)), jac]).tocsc()
+    return np.vstack([row, jac])
+
+
+@dataclass(frozen=True)
+class TangentInfo:
+    """Unit tangent at ``u`` oriented along ``t_prev``, and ``det([t_prev; J])``."""
+
+    tangent: np.ndarray
+    sign: int
+    logdet: float
+    factor: Factor
+
+
+def tangent_at(cons: Constraints, u: np.ndarray, t_prev: np.ndarray) -> TangentInfo | None:
+    """Tangent continued from ``t_prev``; None where ``[t_prev; J]`` is singular (at a
+    critical point, or with ``t_prev`` orthogonal to the curve)."""
+    fac = Factor(augmented(cons, u, t_prev))
+    if not fac.ok:
+        return None
+    y = fac.solve(np.eye(1, cons.n_free, 0).ravel())
+    norm = float(np.linalg.norm(y))
+    if not np.isfinite(norm) or norm == 0.0:
+        return None
+    return TangentInfo(y / norm, fac.sign, fac.logdet, fac)
+
+
+def correct(
+    cons: Constraints,
+    v: np.ndarray,
+    t: np.ndarray,
+    tol: Tolerances,
+    factor: Factor | None = None,
+    max_iter: int = 12,
+) -> tuple[np.ndarray, bool, int]:
+    """Newton in the hyperplane ``{w : t.(w - v) = 0}`` onto ``l(w) = L``.
+
+    Solves ``[t; J] dw = [0; -(l^2 - L^2)]``; with ``factor`` (of ``[t; J]`` at a nearby
+    point) the iteration is chord Newton (no refactorisation), otherwise it refactors at
+    ``v`` once. Returns the point, whether ``max|l - L| <= residual_atol``, and the iterations.
+    """
+    fac = factor if factor is not None else Factor(augmented(cons, v, t))
+    if not fac.ok:
+        return v, False, 0
+    w = v.copy()
+    prev = np.inf
+    for it in range(1, max_iter + 1):
+        g = cons.squared_lengths(w) - cons.targets
+        res = cons.max_residual(w)
+        if res <= tol.residual_atol:
+            return w, True, it - 1
+        norm = float(np.linalg.norm(g))
+        if norm > 0.7 * prev:  # not contracting: leave it to the caller to shrink the step
+            return w, False, it
+        prev = norm
+        w = w + fac.solve(np.concatenate([[0.0], -g]))
+    return w, cons.max_residual(w) <= tol.residual_atol, max_iter
+
+
+@dataclass
+class Curve:
+    """A traced curve: points (n, M), unit tangents (n, M), ``det([t_prev; J])`` signs and
+    ``log|det|`` per point, and why tracing stopped."""
+
+    points: list[np.ndarray] = field(default_factory=list)
+    tangents: list[np.ndarray] = field(default_factory=list)
+    signs: list[int] = field(default_factory=list)
+    logdets: list[float] = field(default_factory=list)
+    stop: str = ""
+    stop_index: int | None = None
+
+    def as_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.points), np.array(self.tangents)
+
+
+StopCheck = Callable[[np.ndarray, np.ndarray, np.ndarray], str | None]
+"""``check(u_prev, u_new, t_new)`` returns a reason to stop after accepting ``u_new``."""
+
+
+def trace_curve(
+    cons: Constraints,
+    u0: np.ndarray,
+    t0: np.ndarray,
+    tol: Tolerances,
+    options: TraceOptions,
+    stop: StopCheck | None = None,
+    close: bool = True,
+    min_arc_to_close: float | None = None,
+) -> Curve:
+    """Trace from ``u0`` (on the constraints) in direction ``t0`` until the curve closes,
+    ``stop`` says so, the budget runs out, or the step underflows.
+
+    The step is halved when the predictor's strain exceeds ``strain_tol``, the corrector
+    fails, or the tangent turns by more than ``max_turn``; it grows by 1.5 after easy steps.
+    """
+    h_max = options.resolved_step_max(cons)
+    h_min = 1e-9 * h_max
+    lengths = cons.linkage.lengths[cons.bars]
+    curve = Curve()
+    info = tangent_at(cons, u0, t0 / np.linalg.norm(t0))
+    if info is None:
+        curve.points, curve.tangents = [u0], [t0 / np.linalg.norm(t0)]
+        curve.signs, curve.logdets = [0], [-np.inf]
+        curve.stop = "singular start"
+        return curve
+    u, t = u0, info.tangent
+    curve.points.append(u)
+    curve.tangents.append(t)
+    curve.signs.append(info.sign)
+    curve.logdets.append(info.logdet)
+    h = 0.25 * h_max
+    arc = 0.0
+    close_after = 4 * h_max if min_arc_to_close is None else min_arc_to_close
+    fac = info.factor
+    while len(curve.points) < options.max_points:
+        if h < h_min:
+            curve.stop = "step underflow"
+            return curve
+        v = u + h * t
+        strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths) / lengths))
+        if strain > options.strain_tol:
+            h *= 0.5
+            continue
+        w, ok, iters = correct(cons, v, t, tol, factor=fac)
+        if not ok:
+            w, ok, iters = correct(cons, v, t, tol)
+        if not ok or np.linalg.norm(w - v) > 0.5 * h:
+            h *= 0.5
+            continue
+        nxt = tangent_at(cons, w, t)
+        if nxt is None or nxt.tangent @ t < np.cos(options.max_turn):
+            h *= 0.5
+            continue
+        step = float(np.linalg.norm(w - u))
+        if step > h_max:
+            h *= 0.5
+            continue
+        arc += step
+        curve.points.append(w)
+        curve.tangents.append(nxt.tangent)
+        curve.signs.append(nxt.sign)
+        curve.logdets.append(nxt.logdet)
+        reason = stop(u, w, nxt.tangent) if stop is not None else None
+        if reason is not None:
+            curve.stop = reason
+            return curve
+        if close and arc > close_after and _passes_near(u, w, u0, 0.5 * h_max):
+            curve.stop = "closed"
+            return curve
+        u, t, fac = w, nxt.tangent, nxt.factor
+        h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
+    curve.stop = "max points"
+    return curve
+
+
+def _passes_near(a: np.ndarray, b: np.ndarray, target: np.ndarray, radius: float) -> bool:
+    """True when the segment ``[a, b]`` passes within ``radius`` of ``target``."""
+    ab = b - a
+    denom = float(ab @ ab)
+    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
+    return float(np.linalg.norm(a + s * ab - target)) <= radius
+
+
+def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the segment ``[a, b]``."""
+    ab = b - a
+    denom = float(ab @ ab)
+    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
+    return float(np.linalg.norm(a + s * ab - target))
