@@ -142,11 +142,22 @@ class ProjectionResult:
     iterations: int
 
 
-def _min_norm_step(jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
-    """Minimum-norm least-squares solution of ``J du = rhs``."""
+#: Singular values below this fraction of the largest are left out of Gauss-Newton steps: near a
+#: critical configuration they would turn the step into a huge move along a near-null direction.
+STEP_RCOND = 1e-7
+
+
+def _min_norm_step(
+    jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray, rcond: float = STEP_RCOND
+) -> np.ndarray:
+    """Minimum-norm least-squares solution of ``J du = rhs`` with small singular values cut
+    (dense: truncated SVD; sparse: LSMR with a matching Tikhonov damping)."""
     if sp.issparse(jac):
-        return spla.lsmr(jac, rhs, atol=1e-14, btol=1e-14, maxiter=20 * sum(jac.shape))[0]
-    return np.linalg.lstsq(jac, rhs, rcond=None)[0]
+        scale = float(np.sqrt(abs(jac).sum(axis=0).max() * abs(jac).sum(axis=1).max()))
+        return spla.lsmr(
+            jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=20 * sum(jac.shape)
+        )[0]
+    return np.linalg.lstsq(jac, rhs, rcond=rcond)[0]
 
 
 def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
@@ -169,6 +180,58 @@ def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
         keep = idx >= 0
         u[idx[keep]] += 1e-6 * scale[keep] * rng.normal(size=int(keep.sum()))
     return u
+
+
+def _line_search(
+    cons: Constraints, u: np.ndarray, step: np.ndarray, cost: float
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Backtracking on ``||l^2 - L^2||^2`` along ``step``: the new point, residual, cost."""
+    t = 1.0
+    while t > 1e-10:
+        trial = u + t * step
+        g_trial = cons.squared_lengths(trial) - cons.targets
+        cost_trial = float(g_trial @ g_trial)
+        if cost_trial < cost:
+            return trial, g_trial, cost_trial
+        t *= 0.5
+    return None
+
+
+def _escape(
+    cons: Constraints, u: np.ndarray, g: np.ndarray, cost: float
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A step along a near-null direction ``z`` of ``J`` on which the cost decreases.
+
+    ``f`` is quadratic, so ``f(u + s z) = f(u) + s J z + s^2 q`` with ``q = f(u+z) - f(u) - Jz``
+    exactly; for ``J z ~ 0`` the cost ``|g + s^2 q|^2`` is least at ``s^2 = -(g.q)/(q.q)``.
+    Candidates are the eigenvectors of ``Z H_g Z^T`` (``H_g = sum_a g_a Hess(l_a^2)``) on the
+    near-null space ``Z``, most negative curvature first. Dense linkages only.
+    """
+    if cons.use_sparse or cons.n_free == 0:
+        return None
+    jac = cons.jacobian(u, sparse=False)
+    _, s, vt = np.linalg.svd(jac, full_matrices=True)
+    s_full = np.zeros(cons.n_free)
+    s_full[: s.size] = s
+    z = vt[s_full <= 1e-3 * max(float(s_full.max()), 1e-300)]
+    if z.shape[0] == 0:
+        return None
+    curv = z @ cons.stress_hessian(g, sparse=False) @ z.T
+    lam, vec = np.linalg.eigh(0.5 * (curv + curv.T))
+    best = None
+    f0 = cons.squared_lengths(u)
+    for k in np.argsort(lam):
+        d = vec[:, k] @ z
+        q = cons.squared_lengths(u + d) - f0 - jac @ d
+        gq, qq = float(g @ q), float(q @ q)
+        if gq >= 0 or qq == 0:
+            continue
+        trial = u + np.sqrt(-gq / qq) * d
+        g_trial = cons.squared_lengths(trial) - cons.targets
+        cost_trial = float(g_trial @ g_trial)
+        if cost_trial < cost and (best is None or cost_trial < best[2]):
+            best = (trial, g_trial, cost_trial)
+    return best
 
 
 def project(
@@ -204,21 +267,30 @@ def project(
         u = _unstick(cons, u)
         g = cons.squared_lengths(u) - cons.targets
         cost = float(g @ g)
+        escapes = slow = 0
         for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)
-            step = _min_norm_step(cons.jacobian(u), -g)
-            t = 1.0
-            while t > 1e-10:
-                trial = u + t * step
-                g_trial = cons.squared_lengths(trial) - cons.targets
-                cost_trial = float(g_trial @ g_trial)
-                if cost_trial < cost:
-                    break
-                t *= 0.5
-            else:
+            jac = cons.jacobian(u)
+            found = _line_search(cons, u, _min_norm_step(jac, -g), cost)
+            if (found is None or found[2] > 0.5 * cost) and escapes < 8:
+                # Poor progress: near a critical configuration a near-null direction dominates
+                # the step. Try steps that ignore it (fix the rest of the residual first), and
+                # leaving along negative curvature of the cost; keep the best.
+                escapes += 1
+                tries = [_line_search(cons, u, _min_norm_step(jac, -g, rc), cost)
+                         for rc in (1e-4, 1e-2)] if not cons.use_sparse else []
+                tries += [found, _escape(cons, u, g, cost)]
+                done = [x for x in tries if x is not None]
+                found = min(done, key=lambda x: x[2]) if done else None
+            if found is None:
                 message = "line search failed: the residual stopped decreasing"
                 break
-            u, g, cost = trial, g_trial, cost_trial
+            u, g, cost_new = found
+            slow = slow + 1 if cost_new > 0.99 * cost else 0
+            cost = cost_new
             if cons.max_residual(u) <= tol.residual_atol:
+                break
+            if slow >= 8:
+                message = "stalled: the residual decreases by less than 1% per iteration"
                 break
         else:
             message = f"no convergence in {max_iter} iterations"

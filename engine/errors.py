@@ -40,3 +40,7 @@ class InvalidParameter(EngineError):
 
 class InvalidTolerance(EngineError):
     """A tolerance is out of range."""
+
+
+class NumericalFailure(RuntimeError):
+    """A numerical method could not produce a trustworthy answer (not an input error)."""

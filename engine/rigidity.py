@@ -17,8 +17,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from engine.constraints import Constraints
+from engine.errors import NumericalFailure
 from engine.linkage import Linkage
 from engine.tolerances import Tolerances
+from engine.vectors import normalise_sign
+
+#: Largest linkage for which an inconsistent sparse search falls back to a dense SVD.
+DENSE_FALLBACK_MAX_FREE = 4000
 
 
 @dataclass(frozen=True)
@@ -142,33 +147,93 @@ def _dense_null_spaces(
 def _sparse_null_spaces(
     jac: sp.csr_matrix, rtol: float
 ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    """As :func:`_dense_null_spaces`, by shift-invert Lanczos on the augmented matrix."""
+    """As :func:`_dense_null_spaces`, by deflated shift-invert Lanczos on the augmented matrix.
+
+    The shift ``-1e-12 s_max`` sits far closer to the zero eigenvalues than to any eigenvalue
+    above the threshold ``rtol * s_max``, so null vectors always come first. Lanczos can miss
+    copies of a repeated eigenvalue, so the search is repeated on the operator with the vectors
+    found so far projected out (deflation) until the nearest remaining eigenvalue lies above the
+    threshold. Raises :class:`NumericalFailure` when the counts are inconsistent.
+    """
     ea, m = jac.shape
     n = ea + m
+    if jac.nnz == 0 or not np.any(jac.data):
+        return 0, np.zeros(min(ea, m)), np.eye(m), np.eye(ea)
     aug = sp.bmat([[None, jac], [jac.T, None]], format="csc")
-    s_max = float(spla.eigsh(aug, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0])
-    if s_max <= 0.0:
-        return 0, np.zeros(0), np.eye(m), np.eye(ea)
+    rng = np.random.default_rng(0)
+    s_max = _largest_singular_value(jac, rng)
     thresh = rtol * s_max
-    shift = -1e-3 * s_max
-    # The zero eigenspace has dimension (Ea - r) + (M - r) >= |M - Ea|; ask for more until some
-    # computed eigenvalue lies clearly above the threshold.
-    k = min(n - 1, abs(m - ea) + 8)
-    lu = spla.splu((aug - shift * sp.identity(n, format="csc")).tocsc())
-    op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
-    while True:
-        vals, vecs = spla.eigsh(aug, k=k, sigma=shift, which="LM", OPinv=op, tol=1e-12)
-        null = np.abs(vals) <= thresh
-        if not null.all() or k >= n - 1:
+    lu = None
+    for factor in (1e-12, 3.7e-12, 1.3e-11):
+        try:
+            shift = -factor * s_max
+            lu = spla.splu((aug - shift * sp.identity(n, format="csc")).tocsc())
             break
-        k = min(n - 1, 2 * k)
-    x = vecs[:, null]
-    left, right = _span_rows(x[:ea].T), _span_rows(x[ea:].T)
+        except RuntimeError:  # the shift hit an eigenvalue exactly: move it
+            continue
+    if lu is None:
+        raise NumericalFailure("sparse LU of the shifted augmented matrix failed")
+    found = np.zeros((n, 0))
+    small: list[float] = []
+    k = min(n - 2, abs(m - ea) + 8)
+    for _ in range(64):
+        basis = found
+
+        def apply(x: np.ndarray, basis: np.ndarray = basis) -> np.ndarray:
+            if basis.shape[1]:
+                x = x - basis @ (basis.T @ x)
+            y = lu.solve(x)
+            if basis.shape[1]:
+                y = y - basis @ (basis.T @ y)
+            return y
+
+        op = spla.LinearOperator((n, n), matvec=apply, dtype=float)
+        k_round = max(1, min(k, n - basis.shape[1] - 2))
+        mu, vecs = spla.eigsh(op, k=k_round, which="LM", tol=1e-12, v0=rng.normal(size=n))
+        lam = shift + 1.0 / mu
+        null = np.abs(lam) <= thresh
+        if null.any():
+            new = vecs[:, null]
+            new = new - found @ (found.T @ new)
+            q, r = np.linalg.qr(new)
+            keep = np.abs(np.diag(r)) > 1e-6
+            found = np.hstack([found, q[:, keep]])
+        other = vecs[:, ~null]  # Rayleigh quotients: second-order accurate eigenvalues
+        rq = np.einsum("ij,ij->j", other, aug @ other) / np.einsum("ij,ij->j", other, other)
+        small += [float(-x) for x in rq if x < 0]
+        if not null.all():
+            break  # the nearest remaining eigenvalue is above the threshold
+        k = min(2 * k, n - 2)
+    else:
+        raise NumericalFailure("sparse null-space search did not terminate")
+    for _ in range(2):  # polish: block inverse iteration damps other directions by >= 1e-4 a step
+        if found.shape[1]:
+            found = np.linalg.qr(np.column_stack([lu.solve(x) for x in found.T]))[0]
+    left, right = _span_rows(found[:ea].T), _span_rows(found[ea:].T)
     rank = m - right.shape[0]
-    small = np.sort(-vals[(~null) & (vals < 0)])  # the smallest nonzero singular values
-    zero_sv = np.linalg.norm(jac.T @ left.T, axis=0) if ea <= m else np.zeros(m - rank)
-    svals = np.concatenate([[s_max], small[::-1], np.sort(zero_sv)[::-1]])
+    if right.shape[0] - left.shape[0] != m - ea or rank > min(ea, m) or rank < 0:
+        raise NumericalFailure(
+            f"inconsistent sparse null spaces ({right.shape[0]} right, {left.shape[0]} left)"
+        )
+    zero_sv = np.linalg.norm(jac.T @ left.T, axis=0) if left.shape[0] else np.zeros(0)
+    svals = np.concatenate([[s_max], np.sort(small)[::-1], np.sort(zero_sv)[::-1]])
     return rank, svals, right, left
+
+
+def _largest_singular_value(jac: sp.csr_matrix, rng: np.random.Generator, steps: int = 60) -> float:
+    """``s_max`` of ``J`` by power iteration on ``J^T J`` (to about a percent: it only scales the
+    rank threshold). Lanczos is no faster here: the top of a chain's spectrum is clustered."""
+    x = rng.normal(size=jac.shape[1])
+    x /= np.linalg.norm(x)
+    est = 0.0
+    for _ in range(steps):
+        y = jac.T @ (jac @ x)
+        norm = float(np.linalg.norm(y))
+        if norm == 0.0:
+            return 0.0
+        x = y / norm
+        est = norm
+    return float(np.sqrt(est))
 
 
 def _span_rows(rows: np.ndarray) -> np.ndarray:
@@ -267,12 +332,20 @@ def first_order(
     use_sparse = cons.use_sparse if sparse is None else sparse
     use_sparse = use_sparse and cons.n_constraints > 0 and cons.n_free > 2
     jac = cons.jacobian(u, sparse=use_sparse)
+    method = "sparse-eigsh" if use_sparse else "dense-svd"
     if use_sparse:
-        rank, svals, right, left = _sparse_null_spaces(jac, tol.rank_rtol)
-        method = "sparse-eigsh"
-    else:
+        try:
+            rank, svals, right, left = _sparse_null_spaces(jac, tol.rank_rtol)
+        except NumericalFailure as err:
+            if cons.n_free > DENSE_FALLBACK_MAX_FREE:
+                raise NumericalFailure(
+                    f"{err}; the linkage is too large for the dense fallback "
+                    f"({cons.n_free} > {DENSE_FALLBACK_MAX_FREE} free coordinates)"
+                ) from err
+            use_sparse, method = False, "dense-svd (sparse fallback)"
+            jac = cons.jacobian(u, sparse=False)
+    if not use_sparse:
         rank, svals, right, left = _dense_null_spaces(np.asarray(jac), tol.rank_rtol)
-        method = "dense-svd"
 
     trivial = trivial_motions(linkage)
     zero_modes = _orthonormal_complement(trivial, right)
@@ -281,10 +354,10 @@ def first_order(
     stresses[:, cons.bars] = left
 
     tform = None
-    if m - ea == 1 and t == 0:
+    if m - ea == 1 and t == 0 and right.shape[0] > 0:
         critical = rank < ea
         w = zero_modes[0] if zero_modes.shape[0] == 1 else right[0]
-        tform = tangent_form(jac, w, critical)
+        tform = tangent_form(jac, normalise_sign(w[None, :])[0], critical)
 
     return RigidityResult(
         rank=rank,

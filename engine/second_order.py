@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import scipy.sparse as sp
 
 from engine.constraints import Constraints, project
 from engine.linkage import Linkage
 from engine.rigidity import RigidityResult, first_order
 from engine.tolerances import Tolerances
+from engine.vectors import normalise_sign
 
 Kind = Literal["regular", "branch", "rigid", "degenerate"]
 
@@ -64,25 +64,8 @@ class SecondOrderResult:
     rigidity: RigidityResult
 
 
-def _hessian_norm_bound(hess: np.ndarray | sp.csr_matrix) -> float:
-    """Upper bound on ``||H||_2`` (largest absolute row sum; exact within a factor sqrt(M))."""
-    absolute = abs(hess)
-    sums = np.asarray(absolute.sum(axis=1)).ravel()
-    return float(sums.max()) if sums.size else 0.0
-
-
-def _normalise_sign(vectors: np.ndarray) -> np.ndarray:
-    """Flip each row so that its largest-magnitude entry is positive."""
-    if vectors.size == 0:
-        return vectors
-    idx = np.argmax(np.abs(vectors), axis=1)
-    signs = np.sign(vectors[np.arange(len(vectors)), idx])
-    signs[signs == 0] = 1.0
-    return vectors * signs[:, None]
-
-
 def _stays_critical(
-    linkage: Linkage, direction: np.ndarray, tol: Tolerances, scale: float
+    linkage: Linkage, direction: np.ndarray, tol: Tolerances, scale: float, sparse: bool | None
 ) -> bool:
     """True when stepping along ``direction`` and projecting back lands on critical points
     again, for two step sizes and both signs: evidence of a non-isolated critical set."""
@@ -93,7 +76,7 @@ def _stays_critical(
             proj = project(moved, tol)
             if not proj.success:
                 return False
-            rig = first_order(linkage.with_positions(proj.positions), tol)
+            rig = first_order(linkage.with_positions(proj.positions), tol, sparse=sparse)
             if not rig.critical:
                 return False
     return True
@@ -141,7 +124,7 @@ def second_order(
     def result(kind: Kind, reason: str | None = None, **kw: object) -> SecondOrderResult:
         base: dict[str, object] = {
             "self_stress": None,
-            "zero_modes": _normalise_sign(rig.zero_modes),
+            "zero_modes": normalise_sign(rig.zero_modes),
             "q": None,
             "q_eigenvalues": None,
             "tangents": empty,
@@ -163,7 +146,7 @@ def second_order(
         return result("degenerate", "critical with no nontrivial zero mode")
 
     cons = Constraints(linkage)
-    sigma_full = _normalise_sign(rig.self_stresses)[0]
+    sigma_full = normalise_sign(rig.self_stresses)[0]
     hess = cons.stress_hessian(sigma_full[cons.bars], sparse=sparse)
     z = rig.zero_modes  # (k, M)
     hz = hess @ z.T  # (M, k)
@@ -172,18 +155,22 @@ def second_order(
     lam, vec = np.linalg.eigh(q)
     order = np.argsort(lam)[::-1]
     lam, vec = lam[order], vec[:, order]
-    modes = _normalise_sign(vec.T @ z)  # Q-eigenbasis, signs by convention
+    modes = normalise_sign(vec.T @ z)  # Q-eigenbasis, signs by convention
     q_diag = modes @ (hess @ modes.T)
     q_diag = 0.5 * (q_diag + q_diag.T)
     lam = np.diag(q_diag).copy()
     fields = {"self_stress": sigma_full, "zero_modes": modes, "q": q_diag, "q_eigenvalues": lam}
 
-    hnorm = _hessian_norm_bound(hess)
-    singular = np.abs(lam) <= tol.q_rtol * max(hnorm, np.finfo(float).tiny)
+    # ||Hess(l_a^2)||_2 = 4, so 4 sum|sigma_a| bounds ||H_sigma|| without the cancellation a
+    # norm of H_sigma itself would suffer (e.g. sigma = (1, -1)/sqrt(2) on a doubled bar).
+    q_scale = 4.0 * float(np.abs(sigma_full).sum())
+    singular = np.abs(lam) <= tol.q_rtol * q_scale
     if singular.any():
-        scale = float(np.median(linkage.lengths)) if linkage.n_bars else 1.0
-        null_dir = modes[int(np.argmax(singular))]
-        if _stays_critical(linkage, null_dir, tol, scale):
+        scale = float(np.median(linkage.lengths[cons.bars]))
+        if any(
+            _stays_critical(linkage, modes[k], tol, scale, sparse)
+            for k in np.flatnonzero(singular)
+        ):
             reason = (
                 "non-isolated critical set: the configuration stays critical along a zero mode "
                 "on which Q vanishes"
@@ -195,10 +182,10 @@ def second_order(
         return result("rigid", **fields)
     coeffs = branch_coefficients(lam)
     tangents = coeffs @ modes
-    signs = np.sign(tangents[np.arange(len(tangents)), np.argmax(np.abs(tangents), axis=1)])
+    flips = np.sign(np.sum(normalise_sign(tangents) * tangents, axis=1))
     return result(
         "branch",
-        tangents=tangents * signs[:, None],
-        tangent_coefficients=coeffs * signs[:, None],
+        tangents=tangents * flips[:, None],
+        tangent_coefficients=coeffs * flips[:, None],
         **fields,
     )

@@ -14,6 +14,7 @@ from engine.rigidity import RigidityResult
 from engine.rigidity import TangentForm as EngineTangentForm
 from engine.second_order import SecondOrderResult
 from engine.tolerances import Tolerances as EngineTolerances
+from engine.vectors import normalised
 from service.schemas import common as c
 from service.schemas.analysis import (
     RigidityResponse,
@@ -70,18 +71,9 @@ def linkage_out(linkage: EngineLinkage) -> c.Linkage:
     )
 
 
-def _normalised(v: np.ndarray) -> np.ndarray:
-    """Unit 2-norm with the largest-magnitude entry positive (zero stays zero)."""
-    norm = float(np.linalg.norm(v))
-    if norm == 0.0:
-        return v
-    v = v / norm
-    return v if v.flat[int(np.argmax(np.abs(v)))] >= 0 else -v
-
-
 def vertex_vectors(linkage: EngineLinkage, v: np.ndarray) -> c.VertexVectors:
     """Free-coordinate vector (M,) -> normalised ``{vertex_id: [..]}`` (fixed axes 0)."""
-    lifted = linkage.vertex_vectors(_normalised(v))
+    lifted = linkage.vertex_vectors(normalised(v))
     return dict(zip(linkage.vertex_ids, lifted.tolist(), strict=True))
 
 
@@ -91,7 +83,7 @@ def positions_out(linkage: EngineLinkage, positions: np.ndarray) -> c.VertexVect
 
 def bar_values(linkage: EngineLinkage, v: np.ndarray) -> c.BarValues:
     """Per-bar vector (E,) -> normalised ``{bar_id: value}``."""
-    return dict(zip(linkage.bar_ids, _normalised(v).tolist(), strict=True))
+    return dict(zip(linkage.bar_ids, normalised(v).tolist(), strict=True))
 
 
 def _projection_fields(linkage: EngineLinkage, proj: ProjectionResult) -> dict[str, object]:
@@ -106,7 +98,7 @@ def _projection_fields(linkage: EngineLinkage, proj: ProjectionResult) -> dict[s
 def _tangent_form_out(linkage: EngineLinkage, tf: EngineTangentForm | None) -> TangentForm | None:
     if tf is None:
         return None
-    vector = _normalised(tf.direction)
+    vector = normalised(tf.direction)
     # t = |t| * direction and vector = +-direction: the sign is the orientation.
     orientation = int(np.sign(vector @ tf.direction)) if tf.orientation != 0 else 0
     return TangentForm(

@@ -62,20 +62,28 @@ def squared_lengths_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def nearest_solution(linkage: Linkage, u0: np.ndarray) -> np.ndarray:
-    """Nearest point to ``u0`` with l = L, by SLSQP (independent of engine.constraints)."""
+def nearest_solution(linkage: Linkage, u0: np.ndarray, starts: int = 8) -> np.ndarray:
+    """Nearest point to ``u0`` with l = L, by SLSQP from ``u0`` and seeded nearby starts (a
+    start at a symmetric point can stall); independent of engine.constraints."""
     from scipy.optimize import minimize
 
     targets = linkage.lengths[linkage.active] ** 2
-
     constraint = {"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets}
-    res = minimize(
-        lambda x: float(np.sum((x - u0) ** 2)),
-        u0,
-        jac=lambda x: 2 * (x - u0),
-        constraints=[constraint],
-        method="SLSQP",
-        options={"ftol": 1e-16, "maxiter": 500},
-    )
-    assert np.max(np.abs(squared_lengths_reference(linkage, res.x) - targets)) < 1e-10
-    return res.x
+    rng = np.random.default_rng(12345)
+    scale = 0.05 * float(np.median(linkage.lengths))
+    best = None
+    for k in range(starts):
+        x0 = u0 if k == 0 else u0 + scale * rng.normal(size=u0.size)
+        res = minimize(
+            lambda x: float(np.sum((x - u0) ** 2)),
+            x0,
+            jac=lambda x: 2 * (x - u0),
+            constraints=[constraint],
+            method="SLSQP",
+            options={"ftol": 1e-16, "maxiter": 500},
+        )
+        feasible = np.max(np.abs(squared_lengths_reference(linkage, res.x) - targets)) < 1e-10
+        if feasible and (best is None or np.linalg.norm(res.x - u0) < np.linalg.norm(best - u0)):
+            best = res.x
+    assert best is not None, "the reference SLSQP found no feasible point"
+    return best

@@ -145,3 +145,22 @@ def test_infeasible_lengths_fail_clearly():
     with pytest.raises(NoNearbySolution, match="not near any configuration") as info:
         on_constraints(lk)
     assert info.value.loc == ("vertices",)
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e-8, 1e-5])
+@pytest.mark.parametrize("l2", [1.001, 0.999, 1.01])
+def test_projection_from_a_critical_configuration_with_perturbed_lengths(offset, l2):
+    """At a branch point with perturbed lengths, J^T g = 0: plain Gauss-Newton is stationary.
+    The projection must still land on the configuration space, near the nearest solution
+    (independent SLSQP reference)."""
+    from engine.presets import build_preset
+    from tests.strategies import nearest_solution
+
+    fb = build_preset("four-bar")
+    pos = np.array(fb.positions)
+    pos[2], pos[3] = (-1.0, 0.0), (0.0, offset)
+    lk = fb.with_positions(pos).with_lengths([1.0, l2, 1.0])
+    res = project(lk)
+    assert res.success, res.message
+    reference = np.linalg.norm(nearest_solution(lk, lk.coordinates()) - lk.coordinates())
+    assert res.distance <= 1.01 * reference

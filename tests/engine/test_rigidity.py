@@ -181,3 +181,52 @@ def test_tangent_form_vanishes_at_critical_points_and_flips_across():
         lk = build_preset("four-bar", {"theta": theta})
         tf = first_order(lk).tangent_form
         assert tf is not None and tf.orientation in (-1, 1) and tf.log10_magnitude > -3
+
+
+def straight_chain(n: int):
+    names = ["P"] + [f"v{k}" for k in range(n)] + ["Q"]
+    vertices = [
+        VertexSpec(name, [float(k), 0.0], name in ("P", "Q")) for k, name in enumerate(names)
+    ]
+    bars = [BarSpec(f"b{k}", (names[k], names[k + 1])) for k in range(n + 1)]
+    return build_linkage(2, vertices, bars)
+
+
+def fan_of_rotors(n: int, seed: int = 1):
+    angles = np.random.default_rng(seed).uniform(0, 2 * np.pi, n)
+    vertices = [VertexSpec("P", [0.0, 0.0], True)] + [
+        VertexSpec(f"t{k}", [float(np.cos(a)), float(np.sin(a))]) for k, a in enumerate(angles)
+    ]
+    return build_linkage(2, vertices, [BarSpec(f"r{k}", ("P", f"t{k}")) for k in range(n)])
+
+
+@pytest.mark.parametrize(
+    "linkage",
+    [straight_chain(20), fan_of_rotors(350)],
+    ids=["straight-chain-20 (20-fold null space)", "350-rotor fan (M=700, sparse by default)"],
+)
+def test_sparse_method_finds_repeated_zero_eigenvalues(linkage):
+    """Lanczos alone finds one copy of a repeated eigenvalue; deflation must find them all."""
+    dense = first_order(linkage, sparse=False)
+    sparse = first_order(linkage, sparse=True)
+    check_invariants(linkage, sparse)
+    assert (sparse.rank, sparse.dof, sparse.critical, sparse.self_stresses.shape[0]) == (
+        dense.rank, dense.dof, dense.critical, dense.self_stresses.shape[0],
+    )
+    assert same_subspace(sparse.self_stresses, dense.self_stresses)
+
+
+def test_sparse_method_with_a_zero_jacobian():
+    vertices = [VertexSpec(f"v{k}", [0.0, 0.0]) for k in range(302)]
+    bars = [BarSpec(f"b{k}", (f"v{k}", f"v{k + 1}"), 1.0) for k in range(301)]
+    rig = first_order(build_linkage(2, vertices, bars), sparse=True)
+    assert rig.rank == 0 and rig.dof + rig.trivial_motions == 604
+
+
+def test_sparse_answers_are_deterministic():
+    lk = equilateral_collinear()
+    first = first_order(lk, sparse=True)
+    for _ in range(5):
+        again = first_order(lk, sparse=True)
+        np.testing.assert_array_equal(again.self_stresses, first.self_stresses)
+        np.testing.assert_array_equal(again.zero_modes, first.zero_modes)

@@ -147,3 +147,30 @@ def test_straight_three_bar_chain_matches_closed_form():
     np.testing.assert_allclose(res.self_stress, np.ones(3) / np.sqrt(3))
     np.testing.assert_allclose(res.q_eigenvalues, [6 / np.sqrt(3), 2 / np.sqrt(3)])
     np.testing.assert_allclose(np.abs(res.zero_modes[0]), [0, 1, 0, 1] / np.sqrt(2), atol=1e-12)
+
+
+def test_doubled_bar_cancelling_stress_is_not_called_rigid():
+    """sigma = (1, -1)/sqrt(2) on a doubled bar makes H_sigma = 0: Q vanishes identically and
+    the (mobile) four-bar must be degenerate, never 'rigid'."""
+    fb = build_preset("four-bar")
+    pos = fb.positions
+    lk = build_linkage(
+        2,
+        [VertexSpec("P1", [0, 0], True), VertexSpec("P2", [1, 0], True),
+         VertexSpec("A", pos[2].tolist()), VertexSpec("B", pos[3].tolist())],
+        [BarSpec("L1", ("P1", "A")), BarSpec("L1b", ("P1", "A")), BarSpec("L2", ("A", "B")),
+         BarSpec("L3", ("P2", "B"))],
+    )
+    res = second_order(lk)
+    assert res.kind == "degenerate", (res.kind, res.q_eigenvalues)
+    assert "non-isolated" in res.reason
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_second_order_is_deterministic(sparse):
+    lk = at(EQUILATERAL, A=(-1.0, 0.0), B=(0.0, 0.0))
+    ref = second_order(lk, sparse=sparse)
+    for _ in range(5):
+        again = second_order(lk, sparse=sparse)
+        np.testing.assert_array_equal(again.self_stress, ref.self_stress)
+        np.testing.assert_array_equal(again.q_eigenvalues, ref.q_eigenvalues)

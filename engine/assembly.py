@@ -1,0 +1,186 @@
+"""Seeds for the search of every component: assemblies at swept rotor angles, random starts.
+
+For planar linkages that decompose into dyads (each remaining vertex placed from two placed
+neighbours, circle-circle, or a slider from one, line-circle), fixing one rotor's angle makes
+the linkage rigid and *every* assembly at that angle is enumerated in closed form (both
+intersections at each step, pruned where circles miss). Other linkages get random starts
+projected onto the constraint set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.constraints import Constraints, project
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class Step:
+    """Place ``vertex`` from placed neighbours ``a`` (and ``b``) with bar lengths ``ra``, ``rb``;
+    ``axis`` is the free axis of a slider (then only ``a`` is used)."""
+
+    vertex: int
+    a: int
+    ra: float
+    b: int = -1
+    rb: float = 0.0
+    axis: int = -1
+
+
+def rotors(linkage: Linkage) -> list[int]:
+    """Bars with exactly one fully fixed end (indices)."""
+    full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
+    ends = linkage.ends
+    return [k for k in range(linkage.n_bars) if full[ends[k, 0]] != full[ends[k, 1]]]
+
+
+def dyad_plan(linkage: Linkage, rotor: int) -> list[Step] | None:
+    """Order in which the vertices are placed once ``rotor``'s tip is, or None."""
+    if linkage.dimension != 2:
+        return None
+    full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
+    placed = set(np.flatnonzero(full).tolist())
+    pin, tip = linkage.ends[rotor]
+    if not full[pin]:
+        pin, tip = tip, pin
+    placed.add(int(tip))
+    nbrs: dict[int, list[tuple[int, float]]] = {v: [] for v in range(linkage.n_vertices)}
+    for (i, j), length in zip(linkage.ends, linkage.lengths, strict=True):
+        nbrs[int(i)].append((int(j), float(length)))
+        nbrs[int(j)].append((int(i), float(length)))
+    plan: list[Step] = []
+    todo = [v for v in range(linkage.n_vertices) if v not in placed]
+    while todo:
+        for v in todo:
+            known = [(w, ln) for w, ln in nbrs[v] if w in placed]
+            free_axes = np.flatnonzero(~linkage.fixed[v])
+            if len(free_axes) == 2 and len(known) >= 2:
+                plan.append(Step(v, known[0][0], known[0][1], known[1][0], known[1][1]))
+                break
+            if len(free_axes) == 1 and len(known) >= 1:
+                plan.append(Step(v, known[0][0], known[0][1], axis=int(free_axes[0])))
+                break
+        else:
+            return None
+        placed.add(plan[-1].vertex)
+        todo.remove(plan[-1].vertex)
+    return plan
+
+
+def _candidates(step: Step, pos: np.ndarray) -> list[np.ndarray]:
+    if step.axis >= 0:  # slider: the line through pos[v] along axis meets a circle
+        base = pos[step.vertex].copy()
+        other = 1 - step.axis
+        off = base[other] - pos[step.a][other]
+        disc = step.ra**2 - off**2
+        if disc < 0:
+            return []
+        out = []
+        for sgn in (1.0, -1.0):
+            p = base.copy()
+            p[step.axis] = pos[step.a][step.axis] + sgn * np.sqrt(disc)
+            out.append(p)
+        return out
+    c0, c1 = pos[step.a], pos[step.b]
+    delta = c1 - c0
+    dist = float(np.hypot(*delta))
+    if dist == 0.0:
+        return []
+    along = (dist**2 + step.ra**2 - step.rb**2) / (2 * dist)
+    h2 = step.ra**2 - along**2
+    if h2 < 0:
+        return []
+    e = delta / dist
+    normal = np.array([-e[1], e[0]])
+    return [c0 + along * e + sgn * np.sqrt(h2) * normal for sgn in (1.0, -1.0)]
+
+
+def assemblies_at(
+    linkage: Linkage, rotor: int, plan: list[Step], angle: float, budget: int
+) -> tuple[list[np.ndarray], bool]:
+    """Every assembly (positions (V, 2)) with ``rotor`` at ``angle``; and whether the budget
+    cut the enumeration short."""
+    pin, tip = (int(x) for x in linkage.ends[rotor])
+    if not linkage.fixed[pin].all():
+        pin, tip = tip, pin
+    pos = np.array(linkage.positions, dtype=float)
+    length = float(linkage.lengths[rotor])
+    pos[tip] = pos[pin] + length * np.array([np.cos(angle), np.sin(angle)])
+    out: list[np.ndarray] = []
+    stack: list[tuple[int, np.ndarray]] = [(0, pos)]
+    truncated = False
+    while stack:
+        depth, cur = stack.pop()
+        if depth == len(plan):
+            out.append(cur)
+            if len(out) >= budget:
+                truncated = bool(stack)
+                break
+            continue
+        for cand in _candidates(plan[depth], cur):
+            nxt = cur.copy()
+            nxt[plan[depth].vertex] = cand
+            stack.append((depth + 1, nxt))
+    return out, truncated
+
+
+@dataclass(frozen=True)
+class Seeds:
+    """Points of the configuration space to start traces from, and what was done."""
+
+    points: list[np.ndarray]
+    report: dict[str, object]
+
+
+def seeds(
+    linkage: Linkage,
+    tol: Tolerances,
+    angles: int = 90,
+    budget: int = 64,
+    random_starts: int = 16,
+    seed: int = 0,
+) -> Seeds:
+    """Seeds from rotor sweeps (dyad-decomposable planar linkages) and random projections."""
+    cons = Constraints(linkage)
+    rng = np.random.default_rng(seed)
+    points: list[np.ndarray] = []
+    swept: list[str] = []
+    truncated = False
+    offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
+    grid = 2 * np.pi * (np.arange(angles) + offset) / angles
+    for rotor in rotors(linkage):
+        plan = dyad_plan(linkage, rotor)
+        if plan is None:
+            continue
+        swept.append(linkage.bar_ids[rotor])
+        for angle in grid:
+            found, cut = assemblies_at(linkage, rotor, plan, float(angle), budget)
+            truncated |= cut
+            for pos in found:
+                u = linkage.coordinates(pos)
+                if cons.max_residual(u) <= max(1e3 * tol.residual_atol, 1e-7):
+                    points.append(u)
+    scale = float(np.median(linkage.lengths)) if linkage.n_bars else 1.0
+    projected = 0
+    for _ in range(random_starts):
+        pos = np.array(linkage.positions, dtype=float)
+        free = ~linkage.fixed
+        pos[free] += scale * rng.normal(size=int(free.sum()))
+        res = project(linkage.with_positions(pos), tol)
+        if res.success:
+            points.append(linkage.coordinates(res.positions))
+            projected += 1
+    report: dict[str, object] = {
+        "rotor_sweeps": swept,
+        "angles_per_rotor": angles if swept else 0,
+        "assembly_budget_per_angle": budget,
+        "assemblies_truncated": truncated,
+        "random_starts": random_starts,
+        "random_starts_projected": projected,
+        "seeds": len(points),
+    }
+    return Seeds(points, report)

@@ -1,0 +1,134 @@
+"""Critical points: refinement on the augmented system and classification.
+
+A critical point ``u`` with unit self-stress ``sigma`` solves (paper, Sec. II)::
+
+    F(u, sigma) = [ (l^2(u) - L^2) / (2L) ;  J(u)^T sigma / (2 L_med) ;  |sigma|^2 - 1 ] = 0
+
+``E + M + 1`` equations in ``M + E`` unknowns: for lengths that are not critical there is no
+solution and the least-squares minimum is a *near miss*; at critical lengths the minimum is an
+exact critical point. The rows are scaled so that the first block is a length error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from engine.constraints import Constraints
+from engine.linkage import Linkage
+from engine.second_order import SecondOrderResult, second_order
+from engine.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class Refined:
+    """Least-squares solution of the augmented system from one start.
+
+    ``length_residual`` is ``max |l - L|``; ``stress_residual`` is ``|J^T sigma| / |J|_F``
+    (dimensionless); ``critical`` says both are within tolerance.
+    """
+
+    u: np.ndarray
+    sigma: np.ndarray
+    length_residual: float
+    stress_residual: float
+    critical: bool
+
+
+def _smallest_left_singular(jac: np.ndarray) -> np.ndarray:
+    u, _, _ = np.linalg.svd(jac, full_matrices=True)
+    return u[:, -1]
+
+
+def refine_critical(
+    cons: Constraints, u0: np.ndarray, tol: Tolerances, sigma0: np.ndarray | None = None
+) -> Refined:
+    """Solve the augmented system in least squares (Levenberg-Marquardt) from ``u0``."""
+    m, e = cons.n_free, cons.n_constraints
+    lengths = cons.linkage.lengths[cons.bars]
+    scale = 2.0 * float(np.median(lengths))
+    jac0 = cons.jacobian(u0, sparse=False)
+    s0 = _smallest_left_singular(jac0) if sigma0 is None else sigma0 / np.linalg.norm(sigma0)
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        u, s = x[:m], x[m:]
+        jac = cons.jacobian(u, sparse=False)
+        return np.concatenate(
+            [(cons.squared_lengths(u) - cons.targets) / (2 * lengths), jac.T @ s / scale,
+             [s @ s - 1.0]]
+        )
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        u, s = x[:m], x[m:]
+        jac = cons.jacobian(u, sparse=False)
+        hess = cons.stress_hessian(s, sparse=False)
+        top = np.hstack([jac / (2 * lengths)[:, None], np.zeros((e, e))])
+        mid = np.hstack([hess / scale, jac.T / scale])
+        bot = np.concatenate([np.zeros(m), 2 * s])[None, :]
+        return np.vstack([top, mid, bot])
+
+    res = least_squares(
+        fun, np.concatenate([u0, s0]), jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15,
+        gtol=1e-15, max_nfev=200 * (m + e),
+    )
+    u, s = res.x[:m], res.x[m:]
+    s = s / np.linalg.norm(s)
+    jac = cons.jacobian(u, sparse=False)
+    length_res = cons.max_residual(u)
+    stress_res = float(np.linalg.norm(jac.T @ s) / max(float(np.linalg.norm(jac)), 1e-300))
+    ok = length_res <= tol.residual_atol and stress_res <= tol.rank_rtol
+    return Refined(u, s, length_res, stress_res, ok)
+
+
+@dataclass(frozen=True)
+class CriticalPoint:
+    """A critical point with its second-order classification."""
+
+    u: np.ndarray
+    analysis: SecondOrderResult
+    length_residual: float
+    stress_residual: float
+
+    @property
+    def kind(self) -> str:
+        return self.analysis.kind
+
+
+@dataclass(frozen=True)
+class NearMiss:
+    """A closest approach to a critical configuration for lengths that are not critical.
+
+    ``singular_gap`` is ``s_min / s_max`` of ``J`` at ``u`` (on the configuration space),
+    ``distance`` the configuration distance from ``u`` to the nearest critical configuration
+    (of slightly different lengths), ``length_gap`` the largest length change that would make
+    that configuration's lengths exact (``max |l(u_c) - L|``).
+    """
+
+    u: np.ndarray
+    singular_gap: float
+    distance: float
+    length_gap: float
+    critical_u: np.ndarray
+
+
+def classify(linkage: Linkage, u: np.ndarray, tol: Tolerances) -> SecondOrderResult:
+    """Second-order analysis of ``linkage`` at free coordinates ``u``."""
+    return second_order(linkage.with_positions(linkage.positions_of(u)), tol, sparse=False)
+
+
+def singular_gap(cons: Constraints, u: np.ndarray) -> float:
+    """``s_min / s_max`` of ``J(u)``."""
+    jac = cons.jacobian(u, sparse=False)
+    s = np.linalg.svd(jac, compute_uv=False)
+    return float(s[-1] / s[0]) if s.size and s[0] > 0 else 0.0
+
+
+def dedupe(points: list[np.ndarray], radius: float) -> list[int]:
+    """Indices of the first of each cluster of points closer than ``radius``."""
+    keep: list[int] = []
+    for i, p in enumerate(points):
+        if all(np.linalg.norm(p - points[k]) > radius for k in keep):
+            keep.append(i)
+    return keep
