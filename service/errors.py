@@ -18,6 +18,7 @@ from engine.errors import (
     InvalidTolerance,
     LimitExceeded,
     NoNearbySolution,
+    NumericalFailure,
     UnknownPreset,
 )
 
@@ -87,6 +88,16 @@ async def _engine(request: Request, exc: Exception) -> JSONResponse:
     ])
 
 
+async def _numerical(request: Request, exc: Exception) -> JSONResponse:
+    log.warning("numerical failure on %s: %s", request.url.path, exc)
+    return problem(
+        422,
+        "numerical-failure",
+        "No trustworthy answer",
+        f"the numerical method could not produce a trustworthy answer for this input: {exc}",
+    )
+
+
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
@@ -104,5 +115,6 @@ def install(app: FastAPI) -> None:
     """Register the problem+json handlers on ``app``."""
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(EngineError, _engine)
+    app.add_exception_handler(NumericalFailure, _numerical)
     app.add_exception_handler(StarletteHTTPException, _http)
     app.add_exception_handler(Exception, _unhandled)

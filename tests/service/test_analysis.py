@@ -175,3 +175,21 @@ def test_gated_chain_with_slider(client):
     assert body["dof"] == 1 and body["critical"] is False
     assert body["zero_modes"][0]["G"][0] == 0.0  # the slider's fixed axis does not move
     assert body["tangent_form"]["orientation"] in (-1, 1)
+
+
+def test_numerical_failure_is_a_problem_not_a_crash(client, monkeypatch):
+    """If the engine cannot give a trustworthy answer, the client gets problem+json (never 500)."""
+    from engine.errors import NumericalFailure
+    from service.routers import analysis
+
+    def fail(*args, **kwargs):
+        raise NumericalFailure("inconsistent sparse null spaces (test)")
+
+    monkeypatch.setattr(analysis, "first_order", fail)
+    r = client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)})
+    assert r.status_code == 422
+    assert r.headers["content-type"].startswith("application/problem+json")
+    assert r.json()["type"] == "/problems/numerical-failure"
+    assert "inconsistent" in r.json()["detail"]
+    monkeypatch.undo()
+    assert client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)}).status_code == 200
