@@ -143,8 +143,10 @@ def seeds(
     budget: int = 64,
     random_starts: int = 16,
     seed: int = 0,
+    max_rotors: int = 4,
 ) -> Seeds:
-    """Seeds from rotor sweeps (dyad-decomposable planar linkages) and random projections."""
+    """Seeds from rotor sweeps (dyad-decomposable planar linkages, at most ``max_rotors``
+    rotors, spread along the bar list) and random projections."""
     cons = Constraints(linkage)
     rng = np.random.default_rng(seed)
     points: list[np.ndarray] = []
@@ -152,7 +154,11 @@ def seeds(
     truncated = False
     offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
     grid = 2 * np.pi * (np.arange(angles) + offset) / angles
-    for rotor in rotors(linkage):
+    candidates = rotors(linkage)
+    if len(candidates) > max_rotors:
+        pick = np.linspace(0, len(candidates) - 1, max_rotors).round().astype(int)
+        candidates = [candidates[k] for k in sorted(set(pick.tolist()))]
+    for rotor in candidates:
         plan = dyad_plan(linkage, rotor)
         if plan is None:
             continue

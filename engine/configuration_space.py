@@ -1,0 +1,439 @@
+"""The whole configuration space of a one-degree-of-freedom linkage.
+
+1. **Seeds** (:mod:`engine.assembly`): every assembly at swept rotor angles, random projections.
+2. **Curves**: from every seed that is not on a curve already traced, trace until the curve
+   closes (:func:`engine.trace.trace_curve`).
+3. **Critical points**: candidates where the augmented determinant changes sign along a curve,
+   at deep minima of ``|det|`` along it, and from seeded multistart; each refined on the
+   augmented system (:mod:`engine.critical`), deduplicated and classified to second order.
+   Points of a non-isolated critical set are merged into one degenerate entry per stress
+   support: they are never counted.
+4. **Segments** (critical lengths): from every branch point along each of its four rays, trace
+   until the next critical point. Components are the connected pieces of the graph of critical
+   points and segments (walked as an Eulerian circuit, so consecutive points stay within the
+   step bound), plus the closed curves that meet no critical point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from engine.assembly import rotors, seeds
+from engine.constraints import Constraints
+from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
+from engine.errors import InvalidLinkage
+from engine.linkage import Linkage
+from engine.rigidity import first_order
+from engine.tolerances import Tolerances
+from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_curve
+
+
+@dataclass(frozen=True)
+class SpaceOptions:
+    """Controls of the exploration (every cost is bounded by these)."""
+
+    trace: TraceOptions = field(default_factory=TraceOptions)
+    angles: int = 60
+    assembly_budget: int = 16
+    max_swept_rotors: int = 4
+    random_starts: int = 12
+    max_components: int = 32
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A branch of the configuration space from one critical point to another (or back).
+
+    ``start``/``end`` index critical points; ``start_ray``/``end_ray`` number the rays as in the
+    second-order tangents (``+t0, -t0, +t1, -t1`` = 0..3), -1 where not a branch point.
+    """
+
+    start: int
+    start_ray: int
+    end: int
+    end_ray: int
+    points: np.ndarray
+
+
+@dataclass(frozen=True)
+class Component:
+    """A connected component: its walk (n, M); closed walks repeat the first point at the end."""
+
+    points: np.ndarray
+    closed: bool
+    through_start: bool
+    critical_points: list[int]
+    segments: list[int]
+
+
+@dataclass(frozen=True)
+class SpaceResult:
+    """Outcome of :func:`explore`."""
+
+    components: list[Component]
+    critical_points: list[CriticalPoint]
+    segments: list[Segment]
+    near_misses: list[NearMiss]
+    search: dict[str, object]
+    degenerate: bool
+
+
+def rays(cp: CriticalPoint) -> np.ndarray:
+    """The four rays ``+t0, -t0, +t1, -t1`` (4, M) of a branch point."""
+    t = cp.analysis.tangents
+    return np.array([t[0], -t[0], t[1], -t[1]])
+
+
+def _require_one_dof(linkage: Linkage, cons: Constraints) -> None:
+    if cons.n_free - cons.n_constraints != 1 or not linkage.anything_fixed:
+        raise InvalidLinkage(
+            "tracing needs one degree of freedom (M - E = 1 with something fixed); this linkage "
+            f"has M = {cons.n_free}, E = {cons.n_constraints}"
+            + ("" if linkage.anything_fixed else " and nothing fixed"),
+            loc=("bars",),
+        )
+
+
+class _Explorer:
+    def __init__(self, linkage: Linkage, tol: Tolerances, options: SpaceOptions) -> None:
+        self.linkage = linkage
+        self.cons = Constraints(linkage)
+        _require_one_dof(linkage, self.cons)
+        self.tol = tol
+        self.opt = options
+        self.h_max = options.trace.resolved_step_max(self.cons)
+        self.scale = float(np.median(linkage.lengths[self.cons.bars]))
+        self.curves: list[Curve] = []
+        self.tree: cKDTree | None = None
+        self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self.report: dict[str, object] = {}
+
+    # -- curves ---------------------------------------------------------------------------
+    def _rebuild_tree(self) -> None:
+        pts = [np.array(c.points) for c in self.curves]
+        self.tree = cKDTree(np.vstack(pts))
+        self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+
+    def on_traced(self, u: np.ndarray) -> bool:
+        """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
+        correction from the nearest curve point towards ``u`` lands on ``u``."""
+        if self.tree is None:
+            return False
+        dist, idx = self.tree.query(u, k=min(4, self.tree.n))
+        for d, i in zip(np.atleast_1d(dist), np.atleast_1d(idx), strict=True):
+            if d > self.h_max:
+                continue
+            curve = self.curves[int(self.tree_owner[i])]
+            offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+            p, t = curve.points[offset], curve.tangents[offset]
+            v = p + ((u - p) @ t) * t
+            w, ok, _ = correct(self.cons, v, t, self.tol)
+            if ok and np.linalg.norm(w - u) <= 1e-6 * self.scale:
+                return True
+        return False
+
+    def trace_from(self, u: np.ndarray) -> Curve | None:
+        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
+                          sparse=False if self.cons.n_free <= 600 else None)
+        if rig.critical or rig.zero_modes.shape[0] != 1:
+            return None
+        curve = trace_curve(self.cons, u, rig.zero_modes[0], self.tol, self.opt.trace)
+        if curve.stop != "closed":
+            back = trace_curve(self.cons, u, -rig.zero_modes[0], self.tol, self.opt.trace,
+                               close=False)
+            curve = Curve(
+                points=back.points[::-1][:-1] + curve.points,
+                tangents=[-t for t in back.tangents[::-1][:-1]] + curve.tangents,
+                signs=back.signs[::-1][:-1] + curve.signs,
+                logdets=back.logdets[::-1][:-1] + curve.logdets,
+                stop=f"open ({back.stop}; {curve.stop})",
+            )
+        return curve
+
+    def trace_all(self, start: np.ndarray) -> None:
+        found = seeds(
+            self.linkage, self.tol, self.opt.angles, self.opt.assembly_budget,
+            self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
+        )
+        self.report.update(found.report)
+        truncated = False
+        for u in [start, *found.points]:
+            if self.on_traced(u):
+                continue
+            if len(self.curves) >= self.opt.max_components:
+                truncated = True
+                break
+            curve = self.trace_from(u)
+            if curve is None:
+                continue
+            self.curves.append(curve)
+            self._rebuild_tree()
+        self.report["curves_traced"] = len(self.curves)
+        self.report["component_budget_reached"] = truncated
+        self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)
+
+    # -- critical points ------------------------------------------------------------------
+    def candidates(self) -> list[np.ndarray]:
+        starts: list[np.ndarray] = []
+        for curve in self.curves:
+            pts = np.array(curve.points)
+            signs = np.array(curve.signs)
+            flips = np.flatnonzero(signs[1:] * signs[:-1] < 0)
+            starts += [0.5 * (pts[i] + pts[i + 1]) for i in flips]
+            logd = np.array(curve.logdets)
+            if len(logd) >= 3:
+                deep = np.median(logd) - np.log(30.0)
+                mins = np.flatnonzero(
+                    (logd[1:-1] <= logd[:-2]) & (logd[1:-1] <= logd[2:]) & (logd[1:-1] < deep)
+                ) + 1
+                starts += [pts[i] for i in mins]
+        rng = np.random.default_rng(self.opt.seed + 1)
+        base = self.linkage.coordinates()
+        for _ in range(self.opt.random_starts):
+            starts.append(base + self.scale * rng.normal(size=base.size))
+        return starts
+
+    def critical_points(self) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
+        exact: list[CriticalPoint] = []
+        misses: list[NearMiss] = []
+        for u0 in self.candidates():
+            ref = refine_critical(self.cons, u0, self.tol)
+            if ref.critical:
+                if any(np.linalg.norm(ref.u - c.u) <= 1e-6 * self.scale for c in exact):
+                    continue
+                analysis = classify(self.linkage, ref.u, self.tol)
+                exact.append(CriticalPoint(ref.u, analysis, ref.length_residual,
+                                           ref.stress_residual))
+            elif self.tree is not None:
+                _, i = self.tree.query(ref.u)
+                curve = self.curves[int(self.tree_owner[i])]
+                offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+                on = curve.points[offset]
+                misses.append(NearMiss(on, singular_gap(self.cons, on),
+                                       float(np.linalg.norm(on - ref.u)),
+                                       ref.length_residual, ref.u))
+        exact, degenerate = _merge_non_isolated(exact)
+        misses = _dedupe_misses(misses, self.scale)
+        self.report["critical_candidates"] = len(self.candidates())
+        return exact, misses, degenerate
+
+    # -- segments -------------------------------------------------------------------------
+    def segments(self, crit: list[CriticalPoint]) -> tuple[list[Segment], bool]:
+        out: list[Segment] = []
+        seen: set[frozenset[tuple[int, int]]] = set()
+        complete = True
+        h0 = 0.05 * self.h_max
+        capture = 0.05 * self.h_max
+        centres = [c.u for c in crit]
+        for i, cp in enumerate(crit):
+            if cp.kind != "branch":
+                continue
+            for r, ray in enumerate(rays(cp)):
+                if any((i, r) in key for key in seen):
+                    continue
+                v = cp.u + h0 * ray
+                w, ok, _ = correct(self.cons, v, ray, self.tol)
+                if not ok:
+                    complete = False
+                    continue
+
+                def stop(a: np.ndarray, b: np.ndarray, t: np.ndarray, _i: int = i,
+                         _w: np.ndarray = w) -> str | None:
+                    for j, c in enumerate(centres):
+                        if j == _i and np.linalg.norm(b - _w) < 2 * h0:
+                            continue
+                        if segment_distance(a, b, c) <= capture:
+                            return f"critical:{j}"
+                    return None
+
+                curve = trace_curve(self.cons, w, ray, self.tol, self.opt.trace, stop=stop,
+                                    close=False)
+                if not curve.stop.startswith("critical:"):
+                    complete = False
+                    continue
+                j = int(curve.stop.split(":")[1])
+                end_ray = _arrival_ray(crit[j], curve.points[-2] if len(curve.points) > 1
+                                       else curve.points[-1])
+                key = frozenset({(i, r), (j, end_ray)})
+                if key in seen:
+                    continue
+                seen.add(key)
+                pts = np.vstack([cp.u, np.array(curve.points[:-1]), crit[j].u])
+                out.append(Segment(i, r, j, end_ray, pts))
+        return out, complete
+
+
+def _arrival_ray(cp: CriticalPoint, near: np.ndarray) -> int:
+    if cp.kind != "branch":
+        return -1
+    d = near - cp.u
+    return int(np.argmax(rays(cp) @ (d / max(np.linalg.norm(d), 1e-300))))
+
+
+def _merge_non_isolated(points: list[CriticalPoint]) -> tuple[list[CriticalPoint], bool]:
+    """Keep isolated critical points; merge points of non-isolated sets into one entry per
+    stress support (the set is a continuum: any count of its points would be wrong)."""
+    kept: list[CriticalPoint] = []
+    supports: set[tuple[int, ...]] = set()
+    degenerate = False
+    for cp in points:
+        reason = cp.analysis.reason or ""
+        if cp.kind == "degenerate" and "non-isolated" in reason:
+            degenerate = True
+            stress = cp.analysis.self_stress
+            support = tuple(np.flatnonzero(np.abs(stress) > 1e-6).tolist()) if stress is not None \
+                else ()
+            if support in supports:
+                continue
+            supports.add(support)
+        elif cp.kind == "degenerate":
+            degenerate = True
+        kept.append(cp)
+    return kept, degenerate
+
+
+def _dedupe_misses(misses: list[NearMiss], scale: float) -> list[NearMiss]:
+    misses = sorted(misses, key=lambda m: m.length_gap)
+    out: list[NearMiss] = []
+    for m in misses:
+        if all(np.linalg.norm(m.critical_u - o.critical_u) > 1e-4 * scale for o in out):
+            out.append(m)
+    return out
+
+
+def _euler_walks(n_nodes: int, segs: list[Segment]) -> list[list[tuple[int, bool]]]:
+    """Walks covering every segment once (Hierholzer per connected piece): (segment, reversed)."""
+    adj: dict[int, list[int]] = {k: [] for k in range(n_nodes)}
+    for s, seg in enumerate(segs):
+        adj[seg.start].append(s)
+        if seg.end != seg.start:
+            adj[seg.end].append(s)
+        else:
+            adj[seg.start].append(s)
+    used = [False] * len(segs)
+    walks: list[list[tuple[int, bool]]] = []
+    for s0 in range(len(segs)):
+        if used[s0]:
+            continue
+        odd = [v for v in adj if len(adj[v]) % 2 == 1]
+        start = segs[s0].start if not odd else odd[0]
+        stack: list[tuple[int, int, bool]] = [(start, -1, False)]
+        path: list[tuple[int, bool]] = []
+        while stack:
+            node, via, rev = stack[-1]
+            nxt = next((s for s in adj[node] if not used[s]), None)
+            if nxt is None:
+                stack.pop()
+                if via >= 0:
+                    path.append((via, rev))
+                continue
+            used[nxt] = True
+            seg = segs[nxt]
+            forward = seg.start == node
+            stack.append((seg.end if forward else seg.start, nxt, not forward))
+        if path:
+            walks.append(path[::-1])
+    return walks
+
+
+def explore(
+    linkage: Linkage, tolerances: Tolerances | None = None, options: SpaceOptions | None = None
+) -> SpaceResult:
+    """Components, critical points, segments and near misses of a 1-DOF linkage (on its
+    configuration space: see :func:`engine.constraints.on_constraints`).
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> res = explore(build_preset("four-bar", {"L2": 1.2}))
+    >>> len(res.components), len(res.critical_points)
+    (1, 0)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
+    ex = _Explorer(linkage, tol, opt)
+    start = linkage.coordinates()
+    ex.trace_all(start)
+    crit, misses, degenerate = ex.critical_points()
+    segs, seg_complete = ex.segments(crit)
+    components: list[Component] = []
+    capture = 0.05 * ex.h_max
+
+    def touches(curve: Curve) -> bool:
+        pts = np.array(curve.points)
+        return any(
+            np.min(np.linalg.norm(pts - c.u, axis=1)) <= ex.h_max for c in crit
+        )
+
+    for curve in ex.curves:
+        if crit and touches(curve):
+            continue  # covered by segments
+        pts = np.array(curve.points)
+        closed = curve.stop == "closed"
+        if closed:
+            pts = np.vstack([pts, pts[:1]])
+        components.append(Component(pts, closed, False, [], []))
+    for walk in _euler_walks(len(crit), segs):
+        pieces = [segs[s].points[::-1] if rev else segs[s].points for s, rev in walk]
+        pts = np.vstack([pieces[0]] + [p[1:] for p in pieces[1:]])
+        nodes = sorted({segs[s].start for s, _ in walk} | {segs[s].end for s, _ in walk})
+        closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= capture)
+        components.append(Component(pts, closed, False, nodes, [s for s, _ in walk]))
+    on_segments = {n for c in components for n in c.critical_points}
+    for k, cp in enumerate(crit):
+        if k not in on_segments and cp.kind == "rigid":
+            components.append(Component(cp.u[None, :], True, False, [k], []))
+    # which component passes through the given configuration
+    best, best_d = -1, np.inf
+    for k, comp in enumerate(components):
+        p = comp.points
+        d = min(
+            (segment_distance(p[i], p[i + 1], start) for i in range(len(p) - 1)),
+            default=float(np.linalg.norm(p[0] - start)),
+        )
+        if d < best_d:
+            best, best_d = k, d
+    if best >= 0 and best_d <= ex.h_max:
+        c = components[best]
+        components[best] = Component(c.points, c.closed, True, c.critical_points, c.segments)
+    search = dict(ex.report)
+    search.update(
+        {
+            "critical_points_found": len(crit),
+            "segments_complete": seg_complete,
+            "step_max": ex.h_max,
+            "strain_tol": opt.trace.strain_tol,
+            "complete": not ex.report.get("component_budget_reached", False)
+            and not ex.report.get("assemblies_truncated", False)
+            and seg_complete
+            and not degenerate,
+        }
+    )
+    return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)
+
+
+def rotor_angles(linkage: Linkage, points: np.ndarray) -> dict[str, np.ndarray]:
+    """Unwrapped angle of every rotor (bar with exactly one fully fixed end) along ``points``
+    (n, M): ``atan2`` of the vector from the fixed end to the moving end (planar only)."""
+    if linkage.dimension != 2:
+        return {}
+    out: dict[str, np.ndarray] = {}
+    full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
+    for k in rotors(linkage):
+        i, j = (int(x) for x in linkage.ends[k])
+        pin, tip = (i, j) if full[i] else (j, i)
+        pos = np.array([linkage.positions_of(u) for u in points])
+        vec = pos[:, tip] - pos[:, pin]
+        out[linkage.bar_ids[k]] = np.unwrap(np.arctan2(vec[:, 1], vec[:, 0]))
+    return out
+
+
+def winding(angles: np.ndarray, closed: bool) -> int | None:
+    """Net number of turns of an unwrapped angle along a closed walk (None when open)."""
+    if not closed or len(angles) < 2:
+        return None
+    return int(np.rint((angles[-1] - angles[0]) / (2 * np.pi)))
