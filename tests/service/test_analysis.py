@@ -192,4 +192,5 @@ def test_numerical_failure_is_a_problem_not_a_crash(client, monkeypatch):
     assert r.json()["type"] == "/problems/numerical-failure"
     assert "inconsistent" in r.json()["detail"]
     monkeypatch.undo()
-    assert client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)}).status_code == 200
+    again = client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)})
+    assert again.status_code == 200
