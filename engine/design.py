@@ -1,0 +1,147 @@
+"""Design length changes that split chosen branch points with chosen signs (paper, Sec. III C).
+
+To first order ``Delta_i = g_i . dL`` with ``g_i = 4 sigma_i L`` (see :mod:`engine.splitting`).
+Asking ``sign_i Delta_i >= margin |g_i|`` for every target and minimising the largest change
+``max_j |dL_j|`` over the adjustable bars is a linear programme (HiGHS via
+``scipy.optimize.linprog``). Targets whose gradients are parallel on the adjustable bars are
+tied: they split together, and asking them for opposite signs is a conflict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+
+from engine.critical import CriticalPoint
+from engine.errors import InvalidParameter
+from engine.linkage import Linkage
+from engine.splitting import linear_delta_gradient
+
+
+@dataclass(frozen=True)
+class Target:
+    branch_point: int
+    sign: int
+
+
+@dataclass(frozen=True)
+class Conflict:
+    branch_points: list[int]
+    reason: str
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """``perturbation`` (E,) is zero off the adjustable bars; ``success``/``message`` report the
+    solver; ``feasible`` is False with ``conflicts`` when no change satisfies every target."""
+
+    feasible: bool
+    perturbation: np.ndarray
+    largest_change: float
+    conflicts: list[Conflict]
+    success: bool
+    message: str
+
+
+def _validate(
+    linkage: Linkage, crit: list[CriticalPoint], targets: list[Target], adjustable: list[str]
+) -> np.ndarray:
+    if not targets:
+        raise InvalidParameter("give at least one target", loc=("targets",))
+    if not adjustable:
+        raise InvalidParameter("give at least one adjustable bar", loc=("adjustable",))
+    idx = []
+    for k, bar in enumerate(adjustable):
+        if bar not in linkage.bar_ids:
+            raise InvalidParameter(f"unknown bar {bar!r}", loc=("adjustable", k))
+        j = linkage.bar_ids.index(bar)
+        if not linkage.active[j]:
+            raise InvalidParameter(
+                f"bar {bar!r} joins two fixed vertices and cannot change", loc=("adjustable", k)
+            )
+        idx.append(j)
+    if len(set(idx)) != len(idx):
+        raise InvalidParameter("adjustable bars repeat", loc=("adjustable",))
+    for k, t in enumerate(targets):
+        if not 0 <= t.branch_point < len(crit):
+            raise InvalidParameter(
+                f"no critical point {t.branch_point} (found {len(crit)})",
+                loc=("targets", k, "branch_point"),
+            )
+        if crit[t.branch_point].kind != "branch":
+            raise InvalidParameter(
+                f"critical point {t.branch_point} is {crit[t.branch_point].kind}, not a branch "
+                "point", loc=("targets", k, "branch_point"),
+            )
+        if t.sign not in (-1, 1):
+            raise InvalidParameter("sign must be 1 or -1", loc=("targets", k, "sign"))
+    return np.array(idx)
+
+
+def _conflicts(rows: np.ndarray, targets: list[Target]) -> list[Conflict]:
+    """Pairs of targets whose signed gradients point in opposite directions (tied), and
+    targets that the adjustable bars cannot move at all."""
+    out: list[Conflict] = []
+    norms = np.linalg.norm(rows, axis=1)
+    for a in range(len(targets)):
+        if norms[a] <= 1e-12:
+            out.append(Conflict([targets[a].branch_point],
+                                "the adjustable bars do not change how this point splits"))
+    for a in range(len(targets)):
+        for b in range(a + 1, len(targets)):
+            if norms[a] <= 1e-12 or norms[b] <= 1e-12:
+                continue
+            cos = float(rows[a] @ rows[b] / (norms[a] * norms[b]))
+            if cos < -1 + 1e-9:
+                out.append(Conflict(
+                    [targets[a].branch_point, targets[b].branch_point],
+                    "tied: on the adjustable bars these points split together, so they cannot "
+                    "take these signs at once",
+                ))
+    return out
+
+
+def design(
+    linkage: Linkage,
+    crit: list[CriticalPoint],
+    targets: list[Target],
+    adjustable: list[str],
+    margin: float,
+    max_change: float | None = None,
+) -> DesignResult:
+    """Smallest largest change of the adjustable bars giving every target its sign with
+    ``sign * Delta >= margin * |g|`` (``margin`` in length units)."""
+    idx = _validate(linkage, crit, targets, adjustable)
+    grads = np.array([linear_delta_gradient(linkage, crit[t.branch_point])[idx] for t in targets])
+    signs = np.array([t.sign for t in targets], dtype=float)
+    rows = signs[:, None] * grads
+    k = len(idx)
+    conflicts = _conflicts(rows, targets)
+    zero = np.zeros(linkage.n_bars)
+    if conflicts:
+        return DesignResult(False, zero, 0.0, conflicts, True, "conflicting targets")
+    # variables x = (dL_1..dL_k, t): minimise t, -t <= dL_j <= t, rows . dL >= margin |row|
+    cost = np.zeros(k + 1)
+    cost[-1] = 1.0
+    a_ub = np.vstack([
+        np.hstack([-rows, np.zeros((len(targets), 1))]),
+        np.hstack([np.eye(k), -np.ones((k, 1))]),
+        np.hstack([-np.eye(k), -np.ones((k, 1))]),
+    ])
+    b_ub = np.concatenate([-margin * np.linalg.norm(rows, axis=1), np.zeros(2 * k)])
+    bounds = [(None, None)] * k + [(0, max_change)]
+    res = linprog(cost, A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs")
+    if res.status == 2:  # infeasible
+        reason = "no change of the adjustable bars gives all these signs together"
+        if max_change is not None:
+            reason += f" within max_change = {max_change:g}"
+        return DesignResult(False, zero, 0.0,
+                            [Conflict([t.branch_point for t in targets], reason)], True,
+                            res.message)
+    if res.status != 0:
+        return DesignResult(False, zero, 0.0, [], False, res.message)
+    d_l = zero.copy()
+    d_l[idx] = res.x[:k]
+    return DesignResult(True, d_l, float(res.x[-1]), [], True, res.message)
