@@ -17,7 +17,8 @@ from scipy.optimize import linprog
 from engine.critical import CriticalPoint
 from engine.errors import InvalidParameter
 from engine.linkage import Linkage
-from engine.splitting import linear_delta_gradient
+from engine.splitting import linear_delta_gradient, retraced_pairing, split
+from engine.tolerances import Tolerances
 
 
 @dataclass(frozen=True)
@@ -145,3 +146,39 @@ def design(
     d_l = zero.copy()
     d_l[idx] = res.x[:k]
     return DesignResult(True, d_l, float(res.x[-1]), [], True, res.message)
+
+
+@dataclass(frozen=True)
+class Check:
+    """Prediction and re-traced answer for one target of a design."""
+
+    branch_point: int
+    sign: int
+    delta: float
+    connects: list[tuple[int, int]]
+    traced: list[tuple[int, int]] | None
+
+    @property
+    def agrees(self) -> bool:
+        return self.traced is not None and self.traced == self.connects
+
+
+def verify(
+    linkage: Linkage,
+    crit: list[CriticalPoint],
+    targets: list[Target],
+    d_l: np.ndarray,
+    tol: Tolerances,
+) -> list[Check]:
+    """Predict (Appendix A, second order) and re-trace the perturbed linkage at each target."""
+    perturbed = linkage.with_lengths(linkage.lengths + d_l)
+    scale = float(np.median(linkage.lengths[linkage.active]))
+    out = []
+    for t in targets:
+        cp = crit[t.branch_point]
+        s = split(linkage, t.branch_point, cp, d_l)
+        lam = float(np.abs(cp.analysis.q_eigenvalues).min())
+        radius = float(np.clip(4 * np.sqrt(abs(s.delta) / lam), 0.05 * scale, 0.3 * scale))
+        traced = retraced_pairing(perturbed, cp, radius, tol)
+        out.append(Check(t.branch_point, s.sign, s.delta, s.connects, traced))
+    return out

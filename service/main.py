@@ -4,7 +4,7 @@ from fastapi import FastAPI
 
 from engine import __version__
 from service import errors
-from service.routers import analysis, health, presets
+from service.routers import analysis, design, health, presets
 
 
 def create_app() -> FastAPI:
@@ -20,6 +20,7 @@ def create_app() -> FastAPI:
     app.include_router(health.router)
     app.include_router(presets.router)
     app.include_router(analysis.router)
+    app.include_router(design.router)
     return app
 
 

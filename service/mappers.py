@@ -6,16 +6,28 @@ import math
 
 import numpy as np
 
+from engine.configuration_space import (
+    Component,
+    SpaceOptions,
+    SpaceResult,
+    rotor_angles,
+    winding,
+)
 from engine.constraints import ProjectionResult
+from engine.critical import CriticalPoint
+from engine.design import Check, DesignResult
 from engine.linkage import BarSpec, Limits, VertexSpec, build_linkage
 from engine.linkage import Linkage as EngineLinkage
 from engine.presets import PRESETS
 from engine.rigidity import RigidityResult
 from engine.rigidity import TangentForm as EngineTangentForm
 from engine.second_order import SecondOrderResult
+from engine.splitting import Split
 from engine.tolerances import Tolerances as EngineTolerances
+from engine.trace import TraceOptions
 from engine.vectors import normalised
 from service.schemas import common as c
+from service.schemas import space
 from service.schemas.analysis import (
     RigidityResponse,
     SecondOrderResponse,
@@ -153,3 +165,143 @@ def presets_out() -> list[PresetInfo]:
         PresetInfo(name=p.name, description=p.description, parameters=dict(p.parameters))
         for p in PRESETS.values()
     ]
+
+
+# -- configuration space family --------------------------------------------------------------
+
+
+def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
+    given = model.model_dump(exclude_none=True) if model else {}
+    trace_keys = {"max_points", "strain_tol", "step_max"}
+    trace = TraceOptions(**{k: v for k, v in given.items() if k in trace_keys})
+    return SpaceOptions(trace=trace, **{k: v for k, v in given.items() if k not in trace_keys})
+
+
+def _critical_out(linkage: EngineLinkage, k: int, cp: CriticalPoint) -> space.CriticalPointOut:
+    res = cp.analysis
+    return space.CriticalPointOut(
+        index=k,
+        configuration=positions_out(linkage, linkage.positions_of(cp.u)),
+        kind=res.kind,
+        reason=res.reason,
+        self_stress=None if res.self_stress is None else bar_values(linkage, res.self_stress),
+        zero_modes=[vertex_vectors(linkage, z) for z in res.zero_modes],
+        q_eigenvalues=None if res.q_eigenvalues is None else res.q_eigenvalues.tolist(),
+        tangents=[vertex_vectors(linkage, t) for t in res.tangents],
+        residual=cp.length_residual,
+        stress_residual=cp.stress_residual,
+    )
+
+
+def _search_out(search: dict[str, object]) -> dict[str, object]:
+    return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in search.items()}
+
+
+def critical_points_out(
+    linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances
+) -> space.CriticalPointsResponse:
+    return space.CriticalPointsResponse(
+        critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
+        near_misses=[
+            space.NearMissOut(
+                configuration=positions_out(linkage, linkage.positions_of(m.u)),
+                singular_gap=m.singular_gap,
+                distance=m.distance,
+                length_gap=m.length_gap,
+                critical_configuration=positions_out(linkage, linkage.positions_of(m.critical_u)),
+            )
+            for m in res.near_misses
+        ],
+        degenerate=res.degenerate,
+        search=_search_out(res.search),
+        tolerances=tolerances_out(tol),
+        **_projection_fields(linkage, proj),  # type: ignore[arg-type]
+    )
+
+
+def _component_out(linkage: EngineLinkage, comp: Component) -> space.ComponentOut:
+    pos = np.array([linkage.positions_of(u) for u in comp.points])  # (n, V, d)
+    angles = rotor_angles(linkage, comp.points)
+    return space.ComponentOut(
+        closed=comp.closed,
+        through_start=comp.through_start,
+        positions={vid: pos[:, k].tolist() for k, vid in enumerate(linkage.vertex_ids)},
+        angles={bar: a.tolist() for bar, a in angles.items()},
+        winding={bar: winding(a, comp.closed) for bar, a in angles.items()},
+        critical_points=comp.critical_points,
+    )
+
+
+def space_out(
+    linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances
+) -> space.SpaceResponse:
+    owner = {s: k for k, comp in enumerate(res.components) for s in comp.segments}
+    return space.SpaceResponse(
+        components=[_component_out(linkage, c) for c in res.components],
+        critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
+        segments=[
+            space.SegmentOut(
+                from_=s.start, to=s.end, component=owner.get(k, -1), from_ray=s.start_ray,
+                to_ray=s.end_ray,
+            )
+            for k, s in enumerate(res.segments)
+        ],
+        degenerate=res.degenerate,
+        search=_search_out(res.search),
+        tolerances=tolerances_out(tol),
+        **_projection_fields(linkage, proj),  # type: ignore[arg-type]
+    )
+
+
+def splitting_out(
+    linkage: EngineLinkage, splits: list[Split], found: int, tol: EngineTolerances,
+    crit: list[CriticalPoint],
+) -> space.SplittingResponse:
+    return space.SplittingResponse(
+        branch_points=[
+            space.BranchSplitOut(
+                index=s.index,
+                configuration=positions_out(linkage, linkage.positions_of(crit[s.index].u)),
+                delta=s.delta,
+                delta_linear=s.delta_linear,
+                shift=s.shift.tolist(),
+                sign=s.sign,
+                connects=[list(p) for p in s.connects],
+            )
+            for s in splits
+        ],
+        critical_points_found=found,
+        tolerances=tolerances_out(tol),
+    )
+
+
+def design_out(
+    linkage: EngineLinkage,
+    result: DesignResult,
+    adjustable: list[str],
+    checks: list[Check],
+    tol: EngineTolerances,
+) -> space.DesignResponse:
+    return space.DesignResponse(
+        feasible=result.feasible,
+        perturbation={
+            bar: float(result.perturbation[linkage.bar_ids.index(bar)]) for bar in adjustable
+        },
+        largest_change=result.largest_change,
+        predicted=[
+            space.PredictedOut(
+                branch_point=c.branch_point,
+                sign=c.sign,
+                delta=c.delta,
+                connects=[list(p) for p in c.connects],
+                traced_connects=None if c.traced is None else [list(p) for p in c.traced],
+            )
+            for c in checks
+        ],
+        conflicts=[
+            space.ConflictOut(branch_points=c.branch_points, reason=c.reason)
+            for c in result.conflicts
+        ],
+        verified=all(c.agrees for c in checks) if checks else None,
+        tolerances=tolerances_out(tol),
+    )

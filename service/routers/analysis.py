@@ -2,14 +2,23 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends
 
+from engine.configuration_space import explore
 from engine.constraints import on_constraints
 from engine.rigidity import first_order
 from engine.second_order import second_order
+from engine.splitting import length_change, split
 from service import mappers
 from service.config import Settings, get_settings
 from service.errors import PROBLEM_JSON
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest, Problem
+from service.schemas.space import (
+    CriticalPointsResponse,
+    SpaceRequest,
+    SpaceResponse,
+    SplittingRequest,
+    SplittingResponse,
+)
 
 router = APIRouter(prefix="/v1/analysis", tags=["analysis"])
 _problems = {422: {"model": Problem, "content": {PROBLEM_JSON: {}}}}
@@ -32,3 +41,40 @@ def second_order_analysis(body: AnalysisRequest, settings: SettingsDep) -> Secon
     tol = mappers.tolerances_in(body.tolerances)
     at, proj = on_constraints(linkage, tol)
     return mappers.second_order_out(at, second_order(at, tol), proj)
+
+
+@router.post(
+    "/critical-points", response_model=CriticalPointsResponse, responses=_problems  # type: ignore[arg-type]
+)
+def critical_points(body: SpaceRequest, settings: SettingsDep) -> CriticalPointsResponse:
+    """Every critical point for the given lengths (or the closest approaches when none)."""
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    res = explore(at, tol, mappers.space_options_in(body.options))
+    return mappers.critical_points_out(at, res, proj, tol)
+
+
+@router.post(
+    "/configuration-space", response_model=SpaceResponse, responses=_problems  # type: ignore[arg-type]
+)
+def configuration_space(body: SpaceRequest, settings: SettingsDep) -> SpaceResponse:
+    """Every component of a one-degree-of-freedom linkage, traced; at critical lengths also the
+    segments between critical points."""
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    res = explore(at, tol, mappers.space_options_in(body.options))
+    return mappers.space_out(at, res, proj, tol)
+
+
+@router.post("/splitting", response_model=SplittingResponse, responses=_problems)  # type: ignore[arg-type]
+def splitting(body: SplittingRequest, settings: SettingsDep) -> SplittingResponse:
+    """How each branch point splits under the length change ``perturbation`` (Appendix A)."""
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    d_l = length_change(at, body.perturbation)
+    crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
+    splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
+    return mappers.splitting_out(at, splits, len(crit), tol, crit)

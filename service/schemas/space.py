@@ -1,0 +1,179 @@
+"""Requests and responses of the configuration-space family of endpoints."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import (
+    BarValues,
+    Finite,
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    TolerancesUsed,
+    VertexVectors,
+)
+from service.schemas.analysis import Projection
+
+
+class SpaceOptions(Strict):
+    max_points: Annotated[int, Field(ge=10, le=200_000)] | None = Field(
+        None, description="budget of points per traced curve (default 20000)"
+    )
+    strain_tol: Annotated[float, Field(gt=0, le=0.2, allow_inf_nan=False)] | None = Field(
+        None, description="largest relative bar strain of a predictor step (default 0.01)"
+    )
+    step_max: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
+        None, description="largest distance between consecutive points (default: a tenth of "
+        "the median bar length)"
+    )
+    angles: Annotated[int, Field(ge=4, le=2000)] | None = Field(
+        None, description="rotor angles swept for seeds (default 60)"
+    )
+    random_starts: Annotated[int, Field(ge=0, le=1000)] | None = Field(
+        None, description="random starts for seeds and for the critical-point search (default 12)"
+    )
+    max_components: Annotated[int, Field(ge=1, le=1000)] | None = Field(
+        None, description="budget of traced components (default 32)"
+    )
+    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = Field(
+        None, description="seed of the random starts (default 0)"
+    )
+
+
+class SpaceRequest(Strict):
+    linkage: Linkage
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class CriticalPointOut(BaseModel):
+    index: int
+    configuration: VertexVectors
+    kind: str = Field(description="branch, rigid or degenerate")
+    reason: str | None
+    self_stress: BarValues | None
+    zero_modes: list[VertexVectors]
+    q_eigenvalues: list[float] | None
+    tangents: list[VertexVectors] = Field(description="rays +t0, -t0, +t1, -t1 are numbered 0..3")
+    residual: float = Field(description="largest |l - L| at the critical configuration")
+    stress_residual: float = Field(description="|J^T sigma| / |J|")
+
+
+class NearMissOut(BaseModel):
+    configuration: VertexVectors = Field(description="closest approach on the configuration space")
+    singular_gap: float = Field(description="s_min / s_max of J there")
+    distance: float = Field(description="configuration distance to the nearest critical "
+                            "configuration (of nearby lengths)")
+    length_gap: float = Field(description="largest length change that makes it critical")
+    critical_configuration: VertexVectors
+
+
+class CriticalPointsResponse(Projection):
+    critical_points: list[CriticalPointOut]
+    near_misses: list[NearMissOut]
+    degenerate: bool = Field(description="a critical point is degenerate (e.g. non-isolated)")
+    search: dict[str, object]
+    tolerances: TolerancesUsed
+
+
+class ComponentOut(BaseModel):
+    closed: bool
+    through_start: bool
+    positions: dict[str, list[list[float]]] = Field(
+        description="per vertex, the walk along the component (closed ones repeat the first "
+        "point at the end)"
+    )
+    angles: dict[str, list[float]] = Field(description="unwrapped rotor angles along the walk")
+    winding: dict[str, int | None] = Field(description="net turns of each rotor (closed only)")
+    critical_points: list[int]
+
+
+class SegmentOut(BaseModel):
+    from_: int = Field(alias="from", serialization_alias="from")
+    to: int
+    component: int
+    from_ray: int
+    to_ray: int
+
+    model_config = {"populate_by_name": True}
+
+
+class SpaceResponse(Projection):
+    components: list[ComponentOut]
+    critical_points: list[CriticalPointOut]
+    segments: list[SegmentOut] = Field(
+        description="at critical lengths: which critical points each branch joins"
+    )
+    degenerate: bool
+    search: dict[str, object]
+    tolerances: TolerancesUsed
+
+
+class SplittingRequest(Strict):
+    linkage: Linkage
+    perturbation: dict[Ident, Finite] = Field(description="{bar_id: dL}")
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class BranchSplitOut(BaseModel):
+    index: int
+    configuration: VertexVectors
+    delta: float = Field(description="Delta of the conic (c - dc)^T Q (c - dc) = Delta")
+    delta_linear: float = Field(description="first-order Delta = 4 sum sigma_a L_a dL_a")
+    shift: list[float] = Field(description="dc, the centre shift on the zero modes")
+    sign: int
+    connects: list[list[int]] = Field(description="joined ray pairs")
+
+
+class SplittingResponse(BaseModel):
+    branch_points: list[BranchSplitOut]
+    critical_points_found: int
+    tolerances: TolerancesUsed
+
+
+class TargetIn(Strict):
+    branch_point: Annotated[int, Field(ge=0)]
+    sign: Annotated[int, Field(ge=-1, le=1)]
+
+
+class DesignRequest(Strict):
+    linkage: Linkage
+    targets: list[TargetIn] = Field(min_length=1, max_length=1000)
+    adjustable: list[Ident] = Field(min_length=1, max_length=10_000)
+    max_change: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    margin: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
+        None, description="required sign * Delta / |dDelta/dL| (default 1e-4 of the median "
+        "bar length)"
+    )
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class PredictedOut(BaseModel):
+    branch_point: int
+    sign: int
+    delta: float
+    connects: list[list[int]]
+    traced_connects: list[list[int]] | None = Field(
+        description="ray pairs found by tracing the perturbed linkage"
+    )
+
+
+class ConflictOut(BaseModel):
+    branch_points: list[int]
+    reason: str
+
+
+class DesignResponse(BaseModel):
+    feasible: bool
+    perturbation: dict[str, float]
+    largest_change: float
+    predicted: list[PredictedOut]
+    conflicts: list[ConflictOut]
+    verified: bool | None = Field(description="the perturbed linkage, re-traced, agrees")
+    tolerances: TolerancesUsed
