@@ -1,0 +1,177 @@
+"""Whole configuration spaces against the classical four-bar rules, the paper's examples, and an
+independent critical-point search."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.constraints import Constraints
+from engine.linkage import BarSpec, VertexSpec, build_linkage
+from engine.presets import build_preset
+from engine.tolerances import Tolerances
+
+TOL = Tolerances()
+FAST = SpaceOptions(angles=24, random_starts=4)
+
+
+def random_four_bars(count: int, seed: int = 2026):
+    """Seeded length sets (a = 1) that assemble and stay away from every critical value:
+    every signed sum a +- L1 +- L2 +- L3 is at least 0.05 from zero."""
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < count:
+        l1, l2, l3 = rng.uniform(0.3, 2.2, 3)
+        sums = [abs(1 + s1 * l1 + s2 * l2 + s3 * l3)
+                for s1, s2, s3 in itertools.product((1, -1), repeat=3)]
+        if min(sums) < 0.05:
+            continue
+        links = sorted([1.0, l1, l2, l3])
+        if links[3] >= links[0] + links[1] + links[2]:
+            continue  # does not assemble
+        out.append((float(l1), float(l2), float(l3)))
+    return out
+
+
+def classical(l1: float, l2: float, l3: float):
+    """Grashof: components, and which rotors turn fully (crank conditions)."""
+    links = {"a": 1.0, "L1": l1, "L2": l2, "L3": l3}
+    s, l = min(links.values()), max(links.values())
+    p_q = sum(links.values()) - s - l
+    if s + l >= p_q:
+        return 1, {"L1": False, "L3": False}
+    shortest = min(links, key=links.get)
+    full = {
+        "a": {"L1": True, "L3": True},  # double crank
+        "L1": {"L1": True, "L3": False},  # crank-rocker
+        "L3": {"L1": False, "L3": True},
+        "L2": {"L1": False, "L3": False},  # double rocker
+    }[shortest]
+    return 2, full
+
+
+@pytest.mark.parametrize("lengths", random_four_bars(200), ids=lambda x: "-".join(f"{v:.3f}" for v in x))
+def test_four_bar_components_and_cranks_follow_grashof(lengths):
+    l1, l2, l3 = lengths
+    lk = build_preset("four-bar", {"L1": l1, "L2": l2, "L3": l3})
+    res = explore(lk, TOL, FAST)
+    count, cranks = classical(l1, l2, l3)
+    assert res.search["complete"]
+    assert not res.critical_points
+    assert len(res.components) == count
+    assert sum(c.through_start for c in res.components) == 1
+    cons = Constraints(lk)
+    step_max = FAST.trace.resolved_step_max(cons)
+    for comp in res.components:
+        assert comp.closed
+        assert max(cons.max_residual(u) for u in comp.points) <= TOL.residual_atol
+        assert np.max(np.linalg.norm(np.diff(comp.points, axis=0), axis=1)) <= step_max
+        for bar, angles in rotor_angles(lk, comp.points).items():
+            turns = winding(angles, comp.closed)
+            assert (abs(turns) == 1) if cranks[bar] else (turns == 0), (bar, turns)
+
+
+def equilateral(l2: float = 1.0):
+    return build_preset("four-bar", {"L2": l2})
+
+
+def test_equilateral_four_bar_three_branch_points_and_segments():
+    res = explore(equilateral(), TOL, FAST)
+    assert [cp.kind for cp in res.critical_points] == ["branch"] * 3
+    # each critical point's four rays start or end exactly one segment
+    ends = [(s.start, s.start_ray) for s in res.segments] + [(s.end, s.end_ray) for s in res.segments]
+    assert sorted(ends) == [(k, r) for k in range(3) for r in range(4)]
+    assert len(res.segments) == 6
+    for s in res.segments:  # segments join distinct branch points (the three circles)
+        assert s.start != s.end
+    assert len(res.components) == 1 and res.components[0].closed
+    # the critical points are the collinear configurations
+    for cp in res.critical_points:
+        pos = equilateral().positions_of(cp.u)
+        assert np.allclose(pos[:, 1], 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("sign", "count"), [(1, 1), (-1, 2)])
+def test_equilateral_four_bar_perturbed(sign, count):
+    """Paper: L2 = a(1 + e) gives one component, L2 = a(1 - e) two."""
+    res = explore(equilateral(1 + sign * 0.05), TOL, FAST)
+    assert len(res.components) == count and not res.critical_points
+    assert res.search["complete"]
+
+
+def augmented_residual(lk, x):
+    """Independent residual of the critical-point system: bar by bar, in a different scaling."""
+    m = lk.n_free
+    u, s = x[:m], x[m:]
+    pos = lk.positions_of(u)
+    free = ~lk.fixed
+    rows, force = [], np.zeros_like(pos)
+    for k, (i, j) in enumerate(lk.ends):
+        d = pos[i] - pos[j]
+        rows.append(d @ d - lk.lengths[k] ** 2)
+        force[i] += s[k] * d
+        force[j] -= s[k] * d
+    return np.concatenate([rows, force[free], [s @ s - 1]])
+
+
+def independent_critical_points(lk, starts: int, seed: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    found: list[np.ndarray] = []
+    m, e = lk.n_free, lk.n_bars
+    for _ in range(starts):
+        x0 = np.concatenate([lk.coordinates() + rng.normal(size=m), rng.normal(size=e)])
+        res = least_squares(lambda x: augmented_residual(lk, x), x0, method="lm", xtol=1e-15,
+                            ftol=1e-15, gtol=1e-15, max_nfev=4000)
+        if np.max(np.abs(res.fun)) < 1e-10:
+            u = res.x[:m]
+            if all(np.linalg.norm(u - f) > 1e-6 for f in found):
+                found.append(u)
+    return found
+
+
+def test_three_rotor_twelve_branch_points_cross_checked():
+    lk = build_preset("three-rotor")
+    res = explore(lk, TOL, FAST)
+    ours = [cp.u for cp in res.critical_points]
+    assert len(ours) == 12 and all(cp.kind == "branch" for cp in res.critical_points)
+    theirs = independent_critical_points(lk, starts=300, seed=7)
+    assert len(theirs) == 12
+    for u in theirs:
+        assert min(np.linalg.norm(u - v) for v in ours) < 1e-6
+    # the paper's pairing: branch points split together in pairs (identical splitting gradient)
+    assert len(res.segments) == 24
+
+
+def test_collinear_three_rotor_is_degenerate():
+    lk = build_preset("three-rotor", {"phi": 0.0})
+    res = explore(lk, TOL, FAST)
+    assert res.degenerate and not res.search["complete"]
+    kinds = [cp.kind for cp in res.critical_points]
+    assert "degenerate" in kinds
+    reasons = [cp.analysis.reason for cp in res.critical_points if cp.kind == "degenerate"]
+    assert any("non-isolated" in (r or "") for r in reasons)
+
+
+def test_three_dimensional_linkage_is_traced_and_closed():
+    """A spatial one-degree-of-freedom linkage: A on the circle of two spheres about P1, P2;
+    B at fixed distances from A, P3 and P4 (not coplanar with the rest)."""
+    lk = build_linkage(
+        3,
+        [VertexSpec("P1", [0, 0, 0], True), VertexSpec("P2", [0, 0, 1], True),
+         VertexSpec("P3", [2, 0, 0], True), VertexSpec("P4", [2, 1, 0.5], True),
+         VertexSpec("A", [0.8, 0.2, 0.5]), VertexSpec("B", [1.6, 0.9, 0.9])],
+        [BarSpec("a1", ("P1", "A")), BarSpec("a2", ("P2", "A")), BarSpec("c", ("A", "B")),
+         BarSpec("b3", ("P3", "B")), BarSpec("b4", ("P4", "B"))],
+    )
+    res = explore(lk, TOL, SpaceOptions(random_starts=8))
+    assert res.components
+    cons = Constraints(lk)
+    through = [c for c in res.components if c.through_start]
+    assert len(through) == 1 and through[0].closed
+    for comp in res.components:
+        assert max(cons.max_residual(u) for u in comp.points) <= TOL.residual_atol
+    assert np.linalg.norm(through[0].points[0] - through[0].points[-1]) == 0.0
