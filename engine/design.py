@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from engine.critical import CriticalPoint
-from engine.errors import InvalidParameter
+from engine.errors import InvalidRequest
 from engine.linkage import Linkage
 from engine.splitting import linear_delta_gradient, retraced_pairing, split
 from engine.tolerances import Tolerances
@@ -50,34 +50,34 @@ def _validate(
     linkage: Linkage, crit: list[CriticalPoint], targets: list[Target], adjustable: list[str]
 ) -> np.ndarray:
     if not targets:
-        raise InvalidParameter("give at least one target", loc=("targets",))
+        raise InvalidRequest("give at least one target", loc=("targets",))
     if not adjustable:
-        raise InvalidParameter("give at least one adjustable bar", loc=("adjustable",))
+        raise InvalidRequest("give at least one adjustable bar", loc=("adjustable",))
     idx = []
     for k, bar in enumerate(adjustable):
         if bar not in linkage.bar_ids:
-            raise InvalidParameter(f"unknown bar {bar!r}", loc=("adjustable", k))
+            raise InvalidRequest(f"unknown bar {bar!r}", loc=("adjustable", k))
         j = linkage.bar_ids.index(bar)
         if not linkage.active[j]:
-            raise InvalidParameter(
+            raise InvalidRequest(
                 f"bar {bar!r} joins two fixed vertices and cannot change", loc=("adjustable", k)
             )
         idx.append(j)
     if len(set(idx)) != len(idx):
-        raise InvalidParameter("adjustable bars repeat", loc=("adjustable",))
+        raise InvalidRequest("adjustable bars repeat", loc=("adjustable",))
     for k, t in enumerate(targets):
         if not 0 <= t.branch_point < len(crit):
-            raise InvalidParameter(
+            raise InvalidRequest(
                 f"no critical point {t.branch_point} (found {len(crit)})",
                 loc=("targets", k, "branch_point"),
             )
         if crit[t.branch_point].kind != "branch":
-            raise InvalidParameter(
+            raise InvalidRequest(
                 f"critical point {t.branch_point} is {crit[t.branch_point].kind}, not a branch "
                 "point", loc=("targets", k, "branch_point"),
             )
         if t.sign not in (-1, 1):
-            raise InvalidParameter("sign must be 1 or -1", loc=("targets", k, "sign"))
+            raise InvalidRequest("sign must be 1 or -1", loc=("targets", k, "sign"))
     return np.array(idx)
 
 
@@ -177,6 +177,7 @@ def verify(
     for t in targets:
         cp = crit[t.branch_point]
         s = split(linkage, t.branch_point, cp, d_l)
+        assert cp.analysis.q_eigenvalues is not None  # targets are branch points (validated)
         lam = float(np.abs(cp.analysis.q_eigenvalues).min())
         radius = float(np.clip(4 * np.sqrt(abs(s.delta) / lam), 0.05 * scale, 0.3 * scale))
         traced = retraced_pairing(perturbed, cp, radius, tol)

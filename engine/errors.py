@@ -44,3 +44,7 @@ class InvalidTolerance(EngineError):
 
 class NumericalFailure(RuntimeError):
     """A numerical method could not produce a trustworthy answer (not an input error)."""
+
+
+class InvalidRequest(EngineError):
+    """A request field other than the linkage (a perturbation, a target, ...) is invalid."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint
-from engine.errors import InvalidParameter
+from engine.errors import InvalidRequest
 from engine.linkage import Linkage
 from engine.tolerances import Tolerances
 from engine.trace import TraceOptions, correct, trace_curve
@@ -69,16 +69,16 @@ def length_change(linkage: Linkage, perturbation: dict[str, float]) -> np.ndarra
     d_l = np.zeros(linkage.n_bars)
     for bar, value in perturbation.items():
         if bar not in linkage.bar_ids:
-            raise InvalidParameter(f"unknown bar {bar!r}", loc=("perturbation", bar))
+            raise InvalidRequest(f"unknown bar {bar!r}", loc=("perturbation", bar))
         k = linkage.bar_ids.index(bar)
         if not np.isfinite(value):
-            raise InvalidParameter("must be finite", loc=("perturbation", bar))
+            raise InvalidRequest("must be finite", loc=("perturbation", bar))
         if not linkage.active[k] and value != 0:
-            raise InvalidParameter(
+            raise InvalidRequest(
                 "joins two fixed vertices: its length is their distance", loc=("perturbation", bar)
             )
         if linkage.lengths[k] + value <= 0:
-            raise InvalidParameter("would make the length non-positive", loc=("perturbation", bar))
+            raise InvalidRequest("would make the length non-positive", loc=("perturbation", bar))
         d_l[k] = value
     return d_l
 

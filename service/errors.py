@@ -15,6 +15,7 @@ from engine.errors import (
     EngineError,
     InvalidLinkage,
     InvalidParameter,
+    InvalidRequest,
     InvalidTolerance,
     LimitExceeded,
     NoNearbySolution,
@@ -36,6 +37,7 @@ _ENGINE: dict[type[EngineError], tuple[int, str, str, tuple[str, ...]]] = {
         ("body", "linkage"),
     ),
     InvalidTolerance: (422, "invalid-tolerance", "Invalid tolerance", ("body",)),
+    InvalidRequest: (422, "invalid-request", "Invalid request", ("body",)),
     InvalidParameter: (422, "invalid-parameter", "Invalid preset parameter", ("query",)),
     UnknownPreset: (404, "unknown-preset", "Unknown preset", ("path",)),
 }

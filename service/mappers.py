@@ -240,9 +240,9 @@ def space_out(
         components=[_component_out(linkage, c) for c in res.components],
         critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
         segments=[
-            space.SegmentOut(
-                from_=s.start, to=s.end, component=owner.get(k, -1), from_ray=s.start_ray,
-                to_ray=s.end_ray,
+            space.SegmentOut.model_validate(
+                {"from": s.start, "to": s.end, "component": owner.get(k, -1),
+                 "from_ray": s.start_ray, "to_ray": s.end_ray}
             )
             for k, s in enumerate(res.segments)
         ],

@@ -6,6 +6,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, Field
 
+from service.schemas.analysis import Projection
 from service.schemas.common import (
     BarValues,
     Finite,
@@ -16,7 +17,6 @@ from service.schemas.common import (
     TolerancesUsed,
     VertexVectors,
 )
-from service.schemas.analysis import Projection
 
 
 class SpaceOptions(Strict):

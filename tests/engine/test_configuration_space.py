@@ -40,9 +40,9 @@ def random_four_bars(count: int, seed: int = 2026):
 def classical(l1: float, l2: float, l3: float):
     """Grashof: components, and which rotors turn fully (crank conditions)."""
     links = {"a": 1.0, "L1": l1, "L2": l2, "L3": l3}
-    s, l = min(links.values()), max(links.values())
-    p_q = sum(links.values()) - s - l
-    if s + l >= p_q:
+    shortest_len, longest_len = min(links.values()), max(links.values())
+    p_q = sum(links.values()) - shortest_len - longest_len
+    if shortest_len + longest_len >= p_q:
         return 1, {"L1": False, "L3": False}
     shortest = min(links, key=links.get)
     full = {
@@ -54,7 +54,9 @@ def classical(l1: float, l2: float, l3: float):
     return 2, full
 
 
-@pytest.mark.parametrize("lengths", random_four_bars(200), ids=lambda x: "-".join(f"{v:.3f}" for v in x))
+@pytest.mark.parametrize(
+    "lengths", random_four_bars(200), ids=lambda x: "-".join(f"{v:.3f}" for v in x)
+)
 def test_four_bar_components_and_cranks_follow_grashof(lengths):
     l1, l2, l3 = lengths
     lk = build_preset("four-bar", {"L1": l1, "L2": l2, "L3": l3})
@@ -83,7 +85,8 @@ def test_equilateral_four_bar_three_branch_points_and_segments():
     res = explore(equilateral(), TOL, FAST)
     assert [cp.kind for cp in res.critical_points] == ["branch"] * 3
     # each critical point's four rays start or end exactly one segment
-    ends = [(s.start, s.start_ray) for s in res.segments] + [(s.end, s.end_ray) for s in res.segments]
+    ends = [(s.start, s.start_ray) for s in res.segments]
+    ends += [(s.end, s.end_ray) for s in res.segments]
     assert sorted(ends) == [(k, r) for k in range(3) for r in range(4)]
     assert len(res.segments) == 6
     for s in res.segments:  # segments join distinct branch points (the three circles)

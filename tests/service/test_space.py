@@ -1,0 +1,118 @@
+"""Configuration-space, critical-points, splitting and design endpoints through HTTP."""
+
+from __future__ import annotations
+
+import numpy as np
+
+FAST = {"angles": 24, "random_starts": 4}
+
+
+def preset(client, name, **params):
+    query = "&".join(f"{k}={v}" for k, v in params.items())
+    r = client.get(f"/v1/presets/{name}?{query}")
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def post(client, path, body):
+    r = client.post(path, json=body)
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def test_configuration_space_of_the_equilateral_four_bar(client):
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": preset(client, "four-bar"), "options": FAST})
+    assert len(body["components"]) == 1
+    assert [cp["kind"] for cp in body["critical_points"]] == ["branch"] * 3
+    assert len(body["segments"]) == 6
+    assert all(s["component"] == 0 and s["from"] != s["to"] for s in body["segments"])
+    comp = body["components"][0]
+    assert comp["closed"] and comp["through_start"]
+    assert sorted(comp["critical_points"]) == [0, 1, 2]
+    assert set(comp["positions"]) == {"P1", "P2", "A", "B"}
+    a = np.array(comp["positions"]["A"])
+    assert np.allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-9)
+    assert set(comp["angles"]) == {"L1", "L3"} and set(comp["winding"]) == {"L1", "L3"}
+    assert body["search"]["complete"] is True
+
+
+def test_configuration_space_of_a_double_rocker(client):
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": preset(client, "four-bar", L2=0.9), "options": FAST})
+    assert len(body["components"]) == 2 and body["segments"] == []
+    assert [c["through_start"] for c in body["components"]].count(True) == 1
+    for comp in body["components"]:
+        assert comp["winding"] == {"L1": 0, "L3": 0}
+        first = {k: v[0] for k, v in comp["positions"].items()}
+        last = {k: v[-1] for k, v in comp["positions"].items()}
+        assert first == last
+
+
+def test_critical_points_and_near_misses(client):
+    body = post(client, "/v1/analysis/critical-points",
+                {"linkage": preset(client, "four-bar"), "options": FAST})
+    assert len(body["critical_points"]) == 3 and body["near_misses"] == []
+    for cp in body["critical_points"]:
+        assert cp["residual"] <= 1e-9 and len(cp["tangents"]) == 2
+        assert set(cp["self_stress"]) == {"L1", "L2", "L3"}
+    body = post(client, "/v1/analysis/critical-points",
+                {"linkage": preset(client, "four-bar", L2=1.01), "options": FAST})
+    assert body["critical_points"] == [] and body["near_misses"]
+    closest = min(m["length_gap"] for m in body["near_misses"])
+    assert 1e-3 < closest < 1e-2  # L2 is 0.01 from the critical value a = 1
+
+
+def test_splitting_endpoint(client):
+    lk = preset(client, "four-bar")
+    up = post(client, "/v1/analysis/splitting",
+              {"linkage": lk, "perturbation": {"L2": 1e-3}, "options": FAST})
+    down = post(client, "/v1/analysis/splitting",
+                {"linkage": lk, "perturbation": {"L2": -1e-3}, "options": FAST})
+    assert len(up["branch_points"]) == 3
+    for a, b in zip(up["branch_points"], down["branch_points"], strict=True):
+        assert a["index"] == b["index"] and a["sign"] == -b["sign"]
+        assert len(a["connects"]) == 2
+        assert {tuple(p) for p in a["connects"]}.isdisjoint({tuple(p) for p in b["connects"]})
+        assert abs(a["delta"] - a["delta_linear"]) < 0.01 * abs(a["delta_linear"])
+
+
+def test_design_endpoint(client):
+    lk = preset(client, "three-rotor")
+    body = post(client, "/v1/design/splitting", {
+        "linkage": lk, "targets": [{"branch_point": 0, "sign": 1}],
+        "adjustable": ["r1", "L1", "L2"], "options": FAST,
+    })
+    assert body["feasible"] is True and body["verified"] is True
+    assert set(body["perturbation"]) == {"r1", "L1", "L2"}
+    assert body["predicted"][0]["connects"] == body["predicted"][0]["traced_connects"]
+    tied = post(client, "/v1/design/splitting", {
+        "linkage": lk,
+        "targets": [{"branch_point": 1, "sign": 1}, {"branch_point": 5, "sign": -1}],
+        "adjustable": ["r1", "L1", "L2"], "options": FAST,
+    })
+    assert tied["feasible"] is False and tied["verified"] is None
+    assert tied["conflicts"][0]["branch_points"] == [1, 5]
+
+
+def test_errors_of_the_new_endpoints(client):
+    two_dof = {"vertices": [{"id": "P", "position": [0, 0], "fixed": True},
+                            {"id": "A", "position": [1, 0]}],
+               "bars": []}
+    r = client.post("/v1/analysis/configuration-space", json={"linkage": two_dof})
+    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "linkage", "bars"]
+    lk = preset(client, "four-bar")
+    r = client.post("/v1/analysis/splitting",
+                    json={"linkage": lk, "perturbation": {"nope": 1e-3}, "options": FAST})
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "perturbation", "nope"]
+    r = client.post("/v1/design/splitting", json={
+        "linkage": lk, "targets": [{"branch_point": 7, "sign": 1}], "adjustable": ["L2"],
+        "options": FAST})
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "targets", 0, "branch_point"]
+    r = client.post("/v1/analysis/configuration-space",
+                    json={"linkage": lk, "options": {"angles": 0}})
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"][:3] == ["body", "options", "angles"]
+    assert client.get("/health").status_code == 200
