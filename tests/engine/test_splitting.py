@@ -70,7 +70,9 @@ def test_design_feasible_pattern_is_verified_by_tracing():
     ref = np.zeros(THREE_ROTOR.n_bars)
     ref[idx] = np.random.default_rng(5).normal(size=len(idx))
     gradients = [4 * crit[k].analysis.self_stress * THREE_ROTOR.lengths for k in (0, 3, 6, 7)]
-    targets = [Target(k, int(np.sign(g @ ref))) for k, g in zip((0, 3, 6, 7), gradients, strict=True)]
+    targets = [
+        Target(k, int(np.sign(g @ ref))) for k, g in zip((0, 3, 6, 7), gradients, strict=True)
+    ]
     result = design(THREE_ROTOR, crit, targets, adjustable, margin=1e-4)
     assert result.feasible and not result.conflicts
     assert np.all(result.perturbation[[k for k in range(5) if k not in idx]] == 0)
