@@ -22,13 +22,17 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.assembly import rotors, seeds
-from engine.constraints import Constraints
+from engine.constraints import Constraints, project
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.errors import InvalidLinkage
 from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
 from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_curve
+
+#: Above this many free coordinates the critical-point search uses only candidates along the
+#: traced curves (no random multistart on the augmented system).
+MULTISTART_MAX_FREE = 64
 
 
 @dataclass(frozen=True)
@@ -191,16 +195,27 @@ class _Explorer:
                     (logd[1:-1] <= logd[:-2]) & (logd[1:-1] <= logd[2:]) & (logd[1:-1] < deep)
                 ) + 1
                 starts += [pts[i] for i in mins]
+        # Seeded multistart from random points projected onto the constraints (close to where
+        # critical points live); only for small linkages, where it is cheap: larger ones rely on
+        # the candidates along the traced curves.
+        starts_used = self.opt.random_starts if self.cons.n_free <= MULTISTART_MAX_FREE else 0
         rng = np.random.default_rng(self.opt.seed + 1)
-        base = self.linkage.coordinates()
-        for _ in range(self.opt.random_starts):
-            starts.append(base + self.scale * rng.normal(size=base.size))
+        base = self.linkage.positions
+        free = ~self.linkage.fixed
+        for _ in range(starts_used):
+            pos = np.array(base, dtype=float)
+            pos[free] += self.scale * rng.normal(size=int(free.sum()))
+            proj = project(self.linkage.with_positions(pos), self.tol)
+            starts.append(self.linkage.coordinates(proj.positions))
+        self.report["critical_multistart"] = starts_used
         return starts
 
     def critical_points(self) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
         exact: list[CriticalPoint] = []
         misses: list[NearMiss] = []
-        for u0 in self.candidates():
+        candidates = self.candidates()
+        self.report["critical_candidates"] = len(candidates)
+        for u0 in candidates:
             ref = refine_critical(self.cons, u0, self.tol)
             if ref.critical:
                 if any(np.linalg.norm(ref.u - c.u) <= 1e-6 * self.scale for c in exact):
@@ -218,7 +233,6 @@ class _Explorer:
                                        ref.length_residual, ref.u))
         exact, degenerate = _merge_non_isolated(exact)
         misses = _dedupe_misses(misses, self.scale)
-        self.report["critical_candidates"] = len(self.candidates())
         return exact, misses, degenerate
 
     # -- segments -------------------------------------------------------------------------
@@ -359,24 +373,26 @@ def explore(
     start = linkage.coordinates()
     ex.trace_all(start)
     crit, misses, degenerate = ex.critical_points()
-    segs, seg_complete = ex.segments(crit)
+    # Segments need every critical point classified; with a degenerate one the traced curves
+    # themselves are the answer (they may pass through critical points).
+    segs, seg_complete = ex.segments(crit) if not degenerate else ([], False)
     components: list[Component] = []
     capture = 0.05 * ex.h_max
 
-    def touches(curve: Curve) -> bool:
+    def touching(curve: Curve) -> list[int]:
         pts = np.array(curve.points)
-        return any(
-            np.min(np.linalg.norm(pts - c.u, axis=1)) <= ex.h_max for c in crit
-        )
+        return [k for k, c in enumerate(crit)
+                if np.min(np.linalg.norm(pts - c.u, axis=1)) <= ex.h_max]
 
     for curve in ex.curves:
-        if crit and touches(curve):
-            continue  # covered by segments
+        near = touching(curve)
+        if near and not degenerate:
+            continue  # covered by the segments
         pts = np.array(curve.points)
         closed = curve.stop == "closed"
         if closed:
             pts = np.vstack([pts, pts[:1]])
-        components.append(Component(pts, closed, False, [], []))
+        components.append(Component(pts, closed, False, near, []))
     for walk in _euler_walks(len(crit), segs):
         pieces = [segs[s].points[::-1] if rev else segs[s].points for s, rev in walk]
         pts = np.vstack([pieces[0]] + [p[1:] for p in pieces[1:]])

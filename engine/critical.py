@@ -71,7 +71,7 @@ def refine_critical(
 
     res = least_squares(
         fun, np.concatenate([u0, s0]), jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15,
-        gtol=1e-15, max_nfev=200 * (m + e),
+        gtol=1e-15, max_nfev=100,
     )
     u, s = res.x[:m], res.x[m:]
     s = s / np.linalg.norm(s)

@@ -13,7 +13,7 @@ def run(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_ruff():
-    res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts")
+    res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts", "bench")
     assert res.returncode == 0, res.stdout + res.stderr
 
 

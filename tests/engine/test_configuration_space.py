@@ -157,6 +157,11 @@ def test_collinear_three_rotor_is_degenerate():
     assert "degenerate" in kinds
     reasons = [cp.analysis.reason for cp in res.critical_points if cp.kind == "degenerate"]
     assert any("non-isolated" in (r or "") for r in reasons)
+    # the traced branches are still returned (and every point keeps the lengths)
+    assert res.components and not res.segments
+    cons = Constraints(lk)
+    for comp in res.components:
+        assert max(cons.max_residual(u) for u in comp.points) <= TOL.residual_atol
 
 
 def test_three_dimensional_linkage_is_traced_and_closed():
