@@ -116,3 +116,13 @@ def test_errors_of_the_new_endpoints(client):
     assert r.status_code == 422
     assert r.json()["errors"][0]["loc"][:3] == ["body", "options", "angles"]
     assert client.get("/health").status_code == 200
+
+
+def test_gate_through_http(client):
+    """Gated or not, from the windings of the configuration-space answer."""
+    opts = {"max_components": 1, "angles": 12, "random_starts": 2}
+    for d, turns in ((2.3, 1), (2.7, 0)):
+        lk = preset(client, "gated-kl-chain", n=8, gate=4, D=d)
+        body = post(client, "/v1/analysis/configuration-space", {"linkage": lk, "options": opts})
+        comp = next(c for c in body["components"] if c["through_start"])
+        assert {abs(comp["winding"][f"r{k}"]) for k in range(8)} == {turns}
