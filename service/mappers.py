@@ -21,6 +21,7 @@ from engine.linkage import Linkage as EngineLinkage
 from engine.presets import PRESETS
 from engine.rigidity import RigidityResult
 from engine.rigidity import TangentForm as EngineTangentForm
+from engine.robustness import Margin
 from engine.second_order import SecondOrderResult
 from engine.splitting import Split
 from engine.tolerances import Tolerances as EngineTolerances
@@ -303,5 +304,20 @@ def design_out(
             for c in result.conflicts
         ],
         verified=all(c.agrees for c in checks) if checks else None,
+        tolerances=tolerances_out(tol),
+    )
+
+
+def robustness_out(
+    linkage: EngineLinkage, res: Margin, tol: EngineTolerances
+) -> space.RobustnessResponse:
+    return space.RobustnessResponse(
+        margin=res.margin if np.isfinite(res.margin) else None,
+        nearest=dict(zip(linkage.bar_ids, res.nearest.tolist(), strict=True)),
+        critical_configuration=positions_out(linkage, linkage.positions_of(res.critical_u)),
+        starts=res.starts,
+        converged=res.converged,
+        success=res.success,
+        message=res.message,
         tolerances=tolerances_out(tol),
     )

@@ -5,6 +5,7 @@ from fastapi import APIRouter, Depends
 from engine.configuration_space import explore
 from engine.constraints import on_constraints
 from engine.rigidity import first_order
+from engine.robustness import robustness
 from engine.second_order import second_order
 from engine.splitting import length_change, split
 from service import mappers
@@ -14,6 +15,8 @@ from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest, Problem
 from service.schemas.space import (
     CriticalPointsResponse,
+    RobustnessRequest,
+    RobustnessResponse,
     SpaceRequest,
     SpaceResponse,
     SplittingRequest,
@@ -78,3 +81,15 @@ def splitting(body: SplittingRequest, settings: SettingsDep) -> SplittingRespons
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
     return mappers.splitting_out(at, splits, len(crit), tol, crit)
+
+
+@router.post("/robustness", response_model=RobustnessResponse, responses=_problems)  # type: ignore[arg-type]
+def robustness_margin(body: RobustnessRequest, settings: SettingsDep) -> RobustnessResponse:
+    """Smallest change of the adjustable lengths (Euclidean norm) that reaches a critical value:
+    the fabrication tolerance of a design."""
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    adjustable = None if body.adjustable is None else list(body.adjustable)
+    res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
+    return mappers.robustness_out(at, res, tol)

@@ -177,3 +177,27 @@ class DesignResponse(BaseModel):
     conflicts: list[ConflictOut]
     verified: bool | None = Field(description="the perturbed linkage, re-traced, agrees")
     tolerances: TolerancesUsed
+
+
+class RobustnessRequest(Strict):
+    linkage: Linkage
+    adjustable: list[Ident] | None = Field(
+        None, max_length=10_000, description="bars that may change (default: every bar with a "
+        "free end)"
+    )
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class RobustnessResponse(BaseModel):
+    margin: float | None = Field(
+        description="smallest Euclidean change of the adjustable lengths that reaches a critical "
+        "value (null when none was found)"
+    )
+    nearest: dict[str, float] = Field(description="the nearest critical lengths")
+    critical_configuration: VertexVectors
+    starts: int = Field(description="local searches started")
+    converged: int = Field(description="local searches that reached a critical configuration")
+    success: bool
+    message: str
+    tolerances: TolerancesUsed

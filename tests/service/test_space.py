@@ -126,3 +126,15 @@ def test_gate_through_http(client):
         body = post(client, "/v1/analysis/configuration-space", {"linkage": lk, "options": opts})
         comp = next(c for c in body["components"] if c["through_start"])
         assert {abs(comp["winding"][f"r{k}"]) for k in range(8)} == {turns}
+
+
+def test_robustness_endpoint(client):
+    lk = preset(client, "four-bar", L2=1.2)
+    body = post(client, "/v1/analysis/robustness",
+                {"linkage": lk, "adjustable": ["L2"], "options": FAST})
+    assert body["success"] and abs(body["margin"] - 0.2) < 1e-7  # L2 = a + L1 - L3 = 1
+    assert abs(body["nearest"]["L2"] - 1.0) < 1e-7 and body["nearest"]["L1"] == 1.0
+    ys = [p[1] for p in body["critical_configuration"].values()]
+    assert max(abs(y) for y in ys) < 1e-6
+    r = client.post("/v1/analysis/robustness", json={"linkage": lk, "adjustable": ["x"]})
+    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "adjustable", 0]
