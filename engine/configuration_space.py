@@ -158,14 +158,14 @@ class _Explorer:
             )
         return curve
 
-    def trace_all(self, start: np.ndarray) -> None:
+    def trace_all(self, start: np.ndarray | None) -> None:
         found = seeds(
             self.linkage, self.tol, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
         )
         self.report.update(found.report)
         truncated = False
-        for u in [start, *found.points]:
+        for u in ([start] if start is not None else []) + found.points:
             if self.on_traced(u):
                 continue
             if len(self.curves) >= self.opt.max_components:
@@ -195,6 +195,8 @@ class _Explorer:
                     (logd[1:-1] <= logd[:-2]) & (logd[1:-1] <= logd[2:]) & (logd[1:-1] < deep)
                 ) + 1
                 starts += [pts[i] for i in mins]
+            if len(logd):  # the closest approach of every curve, however shallow
+                starts.append(pts[int(np.argmin(logd))])
         # Seeded multistart from random points projected onto the constraints (close to where
         # critical points live); only for small linkages, where it is cheap: larger ones rely on
         # the candidates along the traced curves.
@@ -355,7 +357,10 @@ def _euler_walks(n_nodes: int, segs: list[Segment]) -> list[list[tuple[int, bool
 
 
 def explore(
-    linkage: Linkage, tolerances: Tolerances | None = None, options: SpaceOptions | None = None
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    start_on_space: bool = True,
 ) -> SpaceResult:
     """Components, critical points, segments and near misses of a 1-DOF linkage (on its
     configuration space: see :func:`engine.constraints.on_constraints`).
@@ -370,7 +375,9 @@ def explore(
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
     ex = _Explorer(linkage, tol, opt)
-    start = linkage.coordinates()
+    # With start_on_space=False the given positions need not satisfy the lengths (e.g. lengths
+    # changed for a map): only the seeds are used, and none means an empty configuration space.
+    start = linkage.coordinates() if start_on_space else None
     ex.trace_all(start)
     crit, misses, degenerate = ex.critical_points()
     # Segments need every critical point classified; with a degenerate one the traced curves
@@ -406,6 +413,8 @@ def explore(
     # which component passes through the given configuration
     best, best_d = -1, np.inf
     for k, comp in enumerate(components):
+        if start is None:
+            break
         p = comp.points
         d = min(
             (segment_distance(p[i], p[i + 1], start) for i in range(len(p) - 1)),

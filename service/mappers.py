@@ -15,6 +15,7 @@ from engine.configuration_space import (
 )
 from engine.constraints import ProjectionResult
 from engine.critical import CriticalPoint
+from engine.critical_values import Slice
 from engine.design import Check, DesignResult
 from engine.linkage import BarSpec, Limits, VertexSpec, build_linkage
 from engine.linkage import Linkage as EngineLinkage
@@ -319,5 +320,18 @@ def robustness_out(
         converged=res.converged,
         success=res.success,
         message=res.message,
+        tolerances=tolerances_out(tol),
+    )
+
+
+def critical_values_out(res: Slice, tol: EngineTolerances) -> space.CriticalValuesResponse:
+    return space.CriticalValuesResponse(
+        curves=[c.tolist() for c in res.curves],
+        regions=[
+            space.RegionOut(point=list(r.point), components=r.components, signature=r.signature,
+                            cells=r.cells)
+            for r in res.regions
+        ],
+        search=_search_out(res.search),
         tolerances=tolerances_out(tol),
     )

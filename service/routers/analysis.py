@@ -4,6 +4,7 @@ from fastapi import APIRouter, Depends
 
 from engine.configuration_space import explore
 from engine.constraints import on_constraints
+from engine.critical_values import critical_value_slice
 from engine.rigidity import first_order
 from engine.robustness import robustness
 from engine.second_order import second_order
@@ -15,6 +16,8 @@ from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest, Problem
 from service.schemas.space import (
     CriticalPointsResponse,
+    CriticalValuesRequest,
+    CriticalValuesResponse,
     RobustnessRequest,
     RobustnessResponse,
     SpaceRequest,
@@ -93,3 +96,17 @@ def robustness_margin(body: RobustnessRequest, settings: SettingsDep) -> Robustn
     adjustable = None if body.adjustable is None else list(body.adjustable)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
     return mappers.robustness_out(at, res, tol)
+
+
+@router.post(
+    "/critical-values", response_model=CriticalValuesResponse, responses=_problems  # type: ignore[arg-type]
+)
+def critical_values(body: CriticalValuesRequest, settings: SettingsDep) -> CriticalValuesResponse:
+    """The slice of the critical value set in two lengths over a box, and one sample point per
+    region with its number of components and a topology signature."""
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    opts = body.options.model_dump(exclude_none=True) if body.options else {}
+    axes = [(a.bar, a.min, a.max) for a in body.axes]
+    return mappers.critical_values_out(critical_value_slice(at, axes, tolerances=tol, **opts), tol)

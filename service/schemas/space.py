@@ -201,3 +201,40 @@ class RobustnessResponse(BaseModel):
     success: bool
     message: str
     tolerances: TolerancesUsed
+
+
+class AxisIn(Strict):
+    bar: Ident
+    min: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    max: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class CriticalValuesOptions(Strict):
+    resolution: Annotated[int, Field(ge=8, le=400)] | None = Field(
+        None, description="raster of the regions and step of the curves: box / resolution "
+        "(default 48)"
+    )
+    seeds_per_axis: Annotated[int, Field(ge=2, le=20)] | None = Field(
+        None, description="sample lengths per axis where curves are seeded (default 5)"
+    )
+
+
+class CriticalValuesRequest(Strict):
+    linkage: Linkage
+    axes: list[AxisIn] = Field(min_length=2, max_length=2)
+    options: CriticalValuesOptions | None = None
+    tolerances: Tolerances | None = None
+
+
+class RegionOut(BaseModel):
+    point: list[float]
+    components: int
+    signature: str
+    cells: int = Field(description="raster cells of the region")
+
+
+class CriticalValuesResponse(BaseModel):
+    curves: list[list[list[float]]] = Field(description="polylines [[x, y], ...] in the box")
+    regions: list[RegionOut]
+    search: dict[str, object]
+    tolerances: TolerancesUsed

@@ -138,3 +138,21 @@ def test_robustness_endpoint(client):
     assert max(abs(y) for y in ys) < 1e-6
     r = client.post("/v1/analysis/robustness", json={"linkage": lk, "adjustable": ["x"]})
     assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "adjustable", 0]
+
+
+def test_critical_values_endpoint(client):
+    lk = preset(client, "four-bar", L2=1.2)
+    body = post(client, "/v1/analysis/critical-values", {
+        "linkage": lk, "axes": [{"bar": "L2", "min": 0.3, "max": 2.2},
+                                {"bar": "L3", "min": 0.3, "max": 2.2}],
+        "options": {"resolution": 16, "seeds_per_axis": 3},
+    })
+    assert body["curves"] and all(len(c) >= 2 for c in body["curves"])
+    for curve in body["curves"]:
+        for l2, l3 in curve:  # on L2 = L3 or L2 + L3 = 2 (a = L1 = 1)
+            assert min(abs(l2 - l3), abs(l2 + l3 - 2)) < 1e-6
+    assert {r["components"] for r in body["regions"]} == {1, 2}
+    r = client.post("/v1/analysis/critical-values", json={
+        "linkage": lk, "axes": [{"bar": "L2", "min": 0.3, "max": 2.2},
+                                {"bar": "L2", "min": 0.3, "max": 2.2}]})
+    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "axes", 1, "bar"]

@@ -1,0 +1,366 @@
+"""Slices of the critical value set in two lengths, and the regions they separate.
+
+With two bar lengths ``p = (L_x, L_y)`` free, the critical configurations solve::
+
+    G(u, sigma, p) = [ (l^2(u) - L(p)^2) / s ;  J(u)^T sigma / s ;  |sigma|^2 - 1 ] = 0
+
+``E + M + 1`` equations in ``M + E + 2`` unknowns: a one-dimensional solution set whose
+projection on ``p`` is the slice (paper, Sec. III B). It is traced by pseudo-arclength
+continuation (tangent from one factorisation of ``[DG; tau_prev]``, hyperplane Newton corrector)
+until it leaves the box or closes. Seeds: at a grid of sample lengths, every critical
+configuration the exploration reaches (critical points, and the nearest critical
+configurations of the near misses), projected onto ``G = 0`` from the sample lengths. The
+boundaries where the configuration space becomes empty are critical values too (a component
+shrinks to a rigid point) and are found the same way.
+
+Regions: the box is rasterised at ``resolution``; cells crossed by a curve separate the rest,
+which is split into 4-connected regions; each region is sampled at the cell farthest from every
+curve and explored there: its number of components (0 where empty) and a ``signature``
+(component count and the sorted rotor windings) tell topologies apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import ndimage
+from scipy.optimize import least_squares
+
+from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.constraints import Constraints
+from engine.critical import refine_critical
+from engine.errors import InvalidRequest
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A free length: bar index and its range."""
+
+    bar: int
+    lo: float
+    hi: float
+
+
+@dataclass(frozen=True)
+class Region:
+    point: tuple[float, float]
+    components: int
+    signature: str
+    cells: int
+
+
+@dataclass(frozen=True)
+class Slice:
+    curves: list[np.ndarray]  # each (n, 2)
+    regions: list[Region]
+    search: dict[str, object]
+
+
+class _System:
+    """``G`` and its Jacobian for the two free lengths."""
+
+    def __init__(self, linkage: Linkage, axes: tuple[Axis, Axis]) -> None:
+        self.linkage = linkage
+        self.cons = Constraints(linkage)
+        act = [int(b) for b in self.cons.bars]
+        self.rows = [act.index(a.bar) for a in axes]
+        self.m, self.e = self.cons.n_free, self.cons.n_constraints
+        self.base = linkage.lengths[self.cons.bars].copy()
+        self.s = 2.0 * float(np.median(self.base))
+        self.n = self.m + self.e + 2
+
+    def lengths(self, p: np.ndarray) -> np.ndarray:
+        out = self.base.copy()
+        out[self.rows] = p
+        return out
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return x[: self.m], x[self.m : self.m + self.e], x[self.m + self.e :]
+
+    def g(self, x: np.ndarray) -> np.ndarray:
+        u, sig, p = self.split(x)
+        jac = self.cons.jacobian(u, sparse=False)
+        return np.concatenate([
+            (self.cons.squared_lengths(u) - self.lengths(p) ** 2) / self.s,
+            jac.T @ sig / self.s,
+            [sig @ sig - 1.0],
+        ])
+
+    def dg(self, x: np.ndarray) -> np.ndarray:
+        u, sig, p = self.split(x)
+        jac = self.cons.jacobian(u, sparse=False)
+        out = np.zeros((self.e + self.m + 1, self.n))
+        out[: self.e, : self.m] = jac / self.s
+        for k, r in enumerate(self.rows):
+            out[r, self.m + self.e + k] = -2.0 * p[k] / self.s
+        hess = self.cons.stress_hessian(sig, sparse=False)
+        out[self.e : self.e + self.m, : self.m] = hess / self.s
+        out[self.e : self.e + self.m, self.m : self.m + self.e] = jac.T / self.s
+        out[-1, self.m : self.m + self.e] = 2.0 * sig
+        return out
+
+
+def _tangent(sys: _System, x: np.ndarray, prev: np.ndarray) -> np.ndarray | None:
+    mat = np.vstack([sys.dg(x), prev])
+    rhs = np.zeros(sys.n)
+    rhs[-1] = 1.0
+    try:
+        y = np.linalg.solve(mat, rhs)
+    except np.linalg.LinAlgError:
+        return None
+    norm = float(np.linalg.norm(y))
+    return y / norm if np.isfinite(norm) and norm > 0 else None
+
+
+def _correct(sys: _System, v: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+    x = v.copy()
+    for _ in range(12):
+        g = sys.g(x)
+        if np.max(np.abs(g)) <= 1e-12:
+            return x
+        mat = np.vstack([sys.dg(x), t])
+        try:
+            dx = np.linalg.solve(mat, np.concatenate([-g, [0.0]]))
+        except np.linalg.LinAlgError:
+            return None
+        x = x + dx
+    return x if np.max(np.abs(sys.g(x))) <= 1e-10 else None
+
+
+def _continue(
+    sys: _System, x0: np.ndarray, t0: np.ndarray, box: np.ndarray, h_max: float, budget: int
+) -> tuple[list[np.ndarray], str]:
+    """Follow ``G = 0`` from ``x0`` along ``t0`` until ``p`` leaves the box or the curve
+    closes."""
+    pts = [x0]
+    x, t, h = x0, t0, 0.25 * h_max
+    travelled = 0.0
+    p0 = x0[-2:]
+    while len(pts) < budget:
+        if h < 1e-9 * h_max:
+            return pts, "step underflow"
+        v = x + h * t
+        w = _correct(sys, v, t)
+        if w is None or np.linalg.norm(w - v) > 0.5 * h:
+            h *= 0.5
+            continue
+        nt = _tangent(sys, w, t)
+        if nt is None or nt @ t < 0.9:
+            h *= 0.5
+            continue
+        pts.append(w)
+        travelled += float(np.linalg.norm(w[-2:] - x[-2:]))
+        p = w[-2:]
+        if np.any(p < box[:, 0]) or np.any(p > box[:, 1]):
+            return pts, "left the box"
+        if travelled > 4 * h_max and np.linalg.norm(p - p0) < 0.5 * h_max and \
+                np.linalg.norm(w - x0) < 2 * h_max:
+            return pts, "closed"
+        x, t = w, nt
+        h = min(h_max, 1.5 * h)
+    return pts, "budget"
+
+
+def _validate(linkage: Linkage, axes: list[tuple[str, float, float]]) -> tuple[Axis, Axis]:
+    if len(axes) != 2:
+        raise InvalidRequest("give exactly two axes", loc=("axes",))
+    out = []
+    for k, (bar, lo, hi) in enumerate(axes):
+        if bar not in linkage.bar_ids:
+            raise InvalidRequest(f"unknown bar {bar!r}", loc=("axes", k, "bar"))
+        j = linkage.bar_ids.index(bar)
+        if not linkage.active[j]:
+            raise InvalidRequest(
+                f"bar {bar!r} joins two fixed vertices and cannot change", loc=("axes", k, "bar")
+            )
+        if not (0 < lo < hi and np.isfinite(hi)):
+            raise InvalidRequest("need 0 < min < max", loc=("axes", k))
+        out.append(Axis(j, float(lo), float(hi)))
+    if out[0].bar == out[1].bar:
+        raise InvalidRequest("the two axes name the same bar", loc=("axes", 1, "bar"))
+    return out[0], out[1]
+
+
+def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
+               tol: Tolerances) -> tuple[int, str]:
+    at = linkage.with_lengths(lengths)
+    res = explore(at, tol, options, start_on_space=False)
+    patterns = set()
+    for comp in res.components:
+        angles = rotor_angles(at, comp.points)
+        patterns.add(",".join(f"{b}:{abs(w) if (w := winding(a, comp.closed)) is not None else '?'}"
+                              for b, a in angles.items()))
+    count = len(res.components)
+    complete = bool(res.search.get("complete", True))
+    shown = f"{count}" if complete else f">={count} (search budget reached)"
+    return count, f"components={shown}; turns={'|'.join(sorted(patterns))}"
+
+
+def critical_value_slice(
+    linkage: Linkage,
+    axes: list[tuple[str, float, float]],
+    resolution: int = 48,
+    seeds_per_axis: int = 5,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    max_curve_points: int = 4000,
+) -> Slice:
+    """Curves of the critical value set in the plane of two lengths, and its regions.
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> s = critical_value_slice(build_preset("four-bar", {"L2": 1.2}),
+    ...                          [("L2", 0.5, 1.5), ("L3", 0.5, 1.5)], resolution=16)
+    >>> len(s.regions) >= 2
+    True
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions(angles=24, random_starts=4)
+    ax = _validate(linkage, axes)
+    sys = _System(linkage, ax)
+    box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
+    span = box[:, 1] - box[:, 0]
+    h_max = float(min(span)) / resolution
+    curves_x: list[np.ndarray] = []
+    seeds_tried = seeds_used = 0
+    seed_opt = replace(opt, max_components=min(opt.max_components, 8))
+
+    def known(x: np.ndarray) -> bool:
+        """The seed's lengths lie on a curve already traced (other assemblies of the same
+        critical sheet project onto the same curve of the slice)."""
+        p = x[-2:][None, :]
+        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * float(max(span))
+                   for c in curves_x)
+
+    grid = [box[:, 0] + span * (np.array([i, j]) + 0.5) / seeds_per_axis
+            for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
+    for p0 in grid:
+        lengths = linkage.lengths.copy()
+        lengths[ax[0].bar], lengths[ax[1].bar] = p0
+        at = linkage.with_lengths(lengths)
+        res = explore(at, tol, seed_opt, start_on_space=False)
+        cons = Constraints(at)
+        starts = [cp.u for cp in res.critical_points] + [m.critical_u for m in res.near_misses]
+        for u0 in starts:
+            seeds_tried += 1
+            ref = refine_critical(cons, u0, tol)
+            x0 = np.concatenate([ref.u, ref.sigma, p0])
+            sol = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15,
+                                gtol=1e-15, max_nfev=200)
+            x = sol.x
+            if np.max(np.abs(sys.g(x))) > 1e-9 or known(x):
+                continue
+            if np.any(x[-2:] < box[:, 0] - h_max) or np.any(x[-2:] > box[:, 1] + h_max):
+                continue
+            seeds_used += 1
+            t = _tangent(sys, x, np.random.default_rng(seeds_used).normal(size=sys.n))
+            if t is None:
+                continue
+            fwd, stop_f = _continue(sys, x, t, box, h_max, max_curve_points)
+            if stop_f == "closed":
+                curve = np.array(fwd + [fwd[0]])
+            else:
+                back, _ = _continue(sys, x, -t, box, h_max, max_curve_points)
+                curve = np.array(back[::-1] + fwd[1:])
+            curves_x.append(curve)
+    curves = [_clip(c[:, -2:], box) for c in curves_x]
+    curves = _merge_coincident([c for c in curves if len(c) >= 2], 1e-7 * float(max(span)))
+    regions = _regions(linkage, ax, box, curves, resolution, opt, tol)
+    search: dict[str, object] = {
+        "seed_lengths": len(grid),
+        "seed_configurations": seeds_tried,
+        "curves": len(curves),
+        "step": h_max,
+        "resolution": resolution,
+    }
+    return Slice(curves, regions, search)
+
+
+def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Distance of each point (n, 2) to the polyline ``line`` (m, 2)."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    rel = points[:, None, :] - a[None, :, :]
+    s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
+    foot = a[None, :, :] + s[:, :, None] * ab[None, :, :]
+    return np.min(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
+
+
+def _merge_coincident(curves: list[np.ndarray], atol: float) -> list[np.ndarray]:
+    """Drop a curve lying on another one: two sheets of the critical value set can project onto
+    the same line of the slice (a self-intersection of the set); the slice draws it once."""
+    kept: list[np.ndarray] = []
+    for c in sorted(curves, key=len, reverse=True):
+        if not any(np.all(_polyline_distance(c, k) <= atol) for k in kept):
+            kept.append(c)
+    return kept
+
+
+def _clip(points: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """The part of a polyline inside the box, cut exactly where it crosses the boundary (the
+    crossing point is interpolated on the segment that crosses; the traced curve ends one
+    step outside the box)."""
+    lo, hi = box[:, 0], box[:, 1]
+
+    def inside(q: np.ndarray) -> bool:
+        return bool(np.all(q >= lo - 1e-12) and np.all(q <= hi + 1e-12))
+
+    def crossing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        # largest s in [0, 1] keeping a + s (b - a) in the box (a inside)
+        s = 1.0
+        d = b - a
+        for k in range(2):
+            if d[k] > 0:
+                s = min(s, (hi[k] - a[k]) / d[k])
+            elif d[k] < 0:
+                s = min(s, (lo[k] - a[k]) / d[k])
+        return a + max(s, 0.0) * d
+
+    out: list[np.ndarray] = []
+    for k, q in enumerate(points):
+        if inside(q):
+            if k > 0 and not inside(points[k - 1]) and not out:
+                out.append(crossing(q, points[k - 1]))
+            out.append(q)
+        elif out and inside(points[k - 1]):
+            out.append(crossing(points[k - 1], q))
+            break
+    return np.array(out).reshape(-1, 2)
+
+
+def _regions(
+    linkage: Linkage,
+    ax: tuple[Axis, Axis],
+    box: np.ndarray,
+    curves: list[np.ndarray],
+    resolution: int,
+    opt: SpaceOptions,
+    tol: Tolerances,
+) -> list[Region]:
+    n = resolution
+    span = box[:, 1] - box[:, 0]
+    blocked = np.zeros((n, n), dtype=bool)
+    for c in curves:
+        for a, b in zip(c[:-1], c[1:], strict=True):
+            steps = int(np.ceil(4 * np.max(np.abs(b - a) / span) * n)) + 1
+            for s in np.linspace(0.0, 1.0, steps + 1):
+                q = (a + s * (b - a) - box[:, 0]) / span * n
+                i, j = np.clip(q.astype(int), 0, n - 1)
+                blocked[i, j] = True
+    labels, count = ndimage.label(~blocked)
+    dist = ndimage.distance_transform_edt(~blocked)
+    out = []
+    for k in range(1, count + 1):
+        cells = labels == k
+        idx = np.unravel_index(int(np.argmax(np.where(cells, dist, -1))), cells.shape)
+        point = box[:, 0] + span * (np.array(idx) + 0.5) / n
+        lengths = linkage.lengths.copy()
+        lengths[ax[0].bar], lengths[ax[1].bar] = point
+        comps, sig = _signature(linkage, lengths, opt, tol)
+        out.append(Region((float(point[0]), float(point[1])), comps, sig, int(cells.sum())))
+    return out

@@ -1,0 +1,92 @@
+"""Critical value slices against the classical four-bar conditions, and the gate."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from engine.configuration_space import SpaceOptions
+from engine.critical_values import _polyline_distance, critical_value_slice
+from engine.presets import build_preset
+
+SIGNS = list(itertools.product((1, -1), repeat=3))
+
+
+def plane_residual(point: dict[str, float]) -> float:
+    """min over sign patterns of |a + e1 L1 + e2 L2 + e3 L3| (a = 1): zero on the four-bar's
+    critical value set (collinear configurations)."""
+    return min(abs(point["a"] + e1 * point["L1"] + e2 * point["L2"] + e3 * point["L3"])
+               for e1, e2, e3 in SIGNS)
+
+
+def grashof_components(lengths: dict[str, float]) -> int:
+    links = sorted(lengths.values())
+    return 2 if links[0] + links[3] < links[1] + links[2] else 1
+
+
+def four_bar_components(lengths: dict[str, float]) -> int:
+    links = sorted(lengths.values())
+    if links[3] >= links[0] + links[1] + links[2]:
+        return 0  # does not assemble
+    return grashof_components(lengths)
+
+
+@pytest.mark.parametrize(("x", "y"), [("L2", "L3"), ("L1", "L2")])
+def test_four_bar_slice(x, y):
+    base = {"a": 1.0, "L1": 1.0, "L2": 1.2, "L3": 1.0}
+    lk = build_preset("four-bar", {k: v for k, v in base.items() if k != "a"})
+    box = {x: (0.3, 2.2), y: (0.3, 2.2)}
+    res = critical_value_slice(lk, [(x, *box[x]), (y, *box[y])], resolution=32,
+                               options=SpaceOptions(angles=24, random_starts=4))
+    assert res.curves
+    # 1. every curve point is a critical value: on a plane a +- L1 +- L2 +- L3 = 0
+    for curve in res.curves:
+        for px, py in curve:
+            assert plane_residual({**base, x: px, y: py}) <= 1e-6
+    # 2. the curves cover every such line inside the box
+    for e1, e2, e3 in SIGNS:
+        coef = dict(zip(("L1", "L2", "L3"), (e1, e2, e3), strict=True))
+        const = 1.0 + sum(coef[k] * base[k] for k in ("L1", "L2", "L3") if k not in (x, y))
+        # const + coef[x] * X + coef[y] * Y = 0 -> Y = -(const + coef[x] X) / coef[y]
+        xs = np.linspace(*box[x], 400)[1:-1]
+        ys = -(const + coef[x] * xs) / coef[y]
+        inside = (ys > box[y][0] + 1e-3) & (ys < box[y][1] - 1e-3)
+        if not inside.any():
+            continue
+        pts = np.column_stack([xs[inside], ys[inside]])
+        dist = np.min([_polyline_distance(pts, c) for c in res.curves], axis=0)
+        assert np.max(dist) <= 1e-6, (e1, e2, e3)
+    # 3. every region's component count follows the classical rule
+    assert len(res.regions) >= 3
+    for region in res.regions:
+        lengths = {**base, x: region.point[0], y: region.point[1]}
+        assert region.components == four_bar_components(lengths), (region, lengths)
+
+
+def gate_turns(l2: float, d: float, r: float = 1.5, l1: float = 2.0) -> int:
+    """Classical: the gate rotor (crank r of the four-bar with ground D, coupler L2, rocker L1)
+    turns fully iff the four-bar is Grashof and the crank or the ground is shortest."""
+    links = {"D": d, "r": r, "L2": l2, "L1": l1}
+    values = sorted(links.values())
+    grashof = values[0] + values[3] < values[1] + values[2]
+    return int(grashof and min(links, key=links.get) in ("r", "D"))
+
+
+def test_gate_slice_matches_the_gate_four_bar():
+    """Paper: r = l = 3a/2, L1 = 2a; slice in (L2, D)."""
+    lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    res = critical_value_slice(lk, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], resolution=16,
+                               options=SpaceOptions(angles=12, random_starts=2, max_components=4))
+    for curve in res.curves:
+        for l2, d in curve:
+            residual = min(abs(d + e1 * 1.5 + e2 * l2 + e3 * 2.0) for e1, e2, e3 in SIGNS)
+            assert residual <= 1e-6
+    assert len(res.curves) == 3
+    assert len(res.regions) == 6
+    for region in res.regions:
+        expected = gate_turns(*region.point)
+        turns = {int(t.split(":")[1]) for t in region.signature.split("turns=")[1].split(",")
+                 if t.startswith("r")}
+        assert turns == {expected}, region
