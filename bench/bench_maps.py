@@ -1,0 +1,62 @@
+"""Benchmarks of critical-value maps, robustness and the gated chain (run on demand).
+
+    .venv/bin/python bench/bench_maps.py [--json bench/results/maps.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.critical_values import critical_value_slice
+from engine.presets import build_preset
+from engine.robustness import robustness
+
+
+def timed(fn):  # noqa: ANN001, ANN201 - tiny helper
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--json", type=Path, default=Path("bench/results/maps.json"))
+    args = parser.parse_args()
+    rows = []
+
+    def record(name: str, seconds: float, detail: str) -> None:
+        rows.append({"benchmark": name, "seconds": seconds, "detail": detail})
+        print(f"{name:<62} {seconds:9.3f} s   {detail}")
+
+    four_bar = build_preset("four-bar", {"L2": 1.2})
+    for res in (48, 200):
+        t, s = timed(lambda r=res: critical_value_slice(
+            four_bar, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)], resolution=r))
+        record(f"four-bar slice (L2, L3), resolution {res}x{res}", t,
+               f"{len(s.curves)} curves, {len(s.regions)} regions")
+    gated = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    t, s = timed(lambda: critical_value_slice(
+        gated, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], resolution=48,
+        options=SpaceOptions(angles=12, random_starts=2, max_components=4)))
+    record("gate slice (L2, D), 4-rotor chain, resolution 48", t,
+           f"{len(s.curves)} curves, {len(s.regions)} regions")
+    t, m = timed(lambda: robustness(four_bar))
+    record("robustness margin, four-bar, all bars adjustable", t, f"margin {m.margin:.6f}")
+    for n, d in ((20, 2.3), (20, 2.7)):
+        lk = build_preset("gated-kl-chain", {"n": n, "gate": n // 2, "D": d})
+        t, res = timed(lambda lk=lk: explore(lk, options=SpaceOptions(max_components=2)))
+        comp = next(c for c in res.components if c.through_start)
+        turns = {abs(winding(a, True)) for k, a in rotor_angles(lk, comp.points).items()
+                 if k.startswith("r")}
+        record(f"gated chain n={n}, D={d}: configuration space (budget 2)", t,
+               f"{'ungated' if turns == {1} else 'gated'} (rotor turns {sorted(turns)})")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(rows, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
