@@ -33,11 +33,15 @@ def four_bar_components(lengths: dict[str, float]) -> int:
     return grashof_components(lengths)
 
 
-@pytest.mark.parametrize(("x", "y"), [("L2", "L3"), ("L1", "L2")])
-def test_four_bar_slice(x, y):
+@pytest.mark.parametrize(
+    ("x", "y", "x_max"),
+    [("L2", "L3", 3.6), ("L1", "L2", 2.2)],
+    ids=["L2-L3 (with the empty region beyond L2 = 2 + L3)", "L1-L2"],
+)
+def test_four_bar_slice(x, y, x_max):
     base = {"a": 1.0, "L1": 1.0, "L2": 1.2, "L3": 1.0}
     lk = build_preset("four-bar", {k: v for k, v in base.items() if k != "a"})
-    box = {x: (0.3, 2.2), y: (0.3, 2.2)}
+    box = {x: (0.3, x_max), y: (0.3, 2.2)}
     res = critical_value_slice(lk, [(x, *box[x]), (y, *box[y])], resolution=32,
                                options=SpaceOptions(angles=24, random_starts=4))
     assert res.curves
@@ -63,6 +67,8 @@ def test_four_bar_slice(x, y):
     for region in res.regions:
         lengths = {**base, x: region.point[0], y: region.point[1]}
         assert region.components == four_bar_components(lengths), (region, lengths)
+    if x_max > 3:  # the boundary of the empty configuration space is a curve of the slice
+        assert any(r.components == 0 for r in res.regions)
 
 
 def gate_turns(l2: float, d: float, r: float = 1.5, l1: float = 2.0) -> int:
