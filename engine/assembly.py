@@ -128,6 +128,24 @@ def assemblies_at(
     return out, truncated
 
 
+def projected_random_starts(
+    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
+) -> list[np.ndarray]:
+    """``count`` random perturbations of the given positions (scale: the median bar length),
+    each projected onto the constraints; only the projections that succeed are returned."""
+    cons = Constraints(linkage)
+    scale = float(np.median(linkage.lengths[cons.bars])) if cons.n_constraints else 1.0
+    free = ~linkage.fixed
+    out = []
+    for _ in range(count):
+        pos = np.array(linkage.positions, dtype=float)
+        pos[free] += scale * rng.normal(size=int(free.sum()))
+        res = project(linkage.with_positions(pos), tol)
+        if res.success:
+            out.append(linkage.coordinates(res.positions))
+    return out
+
+
 @dataclass(frozen=True)
 class Seeds:
     """Points of the configuration space to start traces from, and what was done."""
@@ -170,16 +188,9 @@ def seeds(
                 u = linkage.coordinates(pos)
                 if cons.max_residual(u) <= max(1e3 * tol.residual_atol, 1e-7):
                     points.append(u)
-    scale = float(np.median(linkage.lengths)) if linkage.n_bars else 1.0
-    projected = 0
-    for _ in range(random_starts):
-        pos = np.array(linkage.positions, dtype=float)
-        free = ~linkage.fixed
-        pos[free] += scale * rng.normal(size=int(free.sum()))
-        res = project(linkage.with_positions(pos), tol)
-        if res.success:
-            points.append(linkage.coordinates(res.positions))
-            projected += 1
+    random_points = projected_random_starts(linkage, tol, random_starts, rng)
+    points += random_points
+    projected = len(random_points)
     report: dict[str, object] = {
         "rotor_sweeps": swept,
         "angles_per_rotor": angles if swept else 0,

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import rotors, seeds
-from engine.constraints import Constraints, project
+from engine.assembly import projected_random_starts, rotors, seeds
+from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.errors import InvalidLinkage
 from engine.linkage import Linkage
@@ -202,13 +202,7 @@ class _Explorer:
         # the candidates along the traced curves.
         starts_used = self.opt.random_starts if self.cons.n_free <= MULTISTART_MAX_FREE else 0
         rng = np.random.default_rng(self.opt.seed + 1)
-        base = self.linkage.positions
-        free = ~self.linkage.fixed
-        for _ in range(starts_used):
-            pos = np.array(base, dtype=float)
-            pos[free] += self.scale * rng.normal(size=int(free.sum()))
-            proj = project(self.linkage.with_positions(pos), self.tol)
-            starts.append(self.linkage.coordinates(proj.positions))
+        starts += projected_random_starts(self.linkage, self.tol, starts_used, rng)
         self.report["critical_multistart"] = starts_used
         return starts
 

@@ -31,7 +31,7 @@ from engine.configuration_space import SpaceOptions, explore, rotor_angles, wind
 from engine.constraints import Constraints
 from engine.critical import refine_critical
 from engine.errors import InvalidRequest
-from engine.linkage import Linkage
+from engine.linkage import Linkage, changeable_bar
 from engine.tolerances import Tolerances
 
 
@@ -169,13 +169,7 @@ def _validate(linkage: Linkage, axes: list[tuple[str, float, float]]) -> tuple[A
         raise InvalidRequest("give exactly two axes", loc=("axes",))
     out = []
     for k, (bar, lo, hi) in enumerate(axes):
-        if bar not in linkage.bar_ids:
-            raise InvalidRequest(f"unknown bar {bar!r}", loc=("axes", k, "bar"))
-        j = linkage.bar_ids.index(bar)
-        if not linkage.active[j]:
-            raise InvalidRequest(
-                f"bar {bar!r} joins two fixed vertices and cannot change", loc=("axes", k, "bar")
-            )
+        j = changeable_bar(linkage, bar, ("axes", k, "bar"))
         if not (0 < lo < hi and np.isfinite(hi)):
             raise InvalidRequest("need 0 < min < max", loc=("axes", k))
         out.append(Axis(j, float(lo), float(hi)))

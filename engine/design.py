@@ -16,7 +16,7 @@ from scipy.optimize import linprog
 
 from engine.critical import CriticalPoint
 from engine.errors import InvalidRequest
-from engine.linkage import Linkage
+from engine.linkage import Linkage, changeable_bar
 from engine.splitting import linear_delta_gradient, retraced_pairing, split
 from engine.tolerances import Tolerances
 
@@ -55,14 +55,7 @@ def _validate(
         raise InvalidRequest("give at least one adjustable bar", loc=("adjustable",))
     idx = []
     for k, bar in enumerate(adjustable):
-        if bar not in linkage.bar_ids:
-            raise InvalidRequest(f"unknown bar {bar!r}", loc=("adjustable", k))
-        j = linkage.bar_ids.index(bar)
-        if not linkage.active[j]:
-            raise InvalidRequest(
-                f"bar {bar!r} joins two fixed vertices and cannot change", loc=("adjustable", k)
-            )
-        idx.append(j)
+        idx.append(changeable_bar(linkage, bar, ("adjustable", k)))
     if len(set(idx)) != len(idx):
         raise InvalidRequest("adjustable bars repeat", loc=("adjustable",))
     for k, t in enumerate(targets):

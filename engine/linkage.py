@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.errors import InvalidLinkage, LimitExceeded
+from engine.errors import InvalidLinkage, InvalidRequest, LimitExceeded
 
 #: Coordinates beyond this magnitude are refused: their squared distances would overflow.
 MAX_COORDINATE = 1e100
@@ -302,3 +302,19 @@ def build_linkage(
         ends=ends,
         lengths=lengths,
     )
+
+
+def changeable_bar(linkage: Linkage, bar: str, loc: tuple[str | int, ...]) -> int:
+    """Index of bar ``bar`` whose length a request may change, or :class:`InvalidRequest` at
+    ``loc`` (unknown bar, or a bar between two fully fixed vertices: its length is their
+    distance)."""
+    if bar not in linkage.bar_ids:
+        raise InvalidRequest(f"unknown bar {bar!r}", loc=loc)
+    k = linkage.bar_ids.index(bar)
+    if not linkage.active[k]:
+        raise InvalidRequest(
+            f"bar {bar!r} joins two fixed vertices: its length is their distance and cannot "
+            "change",
+            loc=loc,
+        )
+    return k

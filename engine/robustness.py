@@ -21,11 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from engine.assembly import projected_random_starts
 from engine.configuration_space import SpaceOptions, explore
-from engine.constraints import Constraints, project
+from engine.constraints import Constraints
 from engine.critical import refine_critical
 from engine.errors import InvalidRequest
-from engine.linkage import Linkage
+from engine.linkage import Linkage, changeable_bar
 from engine.tolerances import Tolerances
 
 
@@ -49,13 +50,7 @@ def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarr
         return np.ones(len(act), dtype=bool)
     mask = np.zeros(len(act), dtype=bool)
     for k, bar in enumerate(adjustable):
-        if bar not in linkage.bar_ids:
-            raise InvalidRequest(f"unknown bar {bar!r}", loc=("adjustable", k))
-        j = linkage.bar_ids.index(bar)
-        if not linkage.active[j]:
-            raise InvalidRequest(
-                f"bar {bar!r} joins two fixed vertices and cannot change", loc=("adjustable", k)
-            )
+        j = changeable_bar(linkage, bar, ("adjustable", k))
         mask[int(np.flatnonzero(act == j)[0])] = True
     if not mask.any():
         raise InvalidRequest("give at least one adjustable bar", loc=("adjustable",))
@@ -127,14 +122,8 @@ def robustness(
     space = explore(linkage, tol, options or SpaceOptions())
     starts = [cp.u for cp in space.critical_points] + [m.critical_u for m in space.near_misses]
     rng = np.random.default_rng(1234)
-    scale = float(np.median(linkage.lengths[cons.bars]))
-    free = ~linkage.fixed
-    for _ in range(extra_starts):
-        pos = np.array(linkage.positions, dtype=float)
-        pos[free] += scale * rng.normal(size=int(free.sum()))
-        proj = project(linkage.with_positions(pos), tol)
-        ref = refine_critical(cons, linkage.coordinates(proj.positions), tol)
-        starts.append(ref.u)
+    for u0 in projected_random_starts(linkage, tol, extra_starts, rng):
+        starts.append(refine_critical(cons, u0, tol).u)
     best: tuple[float, np.ndarray, np.ndarray] | None = None
     converged = 0
     for u0 in starts:

@@ -22,7 +22,7 @@ import numpy as np
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint
 from engine.errors import InvalidRequest
-from engine.linkage import Linkage
+from engine.linkage import Linkage, changeable_bar
 from engine.tolerances import Tolerances
 from engine.trace import TraceOptions, correct, trace_curve
 
@@ -68,15 +68,9 @@ def length_change(linkage: Linkage, perturbation: dict[str, float]) -> np.ndarra
     """Per-bar ``dL`` (E,) from ``{bar_id: dL}``; bars between two pins cannot change."""
     d_l = np.zeros(linkage.n_bars)
     for bar, value in perturbation.items():
-        if bar not in linkage.bar_ids:
-            raise InvalidRequest(f"unknown bar {bar!r}", loc=("perturbation", bar))
-        k = linkage.bar_ids.index(bar)
+        k = changeable_bar(linkage, bar, ("perturbation", bar))
         if not np.isfinite(value):
             raise InvalidRequest("must be finite", loc=("perturbation", bar))
-        if not linkage.active[k] and value != 0:
-            raise InvalidRequest(
-                "joins two fixed vertices: its length is their distance", loc=("perturbation", bar)
-            )
         if linkage.lengths[k] + value <= 0:
             raise InvalidRequest("would make the length non-positive", loc=("perturbation", bar))
         d_l[k] = value
