@@ -21,17 +21,25 @@ def _env_int(name: str, default: int) -> int:
 
 @dataclass(frozen=True)
 class Settings:
-    """Service settings. Environment: ``LINKAGE_MAX_VERTICES`` (default 50000),
-    ``LINKAGE_MAX_BARS`` (default 200000)."""
+    """Service settings, from the environment (see the README):
+
+    ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
+    (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
+    bodies, 5 MB).
+    """
 
     max_vertices: int = 50_000
     max_bars: int = 200_000
+    max_points: int = 200_000
+    max_body_bytes: int = 5 * 1024 * 1024
 
     @classmethod
     def from_env(cls) -> Settings:
         return cls(
             max_vertices=_env_int("LINKAGE_MAX_VERTICES", cls.max_vertices),
             max_bars=_env_int("LINKAGE_MAX_BARS", cls.max_bars),
+            max_points=_env_int("LINKAGE_MAX_POINTS", cls.max_points),
+            max_body_bytes=_env_int("LINKAGE_MAX_BODY_BYTES", cls.max_body_bytes),
         )
 
     @property

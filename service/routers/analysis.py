@@ -5,6 +5,7 @@ from fastapi import APIRouter, Depends
 from engine.configuration_space import explore
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
+from engine.errors import InvalidRequest
 from engine.rigidity import first_order
 from engine.robustness import robustness
 from engine.second_order import second_order
@@ -71,6 +72,13 @@ def configuration_space(body: SpaceRequest, settings: SettingsDep) -> SpaceRespo
     tol = mappers.tolerances_in(body.tolerances)
     at, proj = on_constraints(linkage, tol)
     res = explore(at, tol, mappers.space_options_in(body.options))
+    points = sum(len(c.points) for c in res.components)
+    if points > settings.max_points:
+        raise InvalidRequest(
+            f"the answer would hold {points} points, more than LINKAGE_MAX_POINTS = "
+            f"{settings.max_points}: raise options.step_max or lower options.max_components",
+            loc=("options",),
+        )
     return mappers.space_out(at, res, proj, tol)
 
 
