@@ -428,6 +428,7 @@ def explore(
             "strain_tol": opt.trace.strain_tol,
             "complete": not ex.report.get("component_budget_reached", False)
             and not ex.report.get("assemblies_truncated", False)
+            and not ex.report.get("open_curves", 0)
             and seg_complete
             and not degenerate,
         }

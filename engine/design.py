@@ -107,6 +107,12 @@ def design(
 ) -> DesignResult:
     """Smallest largest change of the adjustable bars giving every target its sign with
     ``sign * Delta >= margin * |g|`` (``margin`` in length units)."""
+    if not (np.isfinite(margin) and margin > 0):
+        raise InvalidRequest(f"margin must be a positive number, got {margin!r}", loc=("margin",))
+    if max_change is not None and not (np.isfinite(max_change) and max_change > 0):
+        raise InvalidRequest(
+            f"max_change must be a positive number, got {max_change!r}", loc=("max_change",)
+        )
     idx = _validate(linkage, crit, targets, adjustable)
     grads = np.array([linear_delta_gradient(linkage, crit[t.branch_point])[idx] for t in targets])
     signs = np.array([t.sign for t in targets], dtype=float)

@@ -207,6 +207,7 @@ def trace_curve(
     """
     h_max = options.resolved_step_max(cons)
     h_min = 1e-9 * h_max
+    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
     lengths = cons.linkage.lengths[cons.bars]
     curve = Curve()
     info = tangent_at(cons, u0, t0 / np.linalg.norm(t0))
@@ -215,7 +216,7 @@ def trace_curve(
         curve.signs, curve.logdets = [0], [-np.inf]
         curve.stop = "singular start"
         return curve
-    u, t = u0, info.tangent
+    u, t, sign = u0, info.tangent, info.sign
     curve.points.append(u)
     curve.tangents.append(t)
     curve.signs.append(info.sign)
@@ -243,6 +244,19 @@ def trace_curve(
         if nxt is None or nxt.tangent @ t < np.cos(options.max_turn):
             h *= 0.5
             continue
+        if nxt.sign != sign and sign != 0:
+            # The tangent form never vanishes along a regular curve, so its sign relative to the
+            # direction of travel cannot change between neighbours: a change means the corrector
+            # landed on another branch (near a split branch point the arcs are ~sqrt(dL)
+            # apart), or the step crosses a true critical point. Shrink until the step is tiny;
+            # then accept the crossing only at a truly critical point (exact branch points at
+            # critical lengths), else stop: the curve stays open and the search incomplete.
+            if h > h_cross:
+                h *= 0.5
+                continue
+            if _singular_ratio(cons, w) > 1e-5:
+                curve.stop = "unresolved near-critical point"
+                return curve
         step = float(np.linalg.norm(w - u))
         if step > h_max:
             h *= 0.5
@@ -256,13 +270,44 @@ def trace_curve(
         if reason is not None:
             curve.stop = reason
             return curve
-        if close and arc > close_after and _passes_near(u, w, u0, 0.5 * h_max):
+        if close and arc > close_after and _passes_near(u, w, u0, 0.5 * h_max) and \
+                _lands_on(cons, u, w, nxt.tangent, u0, tol, 1e-5 * h_max):
             curve.stop = "closed"
             return curve
-        u, t, fac = w, nxt.tangent, nxt.factor
+        u, t, fac, sign = w, nxt.tangent, nxt.factor, nxt.sign
         h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
     curve.stop = "max points"
     return curve
+
+
+def _singular_ratio(cons: Constraints, u: np.ndarray) -> float:
+    """``s_min / s_max`` of ``J(u)`` (dense SVD; large linkages are assumed critical here)."""
+    if cons.n_free > 600:
+        return 0.0
+    s = np.linalg.svd(cons.jacobian(u, sparse=False), compute_uv=False)
+    return float(s[-1] / s[0]) if s.size and s[0] > 0 else 0.0
+
+
+def _lands_on(
+    cons: Constraints,
+    a: np.ndarray,
+    b: np.ndarray,
+    t: np.ndarray,
+    target: np.ndarray,
+    tol: Tolerances,
+    radius: float,
+) -> bool:
+    """True when the curve through the segment ``[a, b]`` (tangent ``t``) really passes through
+    ``target``: correcting from the segment's closest point, in the hyperplane through
+    ``target`` orthogonal to ``t``, lands on ``target``. Near a split branch point another arc
+    can pass close by; the correction then lands on that arc instead."""
+    ab = b - a
+    denom = float(ab @ ab)
+    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
+    p = a + s * ab
+    v = p + ((target - p) @ t) * t
+    w, ok, _ = correct(cons, v, t, tol)
+    return ok and float(np.linalg.norm(w - target)) <= radius
 
 
 def _passes_near(a: np.ndarray, b: np.ndarray, target: np.ndarray, radius: float) -> bool:

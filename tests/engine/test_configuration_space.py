@@ -183,3 +183,23 @@ def test_three_dimensional_linkage_is_traced_and_closed():
     for comp in res.components:
         assert max(cons.max_residual(u) for u in comp.points) <= TOL.residual_atol
     assert np.linalg.norm(through[0].points[0] - through[0].points[-1]) == 0.0
+
+
+@pytest.mark.parametrize("eps", [1e-3, 1e-5, 1e-6])
+@pytest.mark.parametrize(("sign", "count"), [(1, 1), (-1, 2)])
+def test_near_critical_four_bar_does_not_jump_branches(eps, sign, count):
+    """Within ~sqrt(eps) of a split branch point the two arcs nearly touch; a predictor allowed
+    1% strain could land on the other arc. The sign of the augmented determinant guards it."""
+    res = explore(equilateral(1 + sign * eps), TOL, FAST)
+    assert res.search["complete"]
+    assert len(res.components) == count and not res.critical_points
+
+
+@pytest.mark.parametrize("eps", [1e-7, 1e-8])
+def test_very_near_critical_four_bar_is_right_or_flagged(eps):
+    """Closer still, the tracer may not resolve the split: then the search must say it is not
+    complete; a count it calls complete must be the right one."""
+    for sign, count in ((1, 1), (-1, 2)):
+        res = explore(equilateral(1 + sign * eps), TOL, FAST)
+        if res.search["complete"]:
+            assert len(res.components) == count

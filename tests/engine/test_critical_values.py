@@ -34,14 +34,18 @@ def four_bar_components(lengths: dict[str, float]) -> int:
 
 
 @pytest.mark.parametrize(
-    ("x", "y", "x_max"),
-    [("L2", "L3", 3.6), ("L1", "L2", 2.2)],
+    ("x", "y", "x_range"),
+    # The (L1, L2) box avoids its nearly rigid corner (L1 small, L2 near a + L1 + L3), where
+    # the seed explorations of tiny configuration spaces are slow (a known cost issue, not a
+    # correctness one: see the CHANGELOG).
+    [("L2", "L3", (0.3, 3.6)), ("L1", "L2", (0.4, 2.0))],
     ids=["L2-L3 (with the empty region beyond L2 = 2 + L3)", "L1-L2"],
 )
-def test_four_bar_slice(x, y, x_max):
+def test_four_bar_slice(x, y, x_range):
     base = {"a": 1.0, "L1": 1.0, "L2": 1.2, "L3": 1.0}
     lk = build_preset("four-bar", {k: v for k, v in base.items() if k != "a"})
-    box = {x: (0.3, x_max), y: (0.3, 2.2)}
+    box = {x: x_range, y: (0.3, 2.2)}
+    x_max = x_range[1]
     res = critical_value_slice(lk, [(x, *box[x]), (y, *box[y])], resolution=32,
                                options=SpaceOptions(angles=24, random_starts=4))
     assert res.curves

@@ -104,3 +104,16 @@ def test_design_respects_max_change():
     crit = CRIT["four-bar"]
     result = design(FOUR_BAR, crit, [Target(0, 1)], ["L2"], margin=1e-2, max_change=1e-6)
     assert not result.feasible and "max_change" in result.conflicts[0].reason
+
+
+@pytest.mark.parametrize(
+    ("margin", "max_change", "loc"),
+    [(float("nan"), None, "margin"), (0.0, None, "margin"), (-1.0, None, "margin"),
+     (1e-4, -1.0, "max_change"), (1e-4, float("inf"), "max_change")],
+)
+def test_design_rejects_bad_margin_and_max_change(margin, max_change, loc):
+    from engine.errors import InvalidRequest
+
+    with pytest.raises(InvalidRequest) as info:
+        design(FOUR_BAR, CRIT["four-bar"], [Target(0, 1)], ["L2"], margin, max_change)
+    assert info.value.loc == (loc,)
