@@ -141,8 +141,7 @@ class _Explorer:
         return False
 
     def trace_from(self, u: np.ndarray) -> Curve | None:
-        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
-                          sparse=False if self.cons.n_free <= 600 else None)
+        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = trace_curve(self.cons, u, rig.zero_modes[0], self.tol, self.opt.trace)

@@ -166,9 +166,7 @@ def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
     There ``J``'s row is exactly zero, so no Gauss-Newton step can move the ends apart; a tiny
     seeded perturbation (``1e-6`` of the target length) breaks the symmetry reproducibly.
     """
-    stuck = np.flatnonzero(
-        (np.einsum("ij,ij->i", *(2 * [cons.bar_vectors(u)])) == 0) & (cons.targets > 0)
-    )
+    stuck = np.flatnonzero((cons.squared_lengths(u) == 0) & (cons.targets > 0))
     if stuck.size == 0:
         return u
     rng = np.random.default_rng(0)

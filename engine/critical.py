@@ -123,12 +123,3 @@ def singular_gap(cons: Constraints, u: np.ndarray) -> float:
     jac = cons.jacobian(u, sparse=False)
     s = np.linalg.svd(jac, compute_uv=False)
     return float(s[-1] / s[0]) if s.size and s[0] > 0 else 0.0
-
-
-def dedupe(points: list[np.ndarray], radius: float) -> list[int]:
-    """Indices of the first of each cluster of points closer than ``radius``."""
-    keep: list[int] = []
-    for i, p in enumerate(points):
-        if all(np.linalg.norm(p - points[k]) > radius for k in keep):
-            keep.append(i)
-    return keep

@@ -12,13 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from engine.constraints import Constraints
 from engine.errors import NumericalFailure
 from engine.linkage import Linkage
+from engine.lu import Factor
 from engine.tolerances import Tolerances
 from engine.vectors import normalise_sign
 
@@ -244,32 +244,6 @@ def _span_rows(rows: np.ndarray) -> np.ndarray:
     return vt[s > 0.5]
 
 
-def _det_sign_log(lu: spla.SuperLU) -> tuple[int, float]:
-    """Sign and log10 |det| of a matrix from its sparse LU factors."""
-    diag = lu.U.diagonal()
-    if np.any(diag == 0):
-        return 0, -np.inf
-    sign = int(np.prod(np.sign(diag))) * _parity(lu.perm_r) * _parity(lu.perm_c)
-    return sign, float(np.sum(np.log10(np.abs(diag))))
-
-
-def _parity(perm: np.ndarray) -> int:
-    """+1 for an even permutation, -1 for an odd one."""
-    seen = np.zeros(len(perm), dtype=bool)
-    transpositions = 0
-    for start in range(len(perm)):
-        if seen[start]:
-            continue
-        length = 0
-        j = start
-        while not seen[j]:
-            seen[j] = True
-            j = perm[j]
-            length += 1
-        transpositions += length - 1
-    return -1 if transpositions % 2 else 1
-
-
 def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool) -> TangentForm:
     """Tangent form ``t = det([w; J]) * [w; J]^{-1} e_1`` for ``J`` (M-1, M).
 
@@ -279,29 +253,23 @@ def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool)
     best conditioned).
     """
     m = jac.shape[1]
+    vanishing = TangentForm(np.zeros(m), -np.inf, 0)
     if critical:
-        return TangentForm(np.zeros(m), -np.inf, 0)
+        return vanishing
     if sp.issparse(jac):
-        aug = sp.vstack([sp.csr_matrix(w.reshape(1, -1)), jac]).tocsc()
-        lu = spla.splu(aug)
-        sign, logdet = _det_sign_log(lu)
-        y = lu.solve(np.eye(1, m, 0).ravel())
+        aug: np.ndarray | sp.spmatrix = sp.vstack([sp.csr_matrix(w.reshape(1, -1)), jac])
     else:
         aug = np.vstack([w, jac])
-        lu_piv = sla.lu_factor(aug, check_finite=False)
-        diag = np.diag(lu_piv[0])
-        if np.any(diag == 0):
-            return TangentForm(np.zeros(m), -np.inf, 0)
-        piv_sign = -1 if np.sum(lu_piv[1] != np.arange(m)) % 2 else 1
-        sign = int(np.prod(np.sign(diag))) * piv_sign
-        logdet = float(np.sum(np.log10(np.abs(diag))))
-        y = sla.lu_solve(lu_piv, np.eye(1, m, 0).ravel())
+    fac = Factor(aug)
+    if not fac.ok:
+        return vanishing
+    y = fac.solve(np.eye(1, m, 0).ravel())
     norm_y = float(np.linalg.norm(y))
-    if sign == 0 or not np.isfinite(norm_y) or norm_y == 0.0:
-        return TangentForm(np.zeros(m), -np.inf, 0)
-    direction = sign * y / norm_y
+    if not np.isfinite(norm_y) or norm_y == 0.0:
+        return vanishing
+    direction = fac.sign * y / norm_y
     orientation = int(np.sign(direction @ w)) if direction @ w != 0 else 0
-    return TangentForm(direction, logdet + np.log10(norm_y), orientation)
+    return TangentForm(direction, fac.logdet / np.log(10) + np.log10(norm_y), orientation)
 
 
 def first_order(

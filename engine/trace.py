@@ -16,11 +16,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from engine.constraints import Constraints
+from engine.critical import singular_gap
+from engine.lu import Factor
 from engine.tolerances import Tolerances
 
 
@@ -50,55 +50,6 @@ class TraceOptions:
         if self.step_max is not None:
             return self.step_max
         return 0.1 * float(np.median(cons.linkage.lengths[cons.bars]))
-
-
-class Factor:
-    """LU of a square matrix (dense or sparse) with solves and the sign of its determinant."""
-
-    def __init__(self, mat: np.ndarray | sp.spmatrix) -> None:
-        self.sparse = sp.issparse(mat)
-        self.ok = True
-        self.sign = 0
-        self.logdet = -np.inf
-        try:
-            if self.sparse:
-                self._lu = spla.splu(sp.csc_matrix(mat))
-                diag = self._lu.U.diagonal()
-                perm = _parity(self._lu.perm_r) * _parity(self._lu.perm_c)
-            else:
-                self._lu_piv = sla.lu_factor(mat, check_finite=False)
-                diag = np.diag(self._lu_piv[0])
-                n = len(diag)
-                perm = -1 if np.sum(self._lu_piv[1] != np.arange(n)) % 2 else 1
-        except (RuntimeError, ValueError, sla.LinAlgError):
-            self.ok = False
-            return
-        if np.any(diag == 0) or not np.all(np.isfinite(diag)):
-            self.ok = False
-            return
-        self.sign = int(np.prod(np.sign(diag))) * perm
-        self.logdet = float(np.sum(np.log(np.abs(diag))))
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        if self.sparse:
-            return self._lu.solve(rhs)
-        return sla.lu_solve(self._lu_piv, rhs, check_finite=False)
-
-
-def _parity(perm: np.ndarray) -> int:
-    """+1 for an even permutation, -1 for an odd one (cycle count, vectorised per sweep)."""
-    perm = np.asarray(perm)
-    seen = np.zeros(len(perm), dtype=bool)
-    cycles = 0
-    for start in np.flatnonzero(~seen):
-        if seen[start]:
-            continue
-        cycles += 1
-        j = start
-        while not seen[j]:
-            seen[j] = True
-            j = perm[j]
-    return -1 if (len(perm) - cycles) % 2 else 1
 
 
 #: Above this many free coordinates the augmented matrix is factorised with sparse LU (for LU,
@@ -181,9 +132,6 @@ class Curve:
     stop: str = ""
     stop_index: int | None = None
 
-    def as_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.points), np.array(self.tangents)
-
 
 StopCheck = Callable[[np.ndarray, np.ndarray, np.ndarray], str | None]
 """``check(u_prev, u_new, t_new)`` returns a reason to stop after accepting ``u_new``."""
@@ -254,7 +202,8 @@ def trace_curve(
             if h > h_cross:
                 h *= 0.5
                 continue
-            if _singular_ratio(cons, w) > 1e-5:
+            # (no dense SVD for large linkages: their crossings are accepted as critical)
+            if cons.n_free <= 600 and singular_gap(cons, w) > 1e-5:
                 curve.stop = "unresolved near-critical point"
                 return curve
         step = float(np.linalg.norm(w - u))
@@ -270,7 +219,7 @@ def trace_curve(
         if reason is not None:
             curve.stop = reason
             return curve
-        if close and arc > close_after and _passes_near(u, w, u0, 0.5 * h_max) and \
+        if close and arc > close_after and segment_distance(u, w, u0) <= 0.5 * h_max and \
                 _lands_on(cons, u, w, nxt.tangent, u0, tol, 1e-5 * h_max):
             curve.stop = "closed"
             return curve
@@ -280,12 +229,17 @@ def trace_curve(
     return curve
 
 
-def _singular_ratio(cons: Constraints, u: np.ndarray) -> float:
-    """``s_min / s_max`` of ``J(u)`` (dense SVD; large linkages are assumed critical here)."""
-    if cons.n_free > 600:
-        return 0.0
-    s = np.linalg.svd(cons.jacobian(u, sparse=False), compute_uv=False)
-    return float(s[-1] / s[0]) if s.size and s[0] > 0 else 0.0
+def closest_on_segment(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The point of the segment ``[a, b]`` closest to ``target``."""
+    ab = b - a
+    denom = float(ab @ ab)
+    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
+    return a + s * ab
+
+
+def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the segment ``[a, b]``."""
+    return float(np.linalg.norm(closest_on_segment(a, b, target) - target))
 
 
 def _lands_on(
@@ -301,26 +255,7 @@ def _lands_on(
     ``target``: correcting from the segment's closest point, in the hyperplane through
     ``target`` orthogonal to ``t``, lands on ``target``. Near a split branch point another arc
     can pass close by; the correction then lands on that arc instead."""
-    ab = b - a
-    denom = float(ab @ ab)
-    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
-    p = a + s * ab
-    v = p + ((target - p) @ t) * t
-    w, ok, _ = correct(cons, v, t, tol)
+    p = closest_on_segment(a, b, target)
+    w, ok, _ = correct(cons, p + ((target - p) @ t) * t, t, tol)
     return ok and float(np.linalg.norm(w - target)) <= radius
 
-
-def _passes_near(a: np.ndarray, b: np.ndarray, target: np.ndarray, radius: float) -> bool:
-    """True when the segment ``[a, b]`` passes within ``radius`` of ``target``."""
-    ab = b - a
-    denom = float(ab @ ab)
-    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
-    return float(np.linalg.norm(a + s * ab - target)) <= radius
-
-
-def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
-    """Distance from ``target`` to the segment ``[a, b]``."""
-    ab = b - a
-    denom = float(ab @ ab)
-    s = 0.0 if denom == 0.0 else float(np.clip((target - a) @ ab / denom, 0.0, 1.0))
-    return float(np.linalg.norm(a + s * ab - target))
