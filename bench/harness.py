@@ -1,0 +1,90 @@
+"""Shared timing helpers for the benchmarks in ``bench/`` (run on demand, never in the tests).
+
+* :func:`best_of` -- best wall-clock time of ``repeat`` runs (``time.perf_counter``);
+* :class:`Table` -- rows printed as they come and written as JSON;
+* :func:`served` -- the real service in a uvicorn server on a free loopback port, so that a
+  benchmark "through the API" pays HTTP and JSON cost exactly like a client.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+
+def best_of(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, Any]:
+    """Best of ``repeat`` timings of ``fn()`` and the output of the last run."""
+    best, out = float("inf"), None
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+class Table:
+    """Benchmark rows: printed as they come, written as JSON by :meth:`save`."""
+
+    def __init__(self, title: str) -> None:
+        self.title = title
+        self.rows: list[dict[str, Any]] = []
+        print(f"## {title}")
+
+    def record(self, name: str, seconds: float, detail: str = "", **extra: Any) -> None:
+        row = {"benchmark": name, "seconds": seconds, "detail": detail, **extra}
+        self.rows.append(row)
+        extras = "".join(f"  {k}={_fmt(v)}" for k, v in extra.items())
+        print(f"{name:<64} {seconds:10.4f} s  {detail}{extras}", flush=True)
+
+    def save(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"title": self.title, "rows": self.rows}, indent=2) + "\n")
+
+
+def _fmt(v: Any) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@contextmanager
+def served(app: Any | None = None, timeout: float = 60.0) -> Iterator[str]:
+    """Run the service (``service.main.create_app()`` unless ``app`` is given) in uvicorn on a
+    free loopback port in a background thread; yields the base URL and stops the server after."""
+    import httpx
+    import uvicorn
+
+    if app is None:
+        from service.main import create_app
+
+        app = create_app()
+    port = free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            if httpx.get(url + "/health", timeout=1.0).status_code == 200:
+                break
+        except httpx.HTTPError:
+            pass
+        if time.monotonic() > deadline:
+            raise RuntimeError("the service did not start")
+        time.sleep(0.05)
+    try:
+        yield url
+    finally:
+        server.should_exit = True
+        thread.join(timeout)
