@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 from engine.linkage import Limits
@@ -19,19 +20,39 @@ def _env_int(name: str, default: int) -> int:
     return value
 
 
+def _env_float(name: str, default: float) -> float:
+    raw = os.environ.get(name)
+    if raw is None or raw == "":
+        return default
+    value = float(raw)
+    if not value > 0 or value == float("inf"):
+        raise ValueError(f"{name} must be a positive number of seconds, got {raw!r}")
+    return value
+
+
+def default_workers() -> int:
+    """One engine worker per core (at least one)."""
+    return max(1, os.cpu_count() or 1)
+
+
 @dataclass(frozen=True)
 class Settings:
     """Service settings, from the environment (see the README):
 
     ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
-    bodies, 5 MB).
+    bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
+    ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
+    (engine requests admitted at once, running or waiting, 64).
     """
 
     max_vertices: int = 50_000
     max_bars: int = 200_000
     max_points: int = 200_000
     max_body_bytes: int = 5 * 1024 * 1024
+    time_limit_s: float = 30.0
+    workers: int = field(default_factory=default_workers)
+    max_queue: int = 64
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -40,7 +61,14 @@ class Settings:
             max_bars=_env_int("LINKAGE_MAX_BARS", cls.max_bars),
             max_points=_env_int("LINKAGE_MAX_POINTS", cls.max_points),
             max_body_bytes=_env_int("LINKAGE_MAX_BODY_BYTES", cls.max_body_bytes),
+            time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
+            workers=_env_int("LINKAGE_WORKERS", default_workers()),
+            max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
         )
+
+    def replace(self, **changes: object) -> Settings:
+        """A copy with some settings changed (e.g. in tests)."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
     @property
     def limits(self) -> Limits:

@@ -22,6 +22,8 @@ from engine.errors import (
     NumericalFailure,
     UnknownPreset,
 )
+from service.schemas.common import Problem
+from service.workers import ServiceFault
 
 PROBLEM_JSON = "application/problem+json"
 log = logging.getLogger("service")
@@ -41,6 +43,11 @@ _ENGINE: dict[type[EngineError], tuple[int, str, str, tuple[str, ...]]] = {
     InvalidParameter: (422, "invalid-parameter", "Invalid preset parameter", ("query",)),
     UnknownPreset: (404, "unknown-preset", "Unknown preset", ("path",)),
 }
+
+
+def problem_responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` entries: these statuses answer with a problem+json body."""
+    return {s: {"model": Problem, "content": {PROBLEM_JSON: {}}} for s in statuses}
 
 
 def problem(
@@ -100,6 +107,12 @@ async def _numerical(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+async def _fault(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, ServiceFault)
+    headers = {"retry-after": str(exc.retry_after)} if exc.retry_after else None
+    return problem(exc.status, exc.kind, exc.title, exc.detail, headers=headers)
+
+
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
@@ -118,5 +131,6 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(EngineError, _engine)
     app.add_exception_handler(NumericalFailure, _numerical)
+    app.add_exception_handler(ServiceFault, _fault)
     app.add_exception_handler(StarletteHTTPException, _http)
     app.add_exception_handler(Exception, _unhandled)

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.config import Settings
+from service.metrics import Metrics
 
 log = logging.getLogger("service.access")
 _SAFE_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
@@ -34,9 +35,11 @@ class RequestContext:
     413 problem before the application sees them: at once from ``content-length``, else by
     reading the body here (at most limit + 1 bytes) and replaying it to the application."""
 
-    def __init__(self, app: ASGIApp, settings: Callable[[], Settings]) -> None:
+    def __init__(self, app: ASGIApp, settings: Callable[[], Settings],
+                 metrics: Metrics | None = None) -> None:
         self.app = app
         self.settings = settings
+        self.metrics = metrics
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -66,40 +69,51 @@ class RequestContext:
             })
             await send_with_id({"type": "http.response.body", "body": body})
 
+        if self.metrics is not None:
+            self.metrics.in_flight.inc()
         try:
-            declared = int(headers.get(b"content-length", b"0") or 0)
-        except ValueError:
-            declared = 0
-        if declared > limit:
-            await reply_413()
-        else:
-            chunks: list[bytes] = []
-            size = 0
-            while True:
-                message = await receive()
-                if message["type"] != "http.request":  # client went away
-                    return
-                chunks.append(message.get("body", b""))
-                size += len(chunks[-1])
-                if size > limit or not message.get("more_body", False):
-                    break
-            if size > limit:
+            try:
+                declared = int(headers.get(b"content-length", b"0") or 0)
+            except ValueError:
+                declared = 0
+            if declared > limit:
                 await reply_413()
             else:
-                body = b"".join(chunks)
-                replayed = {"done": False}
+                chunks: list[bytes] = []
+                size = 0
+                while True:
+                    message = await receive()
+                    if message["type"] != "http.request":  # client went away
+                        status["code"] = 499
+                        return
+                    chunks.append(message.get("body", b""))
+                    size += len(chunks[-1])
+                    if size > limit or not message.get("more_body", False):
+                        break
+                if size > limit:
+                    await reply_413()
+                else:
+                    body = b"".join(chunks)
+                    replayed = {"done": False}
 
-                async def replay() -> Message:
-                    if not replayed["done"]:
-                        replayed["done"] = True
-                        return {"type": "http.request", "body": body, "more_body": False}
-                    return await receive()  # e.g. http.disconnect
+                    async def replay() -> Message:
+                        if not replayed["done"]:
+                            replayed["done"] = True
+                            return {"type": "http.request", "body": body, "more_body": False}
+                        return await receive()  # e.g. http.disconnect
 
-                await self.app(scope, replay, send_with_id)
-        log.info(json.dumps({
-            "request_id": request_id,
-            "method": scope.get("method"),
-            "path": scope.get("path"),
-            "status": status["code"],
-            "duration_ms": round(1e3 * (time.perf_counter() - start), 2),
-        }))
+                    await self.app(scope, replay, send_with_id)
+        finally:
+            seconds = time.perf_counter() - start
+            if self.metrics is not None:
+                self.metrics.in_flight.dec()
+                route = scope.get("route")
+                template = getattr(route, "path", None) or "unmatched"
+                self.metrics.observe(str(scope.get("method")), template, status["code"], seconds)
+            log.info(json.dumps({
+                "request_id": request_id,
+                "method": scope.get("method"),
+                "path": scope.get("path"),
+                "status": status["code"],
+                "duration_ms": round(1e3 * seconds, 2),
+            }))

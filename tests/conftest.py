@@ -9,7 +9,15 @@ from typing import Any
 import httpx
 import pytest
 
+from service.config import Settings
 from service.main import create_app
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    from tests.service.test_fuzz_openapi import FUZZ_EXAMPLES, FUZZ_SEED
+
+    return [f"schemathesis: {FUZZ_EXAMPLES} examples per operation, seed {FUZZ_SEED} "
+            f"(replay with FUZZ_SEED={FUZZ_SEED})"]
 
 
 class ApiClient:
@@ -37,8 +45,12 @@ class ApiClient:
 
 
 @pytest.fixture(scope="session")
-def app() -> Any:
-    return create_app()
+def app() -> Iterator[Any]:
+    # A generous time limit: CI machines are shared and slow; the limit itself is tested in
+    # tests/service/test_hardening.py with apps of its own.
+    application = create_app(Settings.from_env().replace(time_limit_s=600.0))
+    yield application
+    application.state.engine_pool.close()
 
 
 @pytest.fixture(scope="session")

@@ -180,12 +180,12 @@ def test_gated_chain_with_slider(client):
 def test_numerical_failure_is_a_problem_not_a_crash(client, monkeypatch):
     """If the engine cannot give a trustworthy answer, the client gets problem+json (never 500)."""
     from engine.errors import NumericalFailure
-    from service.routers import analysis
+    from service import jobs
 
     def fail(*args, **kwargs):
         raise NumericalFailure("inconsistent sparse null spaces (test)")
 
-    monkeypatch.setattr(analysis, "first_order", fail)
+    monkeypatch.setattr(jobs, "first_order", fail)  # small linkages run in-process
     r = client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)})
     assert r.status_code == 422
     assert r.headers["content-type"].startswith("application/problem+json")

@@ -80,11 +80,16 @@ def expect(
 
 @contextmanager
 def settings_override(app: Any, value: Settings) -> Iterator[None]:
-    app.dependency_overrides[service.config.get_settings] = lambda: value
+    key = service.config.get_settings
+    before = app.dependency_overrides.get(key)
+    app.dependency_overrides[key] = lambda: value
     try:
         yield
     finally:
-        app.dependency_overrides.pop(service.config.get_settings, None)
+        if before is None:
+            app.dependency_overrides.pop(key, None)
+        else:
+            app.dependency_overrides[key] = before
 
 
 @pytest.fixture(scope="module")
@@ -254,6 +259,7 @@ def test_more_than_configured_limit(
     limits: Settings,
     loc: Loc,
 ) -> None:
+    before = app.dependency_overrides.get(service.config.get_settings)
     with settings_override(app, limits):
         r = client.post(url, json={"linkage": linkage})
         # Within the limit, the same override lets a smaller request through.
@@ -261,7 +267,7 @@ def test_more_than_configured_limit(
                  "bars": [bar("r", "P", "A")]}
         ok = client.post(url, json={"linkage": small})
     assert ok.status_code == 200, ok.text
-    assert service.config.get_settings not in app.dependency_overrides
+    assert app.dependency_overrides.get(service.config.get_settings) is before  # restored
     expect(client, r, loc, kind="limit-exceeded")
 
 

@@ -59,12 +59,13 @@ def test_oversized_bodies_get_413_before_parsing():
 
 def test_answer_point_limit(app, client):
     lk = client.get("/v1/presets/four-bar?L2=0.9").json()
-    app.dependency_overrides[config.get_settings] = lambda: Settings(max_points=50)
+    before = app.dependency_overrides[config.get_settings]
+    app.dependency_overrides[config.get_settings] = lambda: before().replace(max_points=50)
     try:
         r = client.post("/v1/analysis/configuration-space",
                         json={"linkage": lk, "options": {"angles": 12, "random_starts": 2}})
     finally:
-        app.dependency_overrides.pop(config.get_settings, None)
+        app.dependency_overrides[config.get_settings] = before
     assert r.status_code == 422
     assert r.json()["errors"][0]["loc"] == ["body", "options"]
     assert "LINKAGE_MAX_POINTS" in r.json()["detail"]

@@ -1,0 +1,121 @@
+"""The work behind each analysis endpoint: request model in, response model out.
+
+Each function runs either in a worker process or, for small first- and second-order requests,
+in the service's thread pool (see :mod:`service.workers`), so each is a plain module-level
+function of picklable arguments. Engine errors raised here travel back unchanged and become
+problem+json in :mod:`service.errors`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.configuration_space import explore
+from engine.constraints import on_constraints
+from engine.critical_values import critical_value_slice
+from engine.design import Target, design, verify
+from engine.errors import InvalidRequest
+from engine.rigidity import first_order
+from engine.robustness import robustness
+from engine.second_order import second_order
+from engine.splitting import length_change, split
+from service import mappers
+from service.config import Settings
+from service.schemas.analysis import RigidityResponse, SecondOrderResponse
+from service.schemas.common import AnalysisRequest
+from service.schemas.space import (
+    CriticalPointsResponse,
+    CriticalValuesRequest,
+    CriticalValuesResponse,
+    DesignRequest,
+    DesignResponse,
+    RobustnessRequest,
+    RobustnessResponse,
+    SpaceRequest,
+    SpaceResponse,
+    SplittingRequest,
+    SplittingResponse,
+)
+from service.workers import LIGHT_MAX_VERTICES
+
+
+def is_light(body: AnalysisRequest) -> bool:
+    """First/second order of a small linkage: bounded cost, answered in-process."""
+    return len(body.linkage.vertices) <= LIGHT_MAX_VERTICES
+
+
+def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    return mappers.rigidity_out(at, first_order(at, tol), proj)
+
+
+def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOrderResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    return mappers.second_order_out(at, second_order(at, tol), proj)
+
+
+def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    res = explore(at, tol, mappers.space_options_in(body.options))
+    return mappers.critical_points_out(at, res, proj, tol)
+
+
+def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, proj = on_constraints(linkage, tol)
+    res = explore(at, tol, mappers.space_options_in(body.options))
+    points = sum(len(c.points) for c in res.components)
+    if points > settings.max_points:
+        raise InvalidRequest(
+            f"the answer would hold {points} points, more than LINKAGE_MAX_POINTS = "
+            f"{settings.max_points}: raise options.step_max or lower options.max_components",
+            loc=("options",),
+        )
+    return mappers.space_out(at, res, proj, tol)
+
+
+def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    d_l = length_change(at, body.perturbation)
+    crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
+    splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
+    return mappers.splitting_out(at, splits, len(crit), tol, crit)
+
+
+def robustness_margin(body: RobustnessRequest, settings: Settings) -> RobustnessResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    adjustable = None if body.adjustable is None else list(body.adjustable)
+    res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
+    return mappers.robustness_out(at, res, tol)
+
+
+def critical_values(body: CriticalValuesRequest, settings: Settings) -> CriticalValuesResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    opts = body.options.model_dump(exclude_none=True) if body.options else {}
+    axes = [(a.bar, a.min, a.max) for a in body.axes]
+    return mappers.critical_values_out(critical_value_slice(at, axes, tolerances=tol, **opts), tol)
+
+
+def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
+    linkage = mappers.linkage_in(body.linkage, settings.limits)
+    tol = mappers.tolerances_in(body.tolerances)
+    at, _ = on_constraints(linkage, tol)
+    crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
+    targets = [Target(t.branch_point, t.sign) for t in body.targets]
+    margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
+    result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
+    checks = verify(at, crit, targets, result.perturbation, tol) if result.feasible else []
+    return mappers.design_out(at, result, list(body.adjustable), checks, tol)

@@ -1,0 +1,174 @@
+"""Engine work outside the event loop: a pool of worker processes with a per-request time limit.
+
+Heavy analyses run in ``LINKAGE_WORKERS`` processes (``pebble.ProcessPool``: it stops a task
+that exceeds its time limit by killing its worker and starts a replacement, and reports a
+worker that died as ``ProcessExpired``; both are things ``concurrent.futures`` cannot do).
+Workers come from a ``forkserver`` that has imported the engine once, so a replacement is
+ready in well under a second, and each worker's BLAS runs on one thread (one worker per core).
+
+Small first- and second-order requests are bounded by their size (dense SVD of at most
+``LIGHT_MAX_VERTICES`` vertices) and run in the service's thread pool instead, so they stay
+fast while every worker is busy.
+
+Outcomes that are not the engine's answer become :class:`ServiceFault`s, which the service
+turns into problem+json: 504 when the time limit stopped the work, 503 when the worker died
+(killed, out of memory) or when too many engine requests are already admitted.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import multiprocessing
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import TimeoutError as FutureTimeout
+from typing import Any, TypeVar
+
+import pebble
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+
+from service.config import Settings
+
+T = TypeVar("T")
+B = TypeVar("B")
+log = logging.getLogger("service.workers")
+
+#: Linkages up to this many vertices are analysed to first and second order in-process.
+LIGHT_MAX_VERTICES = 64
+_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class ServiceFault(Exception):
+    """The engine gave no answer for a reason of the service, not of the input."""
+
+    status = 503
+    kind = "service-fault"
+    title = "Service fault"
+
+    def __init__(self, detail: str, retry_after: int | None = None) -> None:
+        super().__init__(detail)
+        self.detail = detail
+        self.retry_after = retry_after
+
+
+class TimeLimitExceeded(ServiceFault):
+    status = 504
+    kind = "time-limit"
+    title = "Time limit exceeded"
+
+
+class WorkerFailed(ServiceFault):
+    status = 503
+    kind = "worker-failed"
+    title = "Worker failed"
+
+
+class Busy(ServiceFault):
+    status = 503
+    kind = "busy"
+    title = "Service busy"
+
+
+def _warm() -> int:
+    return os.getpid()
+
+
+class EnginePool:
+    """Worker processes for one application, started on first use (or by :meth:`start`)."""
+
+    def __init__(self, workers: int, max_queue: int,
+                 on_event: Callable[[str], None] | None = None) -> None:
+        self.workers = workers
+        self.max_queue = max_queue
+        self.admitted = 0
+        self._pool: pebble.ProcessPool | None = None
+        self._lock = threading.Lock()
+        self._on_event = on_event or (lambda event: None)
+
+    def _ensure(self) -> pebble.ProcessPool:
+        with self._lock:
+            if self._pool is None:
+                for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
+                    os.environ.setdefault(name, "1")
+                ctx = multiprocessing.get_context("forkserver")
+                ctx.set_forkserver_preload(["service.jobs"])
+                self._pool = pebble.ProcessPool(max_workers=self.workers, context=ctx)
+            return self._pool
+
+    def start(self) -> None:
+        """Start the workers and wait until each has answered once."""
+        pool = self._ensure()
+        for future in [pool.schedule(_warm) for _ in range(self.workers)]:
+            future.result(timeout=120)
+
+    def worker_pids(self) -> list[int]:
+        """Process ids of the live workers (diagnostics and fault tests; reads pebble's
+        worker table, an implementation detail of the pinned pebble 5)."""
+        with self._lock:
+            pool = self._pool
+        if pool is None:
+            return []
+        try:
+            workers = pool._pool_manager.worker_manager.workers
+            return [int(pid) for pid, proc in list(workers.items()) if proc.is_alive()]
+        except AttributeError:  # another pebble: no diagnostics
+            return []
+
+    def close(self) -> None:
+        """Let running tasks finish, then stop the workers (graceful shutdown)."""
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.close()
+            pool.join()
+
+    async def run(self, time_limit: float, fn: Callable[..., T], *args: Any) -> T:
+        """``fn(*args)`` in a worker, stopped after ``time_limit`` seconds of running."""
+        if self.admitted >= self.max_queue:
+            self._on_event("busy")
+            raise Busy(
+                f"{self.admitted} engine requests are running or waiting (LINKAGE_MAX_QUEUE = "
+                f"{self.max_queue}); retry shortly",
+                retry_after=max(1, round(time_limit / 4)),
+            )
+        self.admitted += 1
+        try:
+            future = self._ensure().schedule(fn, args, timeout=time_limit)
+            try:
+                return await asyncio.wrap_future(future)
+            except FutureTimeout:
+                self._on_event("time_limit")
+                raise TimeLimitExceeded(
+                    f"the analysis ran longer than LINKAGE_TIME_LIMIT_S = {time_limit:g} s and "
+                    "was stopped; ask for less (e.g. fewer components, a coarser resolution, a "
+                    "smaller linkage) or raise the limit"
+                ) from None
+            except pebble.ProcessExpired as err:
+                self._on_event("worker_failed")
+                log.warning("engine worker died (exit code %s) running %s", err.exitcode,
+                            getattr(fn, "__name__", fn))
+                raise WorkerFailed(
+                    f"the worker process running this analysis stopped unexpectedly (exit code "
+                    f"{err.exitcode}: killed, e.g. out of memory); it has been replaced, and "
+                    "the request may be retried",
+                    retry_after=1,
+                ) from None
+        finally:
+            self.admitted -= 1
+
+
+def engine_pool(request: Request) -> EnginePool:
+    pool: EnginePool = request.app.state.engine_pool
+    return pool
+
+
+async def engine_call(request: Request, settings: Settings, fn: Callable[[B, Settings], T],
+                      body: B, light: bool = False) -> T:
+    """The job ``fn(body, settings)`` for an endpoint: in the service's thread pool when
+    ``light`` (bounded cost), else in a worker process under ``settings.time_limit_s``."""
+    if light:
+        return await run_in_threadpool(fn, body, settings)
+    return await engine_pool(request).run(settings.time_limit_s, fn, body, settings)
