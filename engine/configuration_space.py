@@ -12,6 +12,10 @@
    until the next critical point. Components are the connected pieces of the graph of critical
    points and segments (walked as an Eulerian circuit, so consecutive points stay within the
    step bound), plus the closed curves that meet no critical point.
+
+Planar dyad chains (a rotor and circle-circle dyads) first try the closed form of
+:mod:`engine.dyads`: every component sampled in one vectorised pass, with a certificate that no
+critical point exists; it declines (and the steps above run) at or near critical lengths.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from scipy.spatial import cKDTree
 from engine.assembly import projected_random_starts, rotors, seeds
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
+from engine.dyads import closed_form_space
 from engine.errors import InvalidLinkage
 from engine.linkage import Linkage
 from engine.rigidity import first_order
@@ -46,6 +51,9 @@ class SpaceOptions:
     random_starts: int = 12
     max_components: int = 32
     seed: int = 0
+    #: Try the closed form of :mod:`engine.dyads` first (planar dyad chains away from critical
+    #: lengths); False always runs the general tracer (the tests cross-check the two).
+    closed_form: bool = True
 
 
 @dataclass(frozen=True)
@@ -354,9 +362,14 @@ def explore(
     tolerances: Tolerances | None = None,
     options: SpaceOptions | None = None,
     start_on_space: bool = True,
+    near_misses: bool = True,
 ) -> SpaceResult:
     """Components, critical points, segments and near misses of a 1-DOF linkage (on its
     configuration space: see :func:`engine.constraints.on_constraints`).
+
+    ``near_misses=False`` says the caller does not need the near misses: where the closed form
+    of :mod:`engine.dyads` certifies that no critical point exists, the critical-point search
+    (which finds the near misses, and would find no critical point) is then skipped.
 
     Examples
     --------
@@ -371,6 +384,12 @@ def explore(
     # With start_on_space=False the given positions need not satisfy the lengths (e.g. lengths
     # changed for a map): only the seeds are used, and none means an empty configuration space.
     start = linkage.coordinates() if start_on_space else None
+    # -- closed-form path (engine.dyads); None: not a dyad chain, or at/near critical lengths --
+    if opt.closed_form:
+        fast = _closed_form(ex, start, near_misses)
+        if fast is not None:
+            return fast
+    # -- general path ---------------------------------------------------------------------
     ex.trace_all(start)
     crit, misses, degenerate = ex.critical_points()
     # Segments need every critical point classified; with a degenerate one the traced curves
@@ -403,21 +422,7 @@ def explore(
     for k, cp in enumerate(crit):
         if k not in on_segments and cp.kind == "rigid":
             components.append(Component(cp.u[None, :], True, False, [k], []))
-    # which component passes through the given configuration
-    best, best_d = -1, np.inf
-    for k, comp in enumerate(components):
-        if start is None:
-            break
-        p = comp.points
-        d = min(
-            (segment_distance(p[i], p[i + 1], start) for i in range(len(p) - 1)),
-            default=float(np.linalg.norm(p[0] - start)),
-        )
-        if d < best_d:
-            best, best_d = k, d
-    if best >= 0 and best_d <= ex.h_max:
-        c = components[best]
-        components[best] = Component(c.points, c.closed, True, c.critical_points, c.segments)
+    _mark_through_start(components, start, ex.h_max)
     search = dict(ex.report)
     search.update(
         {
@@ -435,6 +440,131 @@ def explore(
     return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)
 
 
+# -- closed-form path ------------------------------------------------------------------------
+
+
+def _distance_to_walk(points: np.ndarray, x: np.ndarray) -> float:
+    """Distance from ``x`` (M,) to the polyline ``points`` (n, M), vectorised over segments."""
+    if len(points) == 1:
+        return float(np.linalg.norm(points[0] - x))
+    a, ab = points[:-1], np.diff(points, axis=0)
+    denom = np.einsum("ij,ij->i", ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(denom > 0, np.einsum("ij,ij->i", x - a, ab) / denom, 0.0)
+    closest = a + np.clip(s, 0.0, 1.0)[:, None] * ab
+    return float(np.min(np.linalg.norm(closest - x, axis=1)))
+
+
+def _mark_through_start(components: list[Component], start: np.ndarray | None,
+                        h_max: float) -> None:
+    """Flag the component that passes through ``start`` (nearest walk, within ``h_max``)."""
+    if start is None or not components:
+        return
+    dist = [_distance_to_walk(c.points, start) for c in components]
+    best = int(np.argmin(dist))
+    if dist[best] <= h_max:
+        c = components[best]
+        components[best] = Component(c.points, c.closed, True, c.critical_points, c.segments)
+
+
+#: The critical-point search on closed-form walks looks at most this many points per walk
+#: (the tracer's own density at the default step bound is far below it).
+SEARCH_POINTS = 2000
+
+
+def _walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
+    """A closed walk (n, M; first point repeated) as a traced :class:`Curve`: unit tangents
+    along the walk, ``det([t; J])`` signs and ``log|det|``, computed for all points at once.
+
+    The tangent is the generalised cross product of ``J``'s rows, ``c_k = (-1)^k det(J without
+    column k)``; then ``det([c; J]) = |c|^2``, so with ``t = o c / |c|`` (``o = +-1`` orienting
+    ``t`` along the walk) ``det([t; J]) = o |c|``."""
+    pts = walk[:-1]
+    stride = max(1, int(np.ceil(len(pts) / SEARCH_POINTS)))
+    pts = pts[::stride]
+    lk = cons.linkage
+    pos = np.empty((len(pts), *lk.positions.shape))
+    pos[:] = lk.positions
+    pos[:, ~lk.fixed] = pts
+    r, c, s, ax = cons._pattern
+    bars = cons.linkage.ends[cons.bars]
+    diff = pos[:, bars[:, 0]] - pos[:, bars[:, 1]]  # (n, Ea, d)
+    jac = np.zeros((len(pts), cons.n_constraints, cons.n_free))
+    jac[:, r, c] = 2.0 * s * diff[:, r, ax]
+    m = cons.n_free
+    cof = np.empty((len(pts), m))
+    for k in range(m):  # M small determinants per point, each vectorised over the points
+        cols = np.r_[0:k, k + 1:m]
+        cof[:, k] = (-1) ** k * np.linalg.det(jac[:, :, cols])
+    ahead = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
+    orient = np.where(np.einsum("ij,ij->i", cof, ahead) >= 0, 1, -1)
+    norm = np.linalg.norm(cof, axis=1)
+    tangents = orient[:, None] * cof / np.maximum(norm, 1e-300)[:, None]
+    return Curve(points=list(pts), tangents=list(tangents), signs=orient.tolist(),
+                 logdets=np.log(np.maximum(norm, 1e-300)).tolist(), stop="closed")
+
+
+def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> SpaceResult | None:
+    """The answer of :func:`explore` from :func:`engine.dyads.closed_form_space`, or None
+    (the general path runs; ``search["closed_form"]`` then says why the closed form declined).
+
+    With ``near_misses`` the usual critical-point search runs on the closed-form walks (for the
+    near misses); should it find a critical point the closed form's certificate is contradicted
+    and the general path answers instead."""
+    lk, opt = ex.linkage, ex.opt
+    cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
+    if cf.components is None:
+        ex.report["closed_form"] = cf.report["closed_form"]
+        return None
+    free = ~np.asarray(lk.fixed)
+    walks = [c[:, free] for c in cf.components]
+    truncated = len(walks) > opt.max_components
+    walks = walks[: opt.max_components]
+    report: dict[str, object] = {
+        "method": "closed form",
+        "closed_form": cf.report,
+        "rotor_sweeps": [cf.report["rotor"]],
+        "angles_per_rotor": cf.report["samples"],
+        "assembly_budget_per_angle": cf.report["sheets"],
+        "assemblies_truncated": False,
+        "random_starts": 0,
+        "random_starts_projected": 0,
+        "seeds": 0,
+        "curves_traced": 0,
+        "component_budget_reached": truncated,
+        "open_curves": 0,
+    }
+    misses: list[NearMiss] = []
+    if near_misses:
+        ex.curves = [_walk_curve(ex.cons, w) for w in walks]
+        if ex.curves:
+            ex._rebuild_tree()
+        crit, misses, degenerate = ex.critical_points()
+        if crit or degenerate:
+            ex.curves, ex.tree = [], None
+            ex.report = {"closed_form": "declined: the critical-point search found a critical "
+                         "point"}
+            return None
+        report["critical_multistart"] = ex.report["critical_multistart"]
+        report["critical_candidates"] = ex.report["critical_candidates"]
+    else:
+        report["critical_multistart"] = 0
+        report["critical_candidates"] = 0
+    components = [Component(w, True, False, [], []) for w in walks]
+    _mark_through_start(components, start, ex.h_max)
+    report.update({
+        "critical_points_found": 0,
+        "segments_complete": True,
+        "step_max": ex.h_max,
+        "strain_tol": opt.trace.strain_tol,
+        "complete": not truncated,
+    })
+    return SpaceResult(components, [], [], misses, report, False)
+
+
+# -- end of closed-form path -----------------------------------------------------------------
+
+
 def rotor_angles(linkage: Linkage, points: np.ndarray) -> dict[str, np.ndarray]:
     """Unwrapped angle of every rotor (bar with exactly one fully fixed end) along ``points``
     (n, M): ``atan2`` of the vector from the fixed end to the moving end (planar only)."""
@@ -442,13 +572,22 @@ def rotor_angles(linkage: Linkage, points: np.ndarray) -> dict[str, np.ndarray]:
         return {}
     out: dict[str, np.ndarray] = {}
     full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
+    pos = positions_along(linkage, points)
     for k in rotors(linkage):
         i, j = (int(x) for x in linkage.ends[k])
         pin, tip = (i, j) if full[i] else (j, i)
-        pos = np.array([linkage.positions_of(u) for u in points])
         vec = pos[:, tip] - pos[:, pin]
         out[linkage.bar_ids[k]] = np.unwrap(np.arctan2(vec[:, 1], vec[:, 0]))
     return out
+
+
+def positions_along(linkage: Linkage, points: np.ndarray) -> np.ndarray:
+    """Vertex positions (n, V, d) of free coordinates ``points`` (n, M), all at once."""
+    pts = np.asarray(points, dtype=float).reshape(len(points), -1)
+    pos = np.empty((len(pts), *linkage.positions.shape))
+    pos[:] = linkage.positions
+    pos[:, ~linkage.fixed] = pts
+    return pos
 
 
 def winding(angles: np.ndarray, closed: bool) -> int | None:

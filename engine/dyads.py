@@ -1,0 +1,447 @@
+"""Closed-form configuration spaces of planar dyad chains, vectorised over the driving angle.
+
+A planar one-degree-of-freedom linkage whose free vertices are placed one by one from a rotor's
+tip, each from two placed neighbours (a *dyad*: circle-circle intersection, see
+:func:`engine.assembly.dyad_plan`), has every configuration on a *sheet*: a choice of root
+``s_j = +-1`` for each of its ``k`` dyads, over the rotor angle ``theta``. Dyad ``j`` at
+``theta`` on sheet ``s`` has its vertex where ``nu_j = sin^2`` of the angle between its two bars
+is positive (``nu_j`` depends on ``s_1 .. s_{j-1}`` only); where ``nu_j`` crosses zero the rotor
+reaches a limit (a *fold*) and the sheets ``s`` and ``s`` with ``s_j`` flipped join. Sheets cut
+at folds are *arcs*; joined end to end at their folds they are the components.
+
+**Certificate of no critical point.** At a configuration where no dyad is collinear
+(``nu_j != 0``) ``J`` has full rank (block triangular with invertible 2 x 2 blocks and the rotor
+row). Where exactly one dyad is collinear, the dyad's self-stress is balanced by the rest only if
+its generalised force on ``theta`` vanishes, i.e. ``d nu_j / d theta = 0``. So a linkage whose
+every zero of every ``nu_j`` along every sheet is simple and away from the zeros of the other
+dyads, and whose dyad centres never coincide, has no critical point at all. This module proves
+that on a dense angle grid (sign changes bracketed and bisected; every discrete extremum of every
+``nu_j`` refined on its bracket; every fold checked for transversality and for the other dyads'
+margin, also densely inside its grid cell) and returns ``None`` whenever any check is within the
+margin ``tau``: near or at critical lengths the general tracer answers instead
+(:func:`engine.configuration_space.explore`). Never a confident wrong answer.
+
+The margin ``tau`` (on ``nu = sin^2``) is ``1e4 * residual_atol / median bar length`` (clipped
+to ``[1e-10, 1e-3]``): lengths that close to a critical value are left to the general engine,
+which decides within ``residual_atol`` whether they are critical.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.assembly import dyad_plan, rotors
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+#: More dyads than this (2^k sheets) are left to the general tracer.
+MAX_DYADS = 6
+#: Angle samples of the detection grid (per sheet).
+DETECT_SAMPLES = 4096
+#: Samples of the dense check inside a fold's grid cell.
+FOLD_CELL_SAMPLES = 33
+#: Points of the first pass along an arc (before resampling to the step bound).
+ARC_PILOT = 512
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A rotor and the dyads that place every other free vertex (arrays over the ``k`` dyads)."""
+
+    rotor: int
+    pin: int
+    tip: int
+    radius: float
+    vertex: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    ra: np.ndarray
+    rb: np.ndarray
+    base: np.ndarray  # (V, 2) positions of the pins (free vertices overwritten)
+
+    @property
+    def k(self) -> int:
+        return len(self.vertex)
+
+
+def chain_of(linkage: Linkage) -> Chain | None:
+    """The first rotor whose dyad plan places every free vertex with exactly the active bars
+    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None."""
+    if linkage.dimension != 2:
+        return None
+    fixed = np.asarray(linkage.fixed)
+    full = fixed.all(axis=1)
+    if not np.all(full | ~fixed.any(axis=1)):
+        return None  # sliders: left to the general engine
+    active = Counter(tuple(sorted((int(i), int(j)))) for i, j in linkage.ends[linkage.active])
+    for rotor in rotors(linkage):
+        plan = dyad_plan(linkage, rotor)
+        if plan is None or len(plan) > MAX_DYADS or any(s.axis >= 0 or s.b < 0 for s in plan):
+            continue
+        pin, tip = (int(x) for x in linkage.ends[rotor])
+        if not full[pin]:
+            pin, tip = tip, pin
+        used = Counter([tuple(sorted((pin, tip)))])
+        for s in plan:
+            used[tuple(sorted((s.vertex, s.a)))] += 1
+            used[tuple(sorted((s.vertex, s.b)))] += 1
+        if used != active:
+            continue  # an extra or missing bar: not a plain dyad chain
+        return Chain(
+            rotor=rotor, pin=pin, tip=tip, radius=float(linkage.lengths[rotor]),
+            vertex=np.array([s.vertex for s in plan], dtype=int),
+            a=np.array([s.a for s in plan], dtype=int),
+            b=np.array([s.b for s in plan], dtype=int),
+            ra=np.array([s.ra for s in plan]), rb=np.array([s.rb for s in plan]),
+            base=np.array(linkage.positions, dtype=float),
+        )
+    return None
+
+
+def place(
+    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (n, V, 2), ``nu`` (n, k) and squared centre distances (n, k) at angles
+    ``theta`` (n,) on sheets ``signs`` (n, k) of +-1.
+
+    ``flat`` (n, k) bool forces a dyad's vertex onto its centres' line (its fold point, so that
+    the two sheets that meet there give bitwise the same configuration). Where ``nu < 0`` the
+    vertex is put on the line too; the caller masks those samples (the loop runs over the ``k``
+    dyads, at most :data:`MAX_DYADS`, each vectorised over all samples).
+    """
+    n = len(theta)
+    pos = np.empty((n, *ch.base.shape))
+    pos[:] = ch.base
+    pos[:, ch.tip, 0] = ch.base[ch.pin, 0] + ch.radius * np.cos(theta)
+    pos[:, ch.tip, 1] = ch.base[ch.pin, 1] + ch.radius * np.sin(theta)
+    nu = np.empty((n, ch.k))
+    d2 = np.empty((n, ch.k))
+    for j in range(ch.k):
+        ra, rb = ch.ra[j], ch.rb[j]
+        c0 = pos[:, ch.a[j]]
+        delta = pos[:, ch.b[j]] - c0
+        dd = delta[:, 0] ** 2 + delta[:, 1] ** 2
+        # 4 d^2 h^2 = ((ra + rb)^2 - d^2)(d^2 - (ra - rb)^2) = 4 ra^2 rb^2 sin^2(angle at v):
+        # a product of differences (no cancellation in the quartic) and no division.
+        quad = ((ra + rb) ** 2 - dd) * (dd - (ra - rb) ** 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 0.5 / dd
+            along = (dd + ra * ra - rb * rb) * inv
+            hh = np.sqrt(np.maximum(quad, 0.0)) * inv * signs[:, j]
+        if flat is not None:
+            hh = np.where(flat[:, j], 0.0, hh)
+        pos[:, ch.vertex[j], 0] = c0[:, 0] + along * delta[:, 0] - hh * delta[:, 1]
+        pos[:, ch.vertex[j], 1] = c0[:, 1] + along * delta[:, 1] + hh * delta[:, 0]
+        nu[:, j] = quad / (4.0 * ra * ra * rb * rb)
+        d2[:, j] = dd
+    return pos, nu, d2
+
+
+FoldKey = tuple[int, int, int]  # (sheet, inside grid index, -1 at a run's start / +1 at its end)
+Arc = tuple[int, float, float, FoldKey | None, FoldKey | None]  # sheet, theta range, end folds
+
+
+@dataclass(frozen=True)
+class ClosedForm:
+    """Components (each a closed walk of positions (n, V, 2), the first point repeated at the
+    end) and what was checked; or why the closed form declined (``components`` is None)."""
+
+    components: list[np.ndarray] | None
+    report: dict[str, object]
+
+
+def _sheets(k: int) -> np.ndarray:
+    """All ``2^k`` sign vectors (S, k), ``+1`` first (the first root of
+    :func:`engine.assembly.assemblies_at`)."""
+    s = np.arange(2**k)[:, None] >> np.arange(k)[None, :]
+    return 1 - 2 * (s & 1)
+
+
+def _golden(
+    f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
+) -> np.ndarray:
+    """Vectorised golden-section minimisation of ``f`` (arrays in, arrays out) on each
+    ``[lo, hi]``; returns the smallest value seen per bracket (ends included)."""
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo.copy(), hi.copy()
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    best = np.minimum(np.minimum(f(a), f(b)), np.minimum(fc, fd))
+    for _ in range(iters):
+        left = fc < fd
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        c_new = b - g * (b - a)
+        d_new = a + g * (b - a)
+        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
+        fc_new = f(np.where(left, c, d))
+        fc, fd = np.where(left, fc_new, fd), np.where(left, fc, fc_new)
+        best = np.minimum(best, np.minimum(fc, fd))
+    return best
+
+
+def closed_form_space(
+    linkage: Linkage, tol: Tolerances, step_max: float, max_points: int,
+    samples: int = DETECT_SAMPLES,
+) -> ClosedForm:
+    """Every component of a planar dyad chain in closed form, with the certificate that the
+    configuration space holds no critical point; see the module docstring.
+
+    Parameters
+    ----------
+    linkage : Linkage
+        One degree of freedom, something fixed (as for :func:`engine.configuration_space.explore`).
+    tol : Tolerances
+        Every returned point has every bar within ``residual_atol`` of its length.
+    step_max : float
+        Consecutive points are never farther apart than this (free coordinates).
+    max_points : int
+        Budget of points per component; a component that needs more declines the closed form.
+    samples : int
+        Angle samples of the detection grid.
+
+    Returns
+    -------
+    ClosedForm
+        ``components`` None (with ``report["closed_form"]`` saying why) when the linkage is not a
+        plain dyad chain or any check is within its margin.
+    """
+    ch = chain_of(linkage)
+    if ch is None:
+        return ClosedForm(None, {"closed_form": "declined: not a planar dyad chain"})
+    k = ch.k
+    scale = float(np.median(linkage.lengths[linkage.active]))
+    tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
+    n = int(samples)
+    dth = 2 * np.pi / n
+    offset = (np.sqrt(5) - 1) / 2  # irrational offset: symmetric angles are often special
+    grid = dth * (np.arange(n) + offset)
+    sheets = _sheets(k)
+    n_sheets = len(sheets)
+    report: dict[str, object] = {
+        "rotor": linkage.bar_ids[ch.rotor], "dyads": k, "sheets": n_sheets,
+        "samples": n, "margin": tau,
+    }
+
+    def decline(why: str) -> ClosedForm:
+        report["closed_form"] = f"declined: {why}"
+        return ClosedForm(None, report)
+
+    theta = np.tile(grid, n_sheets)
+    signs = np.repeat(sheets, n, axis=0)
+    _, nu, d2 = place(ch, theta, signs)
+    nu = nu.reshape(n_sheets, n, k)
+    d2 = d2.reshape(n_sheets, n, k)
+    pos_nu = nu > 0
+    # prefix[s, i, j]: dyads before j are assembled (so nu_j is defined there)
+    prefix = np.concatenate(
+        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
+        axis=2,
+    )
+    if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
+        return decline("a dyad's centres (nearly) coincide")
+
+    # -- every discrete extremum of nu_j that does not change sign: refine on its bracket --
+    prev_nu, next_nu = np.roll(nu, 1, axis=1), np.roll(nu, -1, axis=1)
+    prev_ok, next_ok = np.roll(prefix, 1, axis=1), np.roll(prefix, -1, axis=1)
+    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
+    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
+    # at the end of a prefix run only one neighbour exists: one-sided extrema count too
+    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
+    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    cand = prefix & (pos_min | neg_max)
+    si, ii, jj = np.nonzero(cand)
+    if len(si):
+        sgn = np.where(nu[si, ii, jj] > 0, 1.0, -1.0)
+        lo = grid[ii] - np.where(prev_ok[si, ii, jj], dth, 0.0)
+        hi = grid[ii] + np.where(next_ok[si, ii, jj], dth, 0.0)
+        cand_signs = sheets[si]
+
+        def signed_nu(t: np.ndarray) -> np.ndarray:
+            _, v, _ = place(ch, t, cand_signs)
+            return sgn * v[np.arange(len(t)), jj]
+
+        extreme = _golden(signed_nu, lo, hi)
+        if np.any(extreme <= tau):
+            return decline("a dyad is (nearly) collinear at an extremum of its angle: at or "
+                           "near critical lengths")
+
+    # -- folds: where a sheet stops being assembled --
+    valid = pos_nu.all(axis=2)  # (S, n)
+    ends: list[tuple[int, int, int, int]] = []  # (sheet, inside index, outside index, +-1)
+    for s in range(n_sheets):
+        v = valid[s]
+        up = np.flatnonzero(v & ~np.roll(v, 1))  # run starts: outside is i - 1
+        down = np.flatnonzero(v & ~np.roll(v, -1))  # run ends: outside is i + 1
+        ends += [(s, int(i), (int(i) - 1) % n, -1) for i in up]
+        ends += [(s, int(i), (int(i) + 1) % n, +1) for i in down]
+    folds: dict[tuple[int, int, int], float] = {}
+    fold_j: list[int] = []
+    if ends:
+        e = np.array(ends)
+        es, ein, eout, edir = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+        bad = ~pos_nu[es, eout]  # (F, k)
+        jf = np.argmax(bad, axis=1)  # the first dyad that fails outside
+        fold_j = jf.tolist()
+        f_signs = sheets[es]
+        lo = grid[ein].copy()
+        hi = grid[ein] + edir * dth  # the outside angle, unwrapped next to the inside one
+        rows = np.arange(len(es))
+        for _ in range(64):  # bisection to the last bit: nu_j(lo) > 0 >= nu_j(hi)
+            mid = 0.5 * (lo + hi)
+            _, v, _ = place(ch, mid, f_signs)
+            inside = v[rows, jf] > 0
+            lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+        star = lo
+        flat = np.zeros((len(es), k), bool)
+        flat[rows, jf] = True
+        # transversality: nu_j (defined on both sides) crosses zero with a slope
+        h = 1e-3 * dth
+        _, vp, _ = place(ch, star + h, f_signs)
+        _, vm, _ = place(ch, star - h, f_signs)
+        slope = np.abs(vp[rows, jf] - vm[rows, jf]) / (2 * h)
+        if np.any(slope <= np.sqrt(tau)):
+            return decline("a fold is nearly tangent: at or near critical lengths")
+        # the other dyads keep their margin densely across the fold's grid cell (the vertex
+        # moves like sqrt(theta - theta*) there, faster than the grid resolves)
+        sig = np.linspace(0.0, 1.0, FOLD_CELL_SAMPLES)
+        tt = star[:, None] + (grid[ein] - star)[:, None] * sig[None, :] ** 2
+        rep_signs = np.repeat(f_signs, FOLD_CELL_SAMPLES, axis=0)
+        rep_flat = np.zeros((tt.size, k), bool)
+        rep_flat[::FOLD_CELL_SAMPLES] = flat  # sigma = 0 is the fold itself
+        _, vv, _ = place(ch, tt.ravel(), rep_signs, rep_flat)
+        vv = vv.reshape(len(es), FOLD_CELL_SAMPLES, k)
+        others = np.ones((len(es), k), bool)
+        others[rows, jf] = False
+        if np.any((vv <= tau) & others[:, None, :]):
+            return decline("two dyads are (nearly) collinear together: at or near critical "
+                           "lengths")
+        if np.any(vv[rows, 1:, jf] <= 0):
+            return decline("a fold is not simple")
+        for f in range(len(es)):
+            folds[(int(es[f]), int(ein[f]), int(edir[f]))] = float(star[f])
+
+    # -- arcs and their joins --
+    # an arc: (sheet, start theta, end theta, start fold key, end fold key) or a full turn
+    arcs: list[Arc] = []
+    by_end: dict[tuple[int, int, int], tuple[int, int]] = {}
+    jmap = {(int(s), int(i), int(d)): j for (s, i, _, d), j in zip(ends, fold_j, strict=True)}
+    for s in range(n_sheets):
+        v = valid[s]
+        if v.all():
+            arcs.append((s, grid[0], grid[0] + 2 * np.pi, None, None))
+            continue
+        up = np.flatnonzero(v & ~np.roll(v, 1))
+        down = np.flatnonzero(v & ~np.roll(v, -1))
+        for i0 in up:
+            i1 = int(down[np.searchsorted(down, i0) % len(down)])
+            t0 = folds[(s, int(i0), -1)]
+            t1 = folds[(s, i1, +1)]
+            t1 = t1 + 2 * np.pi * np.ceil((t0 - t1) / (2 * np.pi) - 1e-12) if t1 < t0 else t1
+            a = len(arcs)
+            arcs.append((s, t0, t1, (s, int(i0), -1), (s, i1, +1)))
+            by_end[(s, int(i0), -1)] = (a, 0)
+            by_end[(s, i1, +1)] = (a, 1)
+    # the partner of an end: the sheet with the fold dyad's root flipped, same cell and side
+    partner: dict[tuple[int, int], tuple[int, int]] = {}
+    for key, (a, side) in by_end.items():
+        s, i, d = key
+        j = jmap[key]
+        other = (s ^ (1 << j), i, d)
+        if other not in by_end or jmap[other] != j:
+            return decline("a fold without its partner sheet")
+        partner[(a, side)] = by_end[other]
+    report["folds"] = len(by_end) // 2
+
+    # -- sample each arc to the step bound, walk the components --
+    free = ~np.asarray(linkage.fixed)
+
+    def arc_points(arc: Arc) -> np.ndarray:
+        s, t0, t1, k0, k1 = arc
+        full_turn = k0 is None
+
+        def angle(sig: np.ndarray) -> np.ndarray:
+            if full_turn:
+                return t0 + (t1 - t0) * sig
+            # theta - theta* ~ sig^2 at both ends: the vertex moves like sqrt there
+            return t0 + (t1 - t0) * 0.5 * (1.0 - np.cos(np.pi * sig))
+
+        def evaluate(sig: np.ndarray) -> np.ndarray:
+            th = angle(sig)
+            fl = np.zeros((len(sig), k), bool)
+            if not full_turn:
+                th = np.where(sig == 0.0, t0, np.where(sig == 1.0, t1, th))
+                fl[sig == 0.0, jmap[k0]] = True
+                fl[sig == 1.0, jmap[k1]] = True
+            p, _, _ = place(ch, th, np.repeat(sheets[s][None, :], len(sig), axis=0), fl)
+            if full_turn:
+                p[-1] = p[0] if sig[-1] == 1.0 and sig[0] == 0.0 else p[-1]
+            return p
+
+        sig = np.linspace(0.0, 1.0, ARC_PILOT)
+        p = evaluate(sig)
+        u = p[:, free]
+        chord = np.linalg.norm(np.diff(u, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(chord)])
+        m = max(2, int(np.ceil(cum[-1] / (0.95 * step_max))) + 1)
+        sig = np.interp(np.linspace(0.0, cum[-1], m), cum, sig)
+        sig[0], sig[-1] = 0.0, 1.0
+        p = evaluate(sig)
+        for _ in range(60):
+            gaps = np.linalg.norm(np.diff(p[:, free], axis=0), axis=1)
+            long = np.flatnonzero(gaps > step_max)
+            if not len(long):
+                return p
+            mid = 0.5 * (sig[long] + sig[long + 1])
+            order = np.argsort(np.concatenate([sig, mid]), kind="stable")
+            sig = np.concatenate([sig, mid])[order]
+            p = np.concatenate([p, evaluate(mid)])[order]
+        raise _Decline("the step bound is not reached by bisection")
+
+    components: list[np.ndarray] = []
+    seen = [False] * len(arcs)
+    try:
+        pieces_of = [arc_points(a) for a in arcs]
+    except _Decline as exc:
+        return decline(str(exc))
+    for a0 in range(len(arcs)):
+        if seen[a0]:
+            continue
+        if arcs[a0][3] is None:
+            seen[a0] = True
+            components.append(pieces_of[a0])
+            continue
+        walk = [pieces_of[a0]]
+        seen[a0] = True
+        a, side = partner[(a0, 1)]
+        while a != a0:
+            if seen[a]:
+                return decline("the arcs do not close into walks")
+            seen[a] = True
+            pts = pieces_of[a] if side == 0 else pieces_of[a][::-1]
+            walk.append(pts[1:])
+            a, side = partner[(a, 1 - side)]
+        if side != 0:
+            return decline("the arcs do not close into walks")
+        # the last piece ends on a0's first fold point: the walk is closed as it stands
+        components.append(np.concatenate(walk))
+    if any(len(c) > max_points for c in components):
+        return decline(f"a component needs more than max_points = {max_points} points")
+    # -- every point keeps every bar within residual_atol (an independent check) --
+    ends_ = linkage.ends[linkage.active]
+    lengths = linkage.lengths[linkage.active]
+    for c in components:
+        diff = c[:, ends_[:, 0]] - c[:, ends_[:, 1]]
+        res = np.abs(np.sqrt(np.einsum("nbd,nbd->nb", diff, diff)) - lengths)
+        if res.size and float(res.max()) > tol.residual_atol:
+            return decline("a point misses the lengths by more than residual_atol")
+    report["closed_form"] = "used"
+    return ClosedForm(components, report)
+
+
+class _Decline(Exception):
+    pass
