@@ -390,6 +390,8 @@ def explore(
         if fast is not None:
             return fast
     # -- general path ---------------------------------------------------------------------
+    ex.report.setdefault("method", "tracer")
+    ex.report.setdefault("closed_form", "off")
     ex.trace_all(start)
     crit, misses, degenerate = ex.critical_points()
     # Segments need every critical point classified; with a degenerate one the traced curves
@@ -514,6 +516,7 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
     lk, opt = ex.linkage, ex.opt
     cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
     if cf.components is None:
+        ex.report["method"] = "tracer"
         ex.report["closed_form"] = cf.report["closed_form"]
         return None
     free = ~np.asarray(lk.fixed)
@@ -522,7 +525,12 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
     walks = walks[: opt.max_components]
     report: dict[str, object] = {
         "method": "closed form",
-        "closed_form": cf.report,
+        "closed_form": "used",
+        "closed_form_rotor": cf.report["rotor"],
+        "closed_form_sheets": cf.report["sheets"],
+        "closed_form_folds": cf.report["folds"],
+        "closed_form_samples": cf.report["samples"],
+        "closed_form_margin": cf.report["margin"],
         "rotor_sweeps": [cf.report["rotor"]],
         "angles_per_rotor": cf.report["samples"],
         "assembly_budget_per_angle": cf.report["sheets"],
@@ -542,8 +550,8 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
         crit, misses, degenerate = ex.critical_points()
         if crit or degenerate:
             ex.curves, ex.tree = [], None
-            ex.report = {"closed_form": "declined: the critical-point search found a critical "
-                         "point"}
+            ex.report = {"method": "tracer", "closed_form": "declined: the critical-point "
+                         "search found a critical point"}
             return None
         report["critical_multistart"] = ex.report["critical_multistart"]
         report["critical_candidates"] = ex.report["critical_candidates"]

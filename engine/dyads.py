@@ -74,7 +74,7 @@ def chain_of(linkage: Linkage) -> Chain | None:
     if linkage.dimension != 2:
         return None
     fixed = np.asarray(linkage.fixed)
-    full = fixed.all(axis=1)
+    full: np.ndarray = np.asarray(fixed.all(axis=1), dtype=bool)
     if not np.all(full | ~fixed.any(axis=1)):
         return None  # sliders: left to the general engine
     active = Counter(tuple(sorted((int(i), int(j)))) for i, j in linkage.ends[linkage.active])
@@ -271,7 +271,7 @@ def closed_form_space(
                            "near critical lengths")
 
     # -- folds: where a sheet stops being assembled --
-    valid = pos_nu.all(axis=2)  # (S, n)
+    valid: np.ndarray = np.asarray(pos_nu.all(axis=2), dtype=bool)  # (S, n)
     ends: list[tuple[int, int, int, int]] = []  # (sheet, inside index, outside index, +-1)
     for s in range(n_sheets):
         v = valid[s]
@@ -373,7 +373,7 @@ def closed_form_space(
         def evaluate(sig: np.ndarray) -> np.ndarray:
             th = angle(sig)
             fl = np.zeros((len(sig), k), bool)
-            if not full_turn:
+            if k0 is not None and k1 is not None:
                 th = np.where(sig == 0.0, t0, np.where(sig == 1.0, t1, th))
                 fl[sig == 0.0, jmap[k0]] = True
                 fl[sig == 1.0, jmap[k1]] = True

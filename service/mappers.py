@@ -10,6 +10,7 @@ from engine.configuration_space import (
     Component,
     SpaceOptions,
     SpaceResult,
+    positions_along,
     rotor_angles,
     winding,
 )
@@ -222,15 +223,18 @@ def critical_points_out(
 
 
 def _component_out(linkage: EngineLinkage, comp: Component) -> space.ComponentOut:
-    pos = np.array([linkage.positions_of(u) for u in comp.points])  # (n, V, d)
+    pos = positions_along(linkage, comp.points)  # (n, V, d), all points at once
     angles = rotor_angles(linkage, comp.points)
-    return space.ComponentOut(
+    # Built without validation: every field is already of its exact type (bools, ints and
+    # Python floats from ``tolist``), and validating ~10^6 floats would cost more than the
+    # engine's answer (see bench/bench_points.py).
+    return space.ComponentOut.model_construct(
         closed=comp.closed,
         through_start=comp.through_start,
         positions={vid: pos[:, k].tolist() for k, vid in enumerate(linkage.vertex_ids)},
         angles={bar: a.tolist() for bar, a in angles.items()},
         winding={bar: winding(a, comp.closed) for bar, a in angles.items()},
-        critical_points=comp.critical_points,
+        critical_points=[int(k) for k in comp.critical_points],
     )
 
 

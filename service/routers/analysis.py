@@ -1,6 +1,6 @@
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Depends, Request, Response
 
 from service import jobs
 from service.config import Settings, get_settings
@@ -57,10 +57,12 @@ async def critical_points(
 )
 async def configuration_space(
     body: SpaceRequest, request: Request, settings: SettingsDep
-) -> SpaceResponse:
+) -> Response:
     """Every component of a one-degree-of-freedom linkage, traced; at critical lengths also the
     segments between critical points."""
-    return await engine_call(request, settings, jobs.configuration_space, body)
+    # A SpaceResponse serialised by the worker (answers can hold 10^5 points): sent as it is.
+    content = await engine_call(request, settings, jobs.configuration_space_json, body)
+    return Response(content, media_type="application/json")
 
 
 @router.post("/splitting", response_model=SplittingResponse, responses=_problems)
