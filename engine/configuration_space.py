@@ -521,6 +521,8 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
         return None
     free = ~np.asarray(lk.fixed)
     walks = [c[:, free] for c in cf.components]
+    if start is not None:  # as the tracer, which starts there: the given one first
+        walks.sort(key=lambda w: _distance_to_walk(w, start) > ex.h_max)
     truncated = len(walks) > opt.max_components
     walks = walks[: opt.max_components]
     report: dict[str, object] = {

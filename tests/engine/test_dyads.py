@@ -119,6 +119,7 @@ def test_max_points_and_max_components_budgets():
     one = explore(lk, TOL, replace(FAST, max_components=1))
     assert one.search["method"] == "closed form"
     assert len(one.components) == 1 and not one.search["complete"]
+    assert one.components[0].through_start  # the budget keeps the component of the start
 
 
 def equilateral(l2: float = 1.0):
