@@ -514,7 +514,12 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
     near misses); should it find a critical point the closed form's certificate is contradicted
     and the general path answers instead."""
     lk, opt = ex.linkage, ex.opt
-    cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
+    try:
+        cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
+    except (ArithmeticError, ValueError, MemoryError) as exc:  # a safety net: never worse
+        ex.report["method"] = "tracer"                          # than the general path
+        ex.report["closed_form"] = f"declined: {type(exc).__name__}: {exc}"
+        return None
     if cf.components is None:
         ex.report["method"] = "tracer"
         ex.report["closed_form"] = cf.report["closed_form"]

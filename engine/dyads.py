@@ -213,6 +213,16 @@ def closed_form_space(
     ch = chain_of(linkage)
     if ch is None:
         return ClosedForm(None, {"closed_form": "declined: not a planar dyad chain"})
+    # Overflow (coordinates up to 1e100 are accepted) shows up as non-finite values, which
+    # decline below; no warning is worth raising for it.
+    with np.errstate(all="ignore"):
+        return _closed_form(linkage, ch, tol, step_max, max_points, samples)
+
+
+def _closed_form(
+    linkage: Linkage, ch: Chain, tol: Tolerances, step_max: float, max_points: int,
+    samples: int,
+) -> ClosedForm:
     k = ch.k
     scale = float(np.median(linkage.lengths[linkage.active]))
     tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
@@ -242,6 +252,8 @@ def closed_form_space(
         [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
         axis=2,
     )
+    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
+        return decline("non-finite values (coordinates or lengths too large)")
     if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
         return decline("a dyad's centres (nearly) coincide")
 
@@ -387,7 +399,10 @@ def closed_form_space(
         u = p[:, free]
         chord = np.linalg.norm(np.diff(u, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(chord)])
-        m = max(2, int(np.ceil(cum[-1] / (0.95 * step_max))) + 1)
+        need = cum[-1] / (0.95 * step_max)
+        if not np.isfinite(need) or need >= max_points:  # bounded before any allocation
+            raise _Decline(f"a component needs more than max_points = {max_points} points")
+        m = max(2, int(np.ceil(need)) + 1)
         sig = np.interp(np.linspace(0.0, cum[-1], m), cum, sig)
         sig[0], sig[-1] = 0.0, 1.0
         p = evaluate(sig)
@@ -396,6 +411,8 @@ def closed_form_space(
             long = np.flatnonzero(gaps > step_max)
             if not len(long):
                 return p
+            if len(sig) + len(long) > max_points:
+                raise _Decline(f"a component needs more than max_points = {max_points} points")
             mid = 0.5 * (sig[long] + sig[long + 1])
             order = np.argsort(np.concatenate([sig, mid]), kind="stable")
             sig = np.concatenate([sig, mid])[order]
