@@ -16,12 +16,13 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import projected_random_starts, rotors, seeds
+from engine.assembly import iter_seeds, projected_random_starts, rotors
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.errors import InvalidLinkage
@@ -33,6 +34,11 @@ from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_c
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
 MULTISTART_MAX_FREE = 64
+
+
+#: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
+#: method (measured faster than the dense SVD from about 100 rotors of a chain).
+SPARSE_SEED_RIGIDITY_MIN_FREE = 128
 
 
 @dataclass(frozen=True)
@@ -114,6 +120,7 @@ class _Explorer:
         self.curves: list[Curve] = []
         self.tree: cKDTree | None = None
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self.tree_first: np.ndarray = np.zeros(0, dtype=int)
         self.report: dict[str, object] = {}
 
     # -- curves ---------------------------------------------------------------------------
@@ -121,6 +128,13 @@ class _Explorer:
         pts = [np.array(c.points) for c in self.curves]
         self.tree = cKDTree(np.vstack(pts))
         self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+        # index of each curve's first point in the tree: a point's offset in its curve
+        self.tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+    def _tree_point(self, i: int) -> tuple[Curve, int]:
+        """The curve owning tree point ``i`` and the point's index along it."""
+        owner = int(self.tree_owner[i])
+        return self.curves[owner], int(i) - int(self.tree_first[owner])
 
     def on_traced(self, u: np.ndarray) -> bool:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
@@ -131,8 +145,7 @@ class _Explorer:
         for d, i in zip(np.atleast_1d(dist), np.atleast_1d(idx), strict=True):
             if d > self.h_max:
                 continue
-            curve = self.curves[int(self.tree_owner[i])]
-            offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+            curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
             v = p + ((u - p) @ t) * t
             w, ok, _ = correct(self.cons, v, t, self.tol)
@@ -141,7 +154,12 @@ class _Explorer:
         return False
 
     def trace_from(self, u: np.ndarray) -> Curve | None:
-        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol)
+        # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
+        # Lanczos, same rank rule), a dense SVD costs O(M^3) per traced curve (0.1-0.2 s at
+        # M = 200 to 400, more than tracing the curve).
+        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
+                          sparse=True if self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
+                          else None)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = trace_curve(self.cons, u, rig.zero_modes[0], self.tol, self.opt.trace)
@@ -158,13 +176,15 @@ class _Explorer:
         return curve
 
     def trace_all(self, start: np.ndarray | None) -> None:
-        found = seeds(
-            self.linkage, self.tol, self.opt.angles, self.opt.assembly_budget,
+        # Seeds are generated on demand: once the component budget is reached the rest (on long
+        # chains the costly random projections) is never computed; the report then counts the
+        # seeds generated up to that point.
+        found = iter_seeds(
+            self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
         )
-        self.report.update(found.report)
         truncated = False
-        for u in ([start] if start is not None else []) + found.points:
+        for u in itertools.chain([start] if start is not None else [], found):
             if self.on_traced(u):
                 continue
             if len(self.curves) >= self.opt.max_components:
@@ -220,8 +240,7 @@ class _Explorer:
                                            ref.stress_residual))
             elif self.tree is not None:
                 _, i = self.tree.query(ref.u)
-                curve = self.curves[int(self.tree_owner[i])]
-                offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+                curve, offset = self._tree_point(int(i))
                 on = curve.points[offset]
                 misses.append(NearMiss(on, singular_gap(self.cons, on),
                                        float(np.linalg.norm(on - ref.u)),

@@ -43,6 +43,10 @@ class Constraints:
         self.n_constraints = len(self.bars)
         self.n_free = linkage.n_free
         self.targets = linkage.lengths[self.bars] ** 2  # (Ea,) L^2
+        # Flat positions with the fixed coordinates filled in, and where the free ones go: the
+        # tracer evaluates the bar vectors several times per point.
+        self._base = np.array(linkage.positions, dtype=float).ravel()
+        self._free_flat = np.flatnonzero(~np.asarray(linkage.fixed).ravel())
 
     @property
     def use_sparse(self) -> bool:
@@ -65,9 +69,54 @@ class Constraints:
         ax = np.concatenate([axes[keep_i], axes[keep_j]])
         return r, c, s, ax
 
+    @cached_property
+    def _csr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSR structure of J, computed once: the order taking pattern values to CSR order,
+        the column indices and the row pointers (the values change, the structure never)."""
+        r, c, _, _ = self._pattern
+        order = np.lexsort((c, r))
+        indptr = np.searchsorted(r[order], np.arange(self.n_constraints + 1))
+        return order, c[order].astype(np.int32), indptr.astype(np.int32)
+
+    @cached_property
+    def _csc_below(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSC structure of ``[0; J]`` (J one row down, an empty first row): the order taking
+        pattern values to CSC order, the row indices and the column pointers."""
+        r, c, _, _ = self._pattern
+        order = np.lexsort((r, c))
+        indptr = np.searchsorted(c[order], np.arange(self.n_free + 1))
+        return order, (r[order] + 1).astype(np.int32), indptr.astype(np.int32)
+
+    def unit_bordered_jacobian(self, u: np.ndarray, k: int) -> sp.csc_matrix:
+        """``[e_k; J(u)]`` (Ea + 1, M) as CSC: ``J`` with one extra entry, so its LU has the
+        fill of ``J`` alone (a dense border row would fill the factors)."""
+        order, rows, indptr = self._csc_below
+        at = int(indptr[k])
+        data = np.insert(self.jacobian_values(u)[order], at, 1.0)
+        indices = np.insert(rows, at, 0)
+        ptr = indptr.copy()
+        ptr[k + 1:] += 1
+        mat = sp.csc_matrix((data, indices, ptr), shape=(self.n_constraints + 1, self.n_free))
+        mat.has_canonical_format = True  # row 0 comes first in column k: still sorted
+        return mat
+
+    @cached_property
+    def _bordered_csc(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSC structure of ``[row; J]`` (a dense first row over all M columns): the order
+        taking ``concatenate([row, J values in pattern order])`` to CSC order, the row indices
+        and the column pointers."""
+        r, c, _, _ = self._pattern
+        rows = np.concatenate([np.zeros(self.n_free, dtype=np.int64), r + 1])
+        cols = np.concatenate([np.arange(self.n_free), c])
+        order = np.lexsort((rows, cols))
+        indptr = np.searchsorted(cols[order], np.arange(self.n_free + 1))
+        return order, rows[order].astype(np.int32), indptr.astype(np.int32)
+
     def bar_vectors(self, u: np.ndarray) -> np.ndarray:
         """``p_i - p_j`` for each active bar, (Ea, d)."""
-        pos = self.linkage.positions_of(u)
+        flat = self._base.copy()
+        flat[self._free_flat] = u
+        pos = flat.reshape(self.linkage.positions.shape)
         return pos[self._i] - pos[self._j]
 
     def squared_lengths(self, u: np.ndarray) -> np.ndarray:
@@ -83,14 +132,36 @@ class Constraints:
         """Analytic Jacobian ``J = d(l^2)/du``, (Ea, M): ``2 (p_i - p_j)`` on the coordinates of
         end ``i`` and its negative on those of end ``j`` (fixed coordinates dropped)."""
         sparse = self.use_sparse if sparse is None else sparse
-        r, c, s, ax = self._pattern
-        vals = 2.0 * s * self.bar_vectors(u)[r, ax]
+        r, c, _, _ = self._pattern
+        vals = self.jacobian_values(u)
         shape = (self.n_constraints, self.n_free)
         if sparse:
-            return sp.csr_matrix((vals, (r, c)), shape=shape)
+            order, indices, indptr = self._csr
+            return sp.csr_matrix((vals[order], indices.copy(), indptr.copy()), shape=shape)
         jac = np.zeros(shape)
         jac[r, c] = vals  # each (bar, coordinate) pair occurs once: a bar's ends differ
         return jac
+
+    def jacobian_values(self, u: np.ndarray) -> np.ndarray:
+        """The nonzero values of ``J(u)`` in the order of the (fixed) sparsity pattern."""
+        r, _, s, ax = self._pattern
+        return 2.0 * s * self.bar_vectors(u)[r, ax]
+
+    def bordered_jacobian(
+        self, u: np.ndarray, row: np.ndarray, sparse: bool | None = None
+    ) -> np.ndarray | sp.csc_matrix:
+        """``[row; J(u)]``, (Ea + 1, M): sparse as CSC (ready for LU) from the structure
+        computed once, so that only the values are refreshed."""
+        sparse = self.use_sparse if sparse is None else sparse
+        if not sparse:
+            return np.vstack([row, self.jacobian(u, sparse=False)])
+        order, indices, indptr = self._bordered_csc
+        data = np.concatenate([np.asarray(row, dtype=float), self.jacobian_values(u)])[order]
+        mat = sp.csc_matrix(
+            (data, indices.copy(), indptr.copy()), shape=(self.n_constraints + 1, self.n_free)
+        )
+        mat.has_canonical_format = True  # sorted, no duplicates: by construction
+        return mat
 
     def stress_hessian(
         self, sigma: np.ndarray, sparse: bool | None = None

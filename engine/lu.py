@@ -14,33 +14,42 @@ import scipy.sparse.linalg as spla
 
 
 def parity(perm: np.ndarray) -> int:
-    """+1 for an even permutation, -1 for an odd one (``n - cycles`` transpositions)."""
-    perm = np.asarray(perm)
-    seen = np.zeros(len(perm), dtype=bool)
-    cycles = 0
-    for start in range(len(perm)):
-        if seen[start]:
-            continue
-        cycles += 1
-        j = start
-        while not seen[j]:
-            seen[j] = True
-            j = perm[j]
-    return -1 if (len(perm) - cycles) % 2 else 1
+    """+1 for an even permutation, -1 for an odd one (``n - cycles`` transpositions).
+
+    Cycles are counted without a Python loop over the entries (this runs once per traced
+    point): pointer doubling labels every entry with the smallest index of its cycle in
+    ``ceil(log2 n)`` vectorised rounds, and each cycle has exactly one entry equal to its label.
+    """
+    perm = np.asarray(perm, dtype=np.intp)
+    n = len(perm)
+    label = np.arange(n)
+    step = perm
+    reach = 1  # label[i] = min of perm^m(i) for 0 <= m < reach
+    while reach < n:
+        label = np.minimum(label, label[step])
+        step = step[step]
+        reach *= 2
+    cycles = int(np.count_nonzero(label == np.arange(n)))
+    return -1 if (n - cycles) % 2 else 1
 
 
 class Factor:
     """LU of a square matrix; ``ok`` is False when it is singular (or the factorisation
-    failed), then ``sign`` is 0 and ``logdet`` is ``-inf``. ``logdet`` is ``ln |det|``."""
+    failed), then ``sign`` is 0 and ``logdet`` is ``-inf``. ``logdet`` is ``ln |det|``.
 
-    def __init__(self, mat: np.ndarray | sp.spmatrix) -> None:
+    ``ordering`` is SuperLU's column ordering for sparse matrices (``permc_spec``); row pivoting
+    is partial pivoting whatever the ordering, so it changes fill and speed, not stability.
+    """
+
+    def __init__(self, mat: np.ndarray | sp.spmatrix, ordering: str = "COLAMD") -> None:
         self.sparse = sp.issparse(mat)
         self.ok = True
         self.sign = 0
         self.logdet = -np.inf
         try:
             if self.sparse:
-                self._lu = spla.splu(sp.csc_matrix(mat))
+                csc = mat if mat.format == "csc" else sp.csc_matrix(mat)
+                self._lu = spla.splu(csc, permc_spec=ordering)
                 diag = self._lu.U.diagonal()
                 perm = parity(self._lu.perm_r) * parity(self._lu.perm_c)
             else:
@@ -60,3 +69,43 @@ class Factor:
         if self.sparse:
             return self._lu.solve(rhs)
         return sla.lu_solve(self._lu_piv, rhs, check_finite=False)
+
+
+class BorderedFactor:
+    """Solves with ``B = [row; J]`` (square) from a sparse LU of ``B0 = [e_k; J]``.
+
+    A dense border row fills the sparse LU of ``B`` (partial pivoting picks it early), while
+    ``B0`` has exactly the fill of ``J``. ``B = B0 + e_1 d^T`` with ``d = row - e_k`` is a
+    rank-one update: solves follow from Sherman-Morrison and the determinant from the matrix
+    determinant lemma, ``det B = det B0 (1 + d . B0^{-1} e_1)``. For a one-degree-of-freedom
+    ``J`` with unit null vector ``t``, ``det B0 = t_k det([t; J])``: ``k = argmax |row|`` keeps
+    ``B0`` as well conditioned as ``B`` is up to a factor ``|row_k| >= 1/sqrt(M)``.
+
+    Same interface as :class:`Factor` (``ok``, ``sign``, ``logdet``, ``solve``); ``ok`` is False
+    when ``B0`` or ``B`` is singular.
+    """
+
+    def __init__(self, base: sp.spmatrix, k: int, row: np.ndarray) -> None:
+        self.sparse = True
+        self.sign = 0
+        self.logdet = -np.inf
+        self._base = Factor(base)
+        self.ok = self._base.ok
+        if not self.ok:
+            return
+        m = base.shape[0]
+        e1 = np.zeros(m)
+        e1[0] = 1.0
+        self._y0 = self._base.solve(e1)
+        self._d = np.array(row, dtype=float)
+        self._d[k] -= 1.0
+        self._gamma = 1.0 + float(self._d @ self._y0)
+        if self._gamma == 0.0 or not np.isfinite(self._gamma):
+            self.ok = False
+            return
+        self.sign = self._base.sign * (1 if self._gamma > 0 else -1)
+        self.logdet = self._base.logdet + float(np.log(abs(self._gamma)))
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        x = self._base.solve(rhs)
+        return x - self._y0 * (float(self._d @ x) / self._gamma)

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from engine.constraints import Constraints
 from engine.critical import singular_gap
-from engine.lu import Factor
+from engine.lu import BorderedFactor, Factor
 from engine.tolerances import Tolerances
 
 
@@ -56,13 +56,22 @@ class TraceOptions:
 #: unlike SVD, sparse wins early: the Jacobians of chains are banded).
 SPARSE_LU_MIN_FREE = 48
 
-
 def augmented(cons: Constraints, u: np.ndarray, row: np.ndarray) -> np.ndarray | sp.spmatrix:
-    """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage."""
-    jac = cons.jacobian(u, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
-    if sp.issparse(jac):
-        return sp.vstack([sp.csr_matrix(row.reshape(1, -1)), jac]).tocsc()
-    return np.vstack([row, jac])
+    """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage (sparse: CSC)."""
+    return cons.bordered_jacobian(u, row, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
+
+
+def factor_augmented(
+    cons: Constraints, u: np.ndarray, row: np.ndarray
+) -> Factor | BorderedFactor:
+    """LU of ``[row; J(u)]``: dense for small linkages; sparse through ``[e_k; J]`` and a
+    rank-one update (:class:`engine.lu.BorderedFactor`: the dense row would fill a direct sparse
+    LU), falling back to the direct sparse LU if ``[e_k; J]`` is singular."""
+    if cons.n_free <= SPARSE_LU_MIN_FREE:
+        return Factor(augmented(cons, u, row))
+    k = int(np.argmax(np.abs(row)))
+    fac = BorderedFactor(cons.unit_bordered_jacobian(u, k), k, row)
+    return fac if fac.ok else Factor(augmented(cons, u, row))
 
 
 @dataclass(frozen=True)
@@ -72,13 +81,13 @@ class TangentInfo:
     tangent: np.ndarray
     sign: int
     logdet: float
-    factor: Factor
+    factor: Factor | BorderedFactor
 
 
 def tangent_at(cons: Constraints, u: np.ndarray, t_prev: np.ndarray) -> TangentInfo | None:
     """Tangent continued from ``t_prev``; None where ``[t_prev; J]`` is singular (at a
     critical point, or with ``t_prev`` orthogonal to the curve)."""
-    fac = Factor(augmented(cons, u, t_prev))
+    fac = factor_augmented(cons, u, t_prev)
     if not fac.ok:
         return None
     y = fac.solve(np.eye(1, cons.n_free, 0).ravel())
@@ -93,7 +102,7 @@ def correct(
     v: np.ndarray,
     t: np.ndarray,
     tol: Tolerances,
-    factor: Factor | None = None,
+    factor: Factor | BorderedFactor | None = None,
     max_iter: int = 12,
 ) -> tuple[np.ndarray, bool, int]:
     """Newton in the hyperplane ``{w : t.(w - v) = 0}`` onto ``l(w) = L``.
@@ -102,14 +111,16 @@ def correct(
     point) the iteration is chord Newton (no refactorisation), otherwise it refactors at
     ``v`` once. Returns the point, whether ``max|l - L| <= residual_atol``, and the iterations.
     """
-    fac = factor if factor is not None else Factor(augmented(cons, v, t))
+    fac = factor if factor is not None else factor_augmented(cons, v, t)
     if not fac.ok:
         return v, False, 0
     w = v.copy()
     prev = np.inf
+    lengths = cons.linkage.lengths[cons.bars]
     for it in range(1, max_iter + 1):
-        g = cons.squared_lengths(w) - cons.targets
-        res = cons.max_residual(w)
+        sq = cons.squared_lengths(w)  # once per iteration: both the residual and g use it
+        g = sq - cons.targets
+        res = float(np.max(np.abs(np.sqrt(sq) - lengths))) if sq.size else 0.0
         if res <= tol.residual_atol:
             return w, True, it - 1
         norm = float(np.linalg.norm(g))
