@@ -48,7 +48,7 @@ class Factor:
         self.logdet = -np.inf
         try:
             if self.sparse:
-                csc = mat if mat.format == "csc" else sp.csc_matrix(mat)
+                csc = mat if getattr(mat, "format", None) == "csc" else sp.csc_matrix(mat)
                 self._lu = spla.splu(csc, permc_spec=ordering)
                 diag = self._lu.U.diagonal()
                 perm = parity(self._lu.perm_r) * parity(self._lu.perm_c)
