@@ -23,13 +23,21 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.assembly import iter_seeds, projected_random_starts, rotors
+from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.errors import InvalidLinkage
 from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
-from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_curve
+from engine.trace import (
+    Curve,
+    TraceOptions,
+    correct,
+    polyline_distance,
+    segment_distance,
+    trace_curve,
+)
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
@@ -427,17 +435,19 @@ def explore(
     for k, comp in enumerate(components):
         if start is None:
             break
-        p = comp.points
-        d = min(
-            (segment_distance(p[i], p[i + 1], start) for i in range(len(p) - 1)),
-            default=float(np.linalg.norm(p[0] - start)),
-        )
+        d = polyline_distance(comp.points, start)
         if d < best_d:
             best, best_d = k, d
     if best >= 0 and best_d <= ex.h_max:
         c = components[best]
         components[best] = Component(c.points, c.closed, True, c.critical_points, c.segments)
     search = dict(ex.report)
+    count = chain_components(linkage)
+    if count is not None:
+        # the true total for rotor chains (four-bar decomposition), also when the budget of
+        # traced components is far below it (a 100-rotor spinner chain has 2^99)
+        search["components_total"] = count.components
+        search["components_total_rule"] = count.rule
     search.update(
         {
             "critical_points_found": len(crit),

@@ -15,9 +15,11 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from engine.errors import NoNearbySolution
 from engine.linkage import Linkage
+from engine.lu import parity
 from engine.tolerances import Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
@@ -43,10 +45,17 @@ class Constraints:
         self.n_constraints = len(self.bars)
         self.n_free = linkage.n_free
         self.targets = linkage.lengths[self.bars] ** 2  # (Ea,) L^2
-        # Flat positions with the fixed coordinates filled in, and where the free ones go: the
-        # tracer evaluates the bar vectors several times per point.
-        self._base = np.array(linkage.positions, dtype=float).ravel()
-        self._free_flat = np.flatnonzero(~np.asarray(linkage.fixed).ravel())
+        # Bar vectors as differences of entries of ``[u, fixed coordinates]``: two gathers per
+        # evaluation (the tracer evaluates them several times per point).
+        d = linkage.dimension
+        fixed = np.asarray(linkage.fixed).ravel()
+        self._fixed_values = np.array(linkage.positions, dtype=float).ravel()[fixed]
+        slot = np.empty(fixed.size, dtype=np.intp)
+        slot[~fixed] = np.arange(int((~fixed).sum()))
+        slot[fixed] = int((~fixed).sum()) + np.arange(int(fixed.sum()))
+        axes = np.arange(d)
+        self._gather_i = slot[self._i[:, None] * d + axes]  # (Ea, d)
+        self._gather_j = slot[self._j[:, None] * d + axes]
 
     @property
     def use_sparse(self) -> bool:
@@ -101,6 +110,56 @@ class Constraints:
         return mat
 
     @cached_property
+    def _band_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """A fixed reordering that makes ``J`` (and ``[e_k; J]``) a band matrix when the linkage
+        allows it (chains): columns by reverse Cuthill-McKee on the coupling graph of the
+        coordinates, rows by the mean position of their columns. Returns the position of each
+        column, the band row of each pattern entry's bar (before inserting the unit row) and
+        its band column, the sorted row keys, and the sign of the two permutations."""
+        r, c, _, _ = self._pattern
+        m, ea = self.n_free, self.n_constraints
+        inc = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(ea, m))
+        order = reverse_cuthill_mckee((inc.T @ inc).tocsr(), symmetric_mode=True)
+        col_pos = np.empty(m, dtype=np.intp)
+        col_pos[order] = np.arange(m)
+        key = np.bincount(r, weights=col_pos[c], minlength=ea) / np.bincount(r, minlength=ea)
+        rows = np.argsort(key, kind="stable")
+        rank = np.empty(ea, dtype=np.intp)
+        rank[rows] = np.arange(ea)
+        return col_pos, rank[r], col_pos[c], key[rows], parity(col_pos) * parity(rank)
+
+    def unit_bordered_band(
+        self, u: np.ndarray, k: int, max_work: int
+    ) -> tuple[np.ndarray, int, int, np.ndarray, np.ndarray, int] | None:
+        """``[e_k; J(u)]`` (square) reordered to band storage for LAPACK ``gbtrf``: ``ab``,
+        ``kl``, ``ku``, the band row of each original row and band column of each column, and
+        the sign of the reordering; None when ``kl (kl + ku)`` (the work per column) exceeds
+        ``max_work``: then the band form is no cheaper than a general sparse LU."""
+        col_pos, entry_rank, entry_col, keys, sign = self._band_layout
+        ck = int(col_pos[k])
+        ins = int(np.searchsorted(keys, ck, side="right"))  # the unit row's band row
+        entry_row = entry_rank + (entry_rank >= ins)
+        diff = entry_row - entry_col
+        kl = max(int(diff.max()), ins - ck, 0)
+        ku = max(int(-diff.min()), ck - ins, 0)
+        if kl * (kl + ku) > max_work:
+            return None
+        ab = np.zeros((2 * kl + ku + 1, self.n_free))
+        ab[kl + ku + diff, entry_col] = self.jacobian_values(u)
+        ab[kl + ku + ins - ck, ck] = 1.0
+        row_rank = self._band_row_rank
+        row_pos = np.concatenate([[ins], row_rank + (row_rank >= ins)])
+        # moving the unit row from the top to band row ``ins`` is a cycle of length ins + 1
+        return ab, kl, ku, row_pos, col_pos, sign * (-1 if ins % 2 else 1)
+
+    @cached_property
+    def _band_row_rank(self) -> np.ndarray:
+        """The band row of each bar (before inserting the unit row), (Ea,)."""
+        out = np.empty(self.n_constraints, dtype=np.intp)
+        out[self._pattern[0]] = self._band_layout[1]
+        return out
+
+    @cached_property
     def _bordered_csc(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """CSC structure of ``[row; J]`` (a dense first row over all M columns): the order
         taking ``concatenate([row, J values in pattern order])`` to CSC order, the row indices
@@ -114,10 +173,8 @@ class Constraints:
 
     def bar_vectors(self, u: np.ndarray) -> np.ndarray:
         """``p_i - p_j`` for each active bar, (Ea, d)."""
-        flat = self._base.copy()
-        flat[self._free_flat] = u
-        pos = flat.reshape(self.linkage.positions.shape)
-        return pos[self._i] - pos[self._j]
+        ext = np.concatenate([u, self._fixed_values])
+        return ext[self._gather_i] - ext[self._gather_j]
 
     def squared_lengths(self, u: np.ndarray) -> np.ndarray:
         """``f(u) = l^2``, (Ea,)."""

@@ -72,7 +72,7 @@ class Factor:
 
 
 class BorderedFactor:
-    """Solves with ``B = [row; J]`` (square) from a sparse LU of ``B0 = [e_k; J]``.
+    """Solves with ``B = [row; J]`` (square) from a sparse LU ``base`` of ``B0 = [e_k; J]``.
 
     A dense border row fills the sparse LU of ``B`` (partial pivoting picks it early), while
     ``B0`` has exactly the fill of ``J``. ``B = B0 + e_1 d^T`` with ``d = row - e_k`` is a
@@ -85,15 +85,15 @@ class BorderedFactor:
     when ``B0`` or ``B`` is singular.
     """
 
-    def __init__(self, base: sp.spmatrix, k: int, row: np.ndarray) -> None:
+    def __init__(self, base: Factor | BandLU, k: int, row: np.ndarray) -> None:
         self.sparse = True
         self.sign = 0
         self.logdet = -np.inf
-        self._base = Factor(base)
+        self._base = base
         self.ok = self._base.ok
         if not self.ok:
             return
-        m = base.shape[0]
+        m = len(row)
         e1 = np.zeros(m)
         e1[0] = 1.0
         self._y0 = self._base.solve(e1)
@@ -109,3 +109,53 @@ class BorderedFactor:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         x = self._base.solve(rhs)
         return x - self._y0 * (float(self._d @ x) / self._gamma)
+
+
+class BandLU:
+    """LU with partial pivoting of a square band matrix (LAPACK ``gbtrf``), given in band
+    storage: ``ab[kl + ku + i - j, j] = A[i, j]`` with ``kl`` extra leading rows of workspace.
+    Optionally the band matrix is a permuted original: row ``i`` of the original is band row
+    ``row_pos[i]``, column ``c`` is band column ``col_pos[c]``; solves then take and return
+    vectors in the original order.
+
+    For matrices whose bandwidth is small after a fixed reordering (chains) this costs
+    ``O(M kl (kl + ku))`` with a call overhead of microseconds, against SuperLU's fixed cost
+    of ~0.1 ms per factorisation. ``sign_perm`` is the sign of the row and column permutations
+    that produced the band form, so that ``sign`` is the sign of the original matrix.
+    Same interface as :class:`Factor`.
+    """
+
+    def __init__(
+        self,
+        ab: np.ndarray,
+        kl: int,
+        ku: int,
+        row_pos: np.ndarray | None = None,
+        col_pos: np.ndarray | None = None,
+        sign_perm: int = 1,
+    ) -> None:
+        self.sparse = True
+        self.ok = False
+        self.sign = 0
+        self.logdet = -np.inf
+        self._kl, self._ku = kl, ku
+        self._row_pos, self._col_pos = row_pos, col_pos
+        lu, piv, info = sla.lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+        if info != 0:  # info > 0: an exactly zero pivot (singular)
+            return
+        diag = lu[kl + ku]
+        if not np.all(np.isfinite(diag)):
+            return
+        self._lu, self._piv = lu, piv
+        swaps = int(np.count_nonzero(piv != np.arange(len(piv))))
+        self.ok = True
+        self.sign = int(np.prod(np.sign(diag))) * (-1 if swaps % 2 else 1) * sign_perm
+        self.logdet = float(np.sum(np.log(np.abs(diag))))
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self._row_pos is not None:
+            permuted = np.empty_like(rhs, dtype=float)
+            permuted[self._row_pos] = rhs
+            rhs = permuted
+        x, _ = sla.lapack.dgbtrs(self._lu, self._kl, self._ku, rhs, self._piv)
+        return x if self._col_pos is None else x[self._col_pos]

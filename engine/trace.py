@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from engine.constraints import Constraints
 from engine.critical import singular_gap
-from engine.lu import BorderedFactor, Factor
+from engine.lu import BandLU, BorderedFactor, Factor
 from engine.tolerances import Tolerances
 
 
@@ -56,6 +56,11 @@ class TraceOptions:
 #: unlike SVD, sparse wins early: the Jacobians of chains are banded).
 SPARSE_LU_MIN_FREE = 48
 
+#: Band LU of ``[e_k; J]`` while its work per column ``kl (kl + ku)`` stays below this (a chain
+#: has kl, ku of about 3); wider bands go to SuperLU.
+BAND_MAX_WORK = 256
+
+
 def augmented(cons: Constraints, u: np.ndarray, row: np.ndarray) -> np.ndarray | sp.spmatrix:
     """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage (sparse: CSC)."""
     return cons.bordered_jacobian(u, row, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
@@ -66,11 +71,14 @@ def factor_augmented(
 ) -> Factor | BorderedFactor:
     """LU of ``[row; J(u)]``: dense for small linkages; sparse through ``[e_k; J]`` and a
     rank-one update (:class:`engine.lu.BorderedFactor`: the dense row would fill a direct sparse
-    LU), falling back to the direct sparse LU if ``[e_k; J]`` is singular."""
+    LU), ``[e_k; J]`` factorised as a band matrix when a fixed reordering makes it narrow
+    (chains) and by SuperLU otherwise; the direct sparse LU if ``[e_k; J]`` is singular."""
     if cons.n_free <= SPARSE_LU_MIN_FREE:
         return Factor(augmented(cons, u, row))
     k = int(np.argmax(np.abs(row)))
-    fac = BorderedFactor(cons.unit_bordered_jacobian(u, k), k, row)
+    band = cons.unit_bordered_band(u, k, BAND_MAX_WORK)
+    base = BandLU(*band) if band is not None else Factor(cons.unit_bordered_jacobian(u, k))
+    fac = BorderedFactor(base, k, row)
     return fac if fac.ok else Factor(augmented(cons, u, row))
 
 
@@ -251,6 +259,19 @@ def closest_on_segment(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> np.n
 def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
     """Distance from ``target`` to the segment ``[a, b]``."""
     return float(np.linalg.norm(closest_on_segment(a, b, target) - target))
+
+
+def polyline_distance(points: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the polyline through ``points`` (n, M), vectorised over
+    its segments (one point: the distance to it)."""
+    if len(points) < 2:
+        return float(np.linalg.norm(points[0] - target))
+    a, ab = points[:-1], np.diff(points, axis=0)
+    denom = np.einsum("ij,ij->i", ab, ab)
+    num = np.einsum("ij,ij->i", target - a, ab)
+    s = np.clip(np.divide(num, denom, out=np.zeros_like(num), where=denom > 0), 0.0, 1.0)
+    gap = a + s[:, None] * ab - target
+    return float(np.sqrt(np.min(np.einsum("ij,ij->i", gap, gap))))
 
 
 def _lands_on(
