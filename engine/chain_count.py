@@ -57,7 +57,7 @@ def _chain_order(linkage: Linkage) -> tuple[list[int], list[int], list[int]] | N
     if linkage.dimension != 2:
         return None
     fixed = np.asarray(linkage.fixed)
-    full = fixed.all(axis=1)
+    full = np.asarray(fixed.all(axis=1), dtype=bool)
     if np.any(fixed.any(axis=1) & ~full):  # a slider: not a pure chain
         return None
     tips = np.flatnonzero(~full)
@@ -67,7 +67,7 @@ def _chain_order(linkage: Linkage) -> tuple[list[int], list[int], list[int]] | N
     links: dict[int, list[tuple[int, int]]] = {int(t): [] for t in tips}
     for k, (i, j) in enumerate(linkage.ends):
         i, j = int(i), int(j)
-        if full[i] and full[j]:
+        if bool(full[i]) and bool(full[j]):
             continue  # inert
         if full[i] != full[j]:
             tip = j if full[i] else i
