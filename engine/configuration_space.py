@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 from engine.assembly import projected_random_starts, rotors, seeds
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
-from engine.errors import InvalidLinkage
+from engine.errors import InvalidLinkage, InvalidRequest
 from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
@@ -33,6 +33,8 @@ from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_c
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
 MULTISTART_MAX_FREE = 64
+#: Smallest ``step_max`` accepted, relative to the median bar length.
+MIN_STEP_MAX_REL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,12 @@ class _Explorer:
         self.opt = options
         self.h_max = options.trace.resolved_step_max(self.cons)
         self.scale = float(np.median(linkage.lengths[self.cons.bars]))
+        if self.h_max < MIN_STEP_MAX_REL * self.scale:
+            raise InvalidRequest(
+                f"step_max = {self.h_max:g} is below {MIN_STEP_MAX_REL:g} of the median bar "
+                f"length ({self.scale:g}): a curve would need more points than any budget",
+                loc=("options", "step_max"),
+            )
         self.curves: list[Curve] = []
         self.tree: cKDTree | None = None
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
