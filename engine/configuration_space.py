@@ -26,7 +26,7 @@ from engine.assembly import iter_seeds, projected_random_starts, rotors
 from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
-from engine.errors import InvalidLinkage
+from engine.errors import InvalidLinkage, InvalidRequest
 from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
@@ -42,6 +42,8 @@ from engine.trace import (
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
 MULTISTART_MAX_FREE = 64
+#: Smallest ``step_max`` accepted, relative to the median bar length.
+MIN_STEP_MAX_REL = 1e-6
 
 
 #: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
@@ -125,6 +127,12 @@ class _Explorer:
         self.opt = options
         self.h_max = options.trace.resolved_step_max(self.cons)
         self.scale = float(np.median(linkage.lengths[self.cons.bars]))
+        if self.h_max < MIN_STEP_MAX_REL * self.scale:
+            raise InvalidRequest(
+                f"step_max = {self.h_max:g} is below {MIN_STEP_MAX_REL:g} of the median bar "
+                f"length ({self.scale:g}): a curve would need more points than any budget",
+                loc=("options", "step_max"),
+            )
         self.curves: list[Curve] = []
         self.tree: cKDTree | None = None
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)

@@ -16,6 +16,8 @@ from engine.errors import InvalidLinkage, InvalidRequest, LimitExceeded
 
 #: Coordinates beyond this magnitude are refused: their squared distances would overflow.
 MAX_COORDINATE = 1e100
+#: Shortest bar accepted, relative to the longest one.
+MIN_LENGTH_RATIO = 1e-12
 
 
 @dataclass(frozen=True)
@@ -293,6 +295,16 @@ def build_linkage(
             )
         lengths[k] = length
 
+    if len(bars):
+        # A bar many orders of magnitude shorter than the rest is zero-length geometry in
+        # float64: its direction, Jacobian row and stress are noise.
+        k = int(np.argmin(lengths))
+        if lengths[k] < MIN_LENGTH_RATIO * float(np.max(lengths)):
+            raise InvalidLinkage(
+                f"bar {bars[k].id!r} has length {lengths[k]:.3g}, below {MIN_LENGTH_RATIO:g} of "
+                f"the longest bar ({float(np.max(lengths)):.3g}): treat its ends as one vertex",
+                loc=("bars", k, "length"),
+            )
     return Linkage(
         dimension=dimension,
         vertex_ids=tuple(v.id for v in vertices),

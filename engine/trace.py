@@ -173,9 +173,14 @@ def trace_curve(
     fails, or the tangent turns by more than ``max_turn``; it grows by 1.5 after easy steps.
     """
     h_max = options.resolved_step_max(cons)
-    h_min = 1e-9 * h_max
-    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
     lengths = cons.linkage.lengths[cons.bars]
+    # Below ~1e-12 of the linkage's scale a step no longer moves u in floating point: the
+    # smallest step is bounded there whatever step_max is, and every pass of the loop (kept
+    # or halved) counts against a budget, so no option can make a trace run forever.
+    scale = max(float(np.max(np.abs(u0), initial=0.0)), float(np.median(lengths)))
+    h_min = max(1e-9 * h_max, 1e-12 * scale)
+    budget = 40 * options.max_points + 1000
+    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
     curve = Curve()
     info = tangent_at(cons, u0, t0 / np.linalg.norm(t0))
     if info is None:
@@ -193,6 +198,10 @@ def trace_curve(
     close_after = 4 * h_max if min_arc_to_close is None else min_arc_to_close
     fac = info.factor
     while len(curve.points) < options.max_points:
+        budget -= 1
+        if budget < 0:
+            curve.stop = "step budget"
+            return curve
         if h < h_min:
             curve.stop = "step underflow"
             return curve

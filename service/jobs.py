@@ -45,30 +45,26 @@ def is_light(body: AnalysisRequest) -> bool:
 
 
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     return mappers.rigidity_out(at, first_order(at, tol), proj)
 
 
 def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOrderResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     return mappers.second_order_out(at, second_order(at, tol), proj)
 
 
 def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     res = explore(at, tol, mappers.space_options_in(body.options))
     return mappers.critical_points_out(at, res, proj, tol)
 
 
 def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     res = explore(at, tol, mappers.space_options_in(body.options))
     points = sum(len(c.points) for c in res.components)
@@ -82,8 +78,7 @@ def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse
 
 
 def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
@@ -92,8 +87,7 @@ def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
 
 
 def robustness_margin(body: RobustnessRequest, settings: Settings) -> RobustnessResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     adjustable = None if body.adjustable is None else list(body.adjustable)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
@@ -101,8 +95,7 @@ def robustness_margin(body: RobustnessRequest, settings: Settings) -> Robustness
 
 
 def critical_values(body: CriticalValuesRequest, settings: Settings) -> CriticalValuesResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     opts = body.options.model_dump(exclude_none=True) if body.options else {}
     axes = [(a.bar, a.min, a.max) for a in body.axes]
@@ -110,8 +103,7 @@ def critical_values(body: CriticalValuesRequest, settings: Settings) -> Critical
 
 
 def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
     targets = [Target(t.branch_point, t.sign) for t in body.targets]

@@ -26,6 +26,7 @@ from engine.robustness import Margin
 from engine.second_order import SecondOrderResult
 from engine.splitting import Split
 from engine.tolerances import Tolerances as EngineTolerances
+from engine.tolerances import check_resolution, scaled_tolerances
 from engine.trace import TraceOptions
 from engine.vectors import normalised
 from service.schemas import common as c
@@ -48,10 +49,19 @@ def linkage_in(model: c.Linkage, limits: Limits) -> EngineLinkage:
     )
 
 
-def tolerances_in(model: c.Tolerances | None) -> EngineTolerances:
-    """Request tolerances -> engine tolerances (defaults where unset)."""
-    given = model.model_dump(exclude_none=True) if model else {}
-    return EngineTolerances(**given)
+def problem_in(
+    linkage: c.Linkage, tolerances: c.Tolerances | None, limits: Limits
+) -> tuple[EngineLinkage, EngineTolerances]:
+    """Request linkage and tolerances -> validated engine linkage and the tolerances to use:
+    those given, else the defaults, with ``residual_atol`` scaled to the linkage's median bar
+    length. Positions that float64 cannot resolve to that tolerance are refused."""
+    engine_linkage = linkage_in(linkage, limits)
+    given = tolerances.model_dump(exclude_none=True) if tolerances else {}
+    lengths = engine_linkage.lengths
+    scale = float(np.median(lengths)) if lengths.size else 1.0
+    tol = scaled_tolerances(scale, **given)
+    check_resolution(engine_linkage.positions, tol)
+    return engine_linkage, tol
 
 
 def tolerances_out(tol: EngineTolerances) -> c.TolerancesUsed:

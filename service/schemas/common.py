@@ -88,14 +88,20 @@ class Linkage(Strict):
     )
 
 
+# Relative thresholds below a few machine epsilons decide nothing (engine.tolerances).
+_RelTol = Annotated[float, Field(strict=True, ge=1e-14, lt=1, allow_inf_nan=False)]
+_AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
+
+
 class Tolerances(Strict):
-    rank_rtol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
+    rank_rtol: _RelTol | None = Field(
         None, description="singular values <= rank_rtol * s_max count as zero (default 1e-8)"
     )
-    residual_atol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
-        None, description="largest allowed bar-length error of a configuration (default 1e-9)"
+    residual_atol: _AbsTol | None = Field(
+        None, description="largest allowed bar-length error of a configuration (default 1e-9 "
+        "times the median bar length)"
     )
-    q_rtol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
+    q_rtol: _RelTol | None = Field(
         None, description="eigenvalues of Q below q_rtol * ||H_sigma|| count as zero (default 1e-6)"
     )
 
