@@ -23,6 +23,11 @@ Two cases are counted, both without any tracing:
 
 Any other linkage (not a pure chain, sliders, 3D, non-generic or other length regimes) gets
 None: the count is then not known in closed form and the explorer's answer stands alone.
+
+Both rules also prove that the configuration space has **no critical point**: a self-stress
+would have to vanish on the two bars at an end tip unless they are collinear (which the strict
+conditions exclude), and so on inwards tip by tip to the driver, whose rotor alone is left; a
+generic four-bar is never flat. The tests check this against the explorer too.
 """
 
 from __future__ import annotations

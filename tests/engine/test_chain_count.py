@@ -32,10 +32,10 @@ def chain(a: list[float], r: list[float], lc: list[float], side: float = 1.0) ->
     return None
 
 
-def traced_components(lk: Linkage, budget: int) -> tuple[int, bool]:
+def traced_components(lk: Linkage, budget: int) -> tuple[int, bool, int]:
     res = explore(lk, options=SpaceOptions(angles=40, assembly_budget=budget, random_starts=4,
                                            max_components=budget))
-    return len(res.components), bool(res.search["complete"])
+    return len(res.components), bool(res.search["complete"]), len(res.critical_points)
 
 
 # (name, a, r, l): per-four-bar lengths, n = len(r)
@@ -61,9 +61,10 @@ def test_count_matches_full_enumeration(name: str, a: list[float], r: list[float
     assert lk is not None
     count = chain_components(lk)
     assert count is not None, name
-    found, complete = traced_components(lk, budget=2 * count.components + 8)
+    found, complete, critical = traced_components(lk, budget=2 * count.components + 8)
     assert complete, name
     assert found == count.components, name
+    assert critical == 0, name  # the rules also prove a smooth configuration space
 
 
 def test_count_reported_by_explore() -> None:
