@@ -56,6 +56,8 @@ class Constraints:
         axes = np.arange(d)
         self._gather_i = slot[self._i[:, None] * d + axes]  # (Ea, d)
         self._gather_j = slot[self._j[:, None] * d + axes]
+        self._band_cache: tuple[int, tuple[int, int, np.ndarray, int, np.ndarray, int]] | None = \
+            None
 
     @property
     def use_sparse(self) -> bool:
@@ -128,6 +130,29 @@ class Constraints:
         rank[rows] = np.arange(ea)
         return col_pos, rank[r], col_pos[c], key[rows], parity(col_pos) * parity(rank)
 
+    def _unit_band_layout(self, k: int) -> tuple[int, int, np.ndarray, int, np.ndarray, int]:
+        """Band layout of ``[e_k; J]``: ``kl``, ``ku``, the flat index into ``ab`` of each
+        pattern entry, that of the unit entry, the band row of each original row, and the sign
+        of the reordering. The last one is kept: ``k`` (the largest entry of the tangent)
+        changes rarely from one traced point to the next."""
+        if self._band_cache is not None and self._band_cache[0] == k:
+            return self._band_cache[1]
+        col_pos, entry_rank, entry_col, keys, sign = self._band_layout
+        ck = int(col_pos[k])
+        ins = int(np.searchsorted(keys, ck, side="right"))  # the unit row's band row
+        diff = entry_rank + (entry_rank >= ins) - entry_col
+        kl = max(int(diff.max()), ins - ck, 0)
+        ku = max(int(-diff.min()), ck - ins, 0)
+        m = self.n_free
+        flat = (kl + ku + diff) * m + entry_col
+        unit = (kl + ku + ins - ck) * m + ck
+        row_rank = self._band_row_rank
+        row_pos = np.concatenate([[ins], row_rank + (row_rank >= ins)])
+        # moving the unit row from the top to band row ``ins`` is a cycle of length ins + 1
+        layout = (kl, ku, flat, unit, row_pos, sign * (-1 if ins % 2 else 1))
+        self._band_cache = (k, layout)
+        return layout
+
     def unit_bordered_band(
         self, u: np.ndarray, k: int, max_work: int
     ) -> tuple[np.ndarray, int, int, np.ndarray, np.ndarray, int] | None:
@@ -135,22 +160,13 @@ class Constraints:
         ``kl``, ``ku``, the band row of each original row and band column of each column, and
         the sign of the reordering; None when ``kl (kl + ku)`` (the work per column) exceeds
         ``max_work``: then the band form is no cheaper than a general sparse LU."""
-        col_pos, entry_rank, entry_col, keys, sign = self._band_layout
-        ck = int(col_pos[k])
-        ins = int(np.searchsorted(keys, ck, side="right"))  # the unit row's band row
-        entry_row = entry_rank + (entry_rank >= ins)
-        diff = entry_row - entry_col
-        kl = max(int(diff.max()), ins - ck, 0)
-        ku = max(int(-diff.min()), ck - ins, 0)
+        kl, ku, flat, unit, row_pos, sign = self._unit_band_layout(k)
         if kl * (kl + ku) > max_work:
             return None
         ab = np.zeros((2 * kl + ku + 1, self.n_free))
-        ab[kl + ku + diff, entry_col] = self.jacobian_values(u)
-        ab[kl + ku + ins - ck, ck] = 1.0
-        row_rank = self._band_row_rank
-        row_pos = np.concatenate([[ins], row_rank + (row_rank >= ins)])
-        # moving the unit row from the top to band row ``ins`` is a cycle of length ins + 1
-        return ab, kl, ku, row_pos, col_pos, sign * (-1 if ins % 2 else 1)
+        ab.flat[flat] = self.jacobian_values(u)
+        ab.flat[unit] = 1.0
+        return ab, kl, ku, row_pos, self._band_layout[0], sign
 
     @cached_property
     def _band_row_rank(self) -> np.ndarray:

@@ -70,6 +70,12 @@ class Factor:
             return self._lu.solve(rhs)
         return sla.lu_solve(self._lu_piv, rhs, check_finite=False)
 
+    def solve_first(self) -> np.ndarray:
+        """``A^{-1} e_1``."""
+        e1 = np.zeros(self._lu.shape[0] if self.sparse else len(self._lu_piv[1]))
+        e1[0] = 1.0
+        return self.solve(e1)
+
 
 class BorderedFactor:
     """Solves with ``B = [row; J]`` (square) from a sparse LU ``base`` of ``B0 = [e_k; J]``.
@@ -105,6 +111,10 @@ class BorderedFactor:
             return
         self.sign = self._base.sign * (1 if self._gamma > 0 else -1)
         self.logdet = self._base.logdet + float(np.log(abs(self._gamma)))
+
+    def solve_first(self) -> np.ndarray:
+        """``B^{-1} e_1`` (the tangent direction), already known: ``B0^{-1} e_1 / gamma``."""
+        return self._y0 / self._gamma
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         x = self._base.solve(rhs)
@@ -147,9 +157,10 @@ class BandLU:
         if not np.all(np.isfinite(diag)):
             return
         self._lu, self._piv = lu, piv
-        swaps = int(np.count_nonzero(piv != np.arange(len(piv))))
+        # sign: negative pivots and row interchanges, each counted by parity
+        flips = int(np.count_nonzero(diag < 0)) + int(np.count_nonzero(piv != np.arange(len(piv))))
         self.ok = True
-        self.sign = int(np.prod(np.sign(diag))) * (-1 if swaps % 2 else 1) * sign_perm
+        self.sign = (-1 if flips % 2 else 1) * sign_perm
         self.logdet = float(np.sum(np.log(np.abs(diag))))
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:

@@ -98,7 +98,7 @@ def tangent_at(cons: Constraints, u: np.ndarray, t_prev: np.ndarray) -> TangentI
     fac = factor_augmented(cons, u, t_prev)
     if not fac.ok:
         return None
-    y = fac.solve(np.eye(1, cons.n_free, 0).ravel())
+    y = fac.solve_first()
     norm = float(np.linalg.norm(y))
     if not np.isfinite(norm) or norm == 0.0:
         return None
