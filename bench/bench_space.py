@@ -12,16 +12,25 @@ Kane-Lubensky scaling: for each chain length ``n`` the component through the sta
 (zero mode at the start, then :func:`engine.trace.trace_curve` until it closes) and the
 configuration space is explored with a budget of ``--budget`` components; the log-log slopes of
 time, points per component and time per point against ``n`` are fitted and written with the rows.
+
+BLAS runs on one thread (``OPENBLAS_NUM_THREADS=1`` unless set), as in the service's workers:
+on a shared 2-core machine threaded BLAS is slower and noisier.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+if __name__ == "__main__":  # before numpy is imported: one BLAS thread, as in the service
+    for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -30,6 +39,7 @@ from engine.chain_count import chain_components  # noqa: E402
 from engine.configuration_space import (  # noqa: E402
     SPARSE_SEED_RIGIDITY_MIN_FREE,
     SpaceOptions,
+    _Explorer,
     explore,
 )
 from engine.constraints import Constraints  # noqa: E402
@@ -110,13 +120,26 @@ def main() -> None:
         table.record(f"explore {n}-rotor KL chain, budget {args.budget} components", t,
                      f"{len(res.components)} of {total} components (2^{n - 1}), {pts} points, "
                      f"complete={res.search['complete']}", n=n, points=pts)
+    if args.explore_sizes:
+        # where an exploration's time goes: tracing (seeds, curves) vs the critical-point search
+        n = 100 if 100 in args.explore_sizes else args.explore_sizes[0]
+        lk = build_preset("kl-chain", {"n": n})
+        ex = _Explorer(lk, Tolerances(), opts)
+        t0 = time.perf_counter()
+        ex.trace_all(lk.coordinates())
+        t1 = time.perf_counter()
+        crit, _, _ = ex.critical_points()
+        t2 = time.perf_counter()
+        table.record(f"  of which tracing ({n} rotors, budget {args.budget})", t1 - t0,
+                     f"{len(ex.curves)} curves, {sum(len(c.points) for c in ex.curves)} points")
+        table.record(f"  of which critical-point search ({n} rotors)", t2 - t1,
+                     f"{ex.report.get('critical_candidates')} candidates refined, "
+                     f"{len(crit)} critical points")
     if len(args.explore_sizes) >= 2:
         fits.append({"fit": f"exploration (budget {args.budget}) time ~ n^p",
                      "p": slope(args.explore_sizes, exp_t)})
 
     if not args.no_http:
-        import os
-
         import httpx
 
         # a benchmark measures, it must not be cut by the service's default 30 s limit
