@@ -9,7 +9,8 @@ Engine-only rows call the engine in this process; the ``HTTP`` row posts the req
 service on a loopback port (:func:`bench.harness.served`), paying JSON and HTTP like a client.
 
 Kane-Lubensky scaling: for each chain length ``n`` the component through the start is traced
-(zero mode at the start, then :func:`engine.trace.trace_curve` until it closes) and the
+(zero mode at the start, then :func:`engine.trace.trace_curve` until it closes; both timed,
+the time per point is the trace's) and the
 configuration space is explored with a budget of ``--budget`` components; the log-log slopes of
 time, points per component and time per point against ``n`` are fitted and written with the rows.
 
@@ -49,13 +50,18 @@ from engine.tolerances import Tolerances  # noqa: E402
 from engine.trace import TraceOptions, trace_curve  # noqa: E402
 
 
-def kl_component(n: int) -> int:
-    """Trace the component through the start of an ``n``-rotor spinner chain; its points."""
+def kl_start(n: int) -> tuple[Constraints, np.ndarray, np.ndarray]:
+    """An ``n``-rotor spinner chain's constraints, start and zero mode (as the explorer gets
+    it: the sparse first-order method above 128 free coordinates)."""
     lk = build_preset("kl-chain", {"n": n})
     cons = Constraints(lk)
-    sparse = True if cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE else None  # as the explorer
-    z = first_order(lk, sparse=sparse).zero_modes[0]
-    curve = trace_curve(cons, lk.coordinates(), z, Tolerances(), TraceOptions())
+    sparse = True if cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE else None
+    return cons, lk.coordinates(), first_order(lk, sparse=sparse).zero_modes[0]
+
+
+def kl_trace(cons: Constraints, u0: np.ndarray, z: np.ndarray) -> int:
+    """Trace the component through ``u0`` until it closes; its points."""
+    curve = trace_curve(cons, u0, z, Tolerances(), TraceOptions())
     assert curve.stop == "closed"
     return len(curve.points)
 
@@ -70,7 +76,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--sizes", type=int, nargs="+", default=[50, 100, 200, 400])
     # (400 rotors: the dense critical-point refinement alone takes tens of minutes)
-    parser.add_argument("--explore-sizes", type=int, nargs="+", default=[50, 100, 200])
+    parser.add_argument("--explore-sizes", type=int, nargs="*", default=[50, 100, 200])
     parser.add_argument("--budget", type=int, default=4, help="components per exploration")
     parser.add_argument("--explore-repeat", type=int, default=1,
                         help="best of this many explorations and HTTP requests")
@@ -94,19 +100,23 @@ def main() -> None:
         table.record("all critical points, three-rotor (all lengths a)", t,
                      f"{len(res.critical_points)} critical points, {len(res.segments)} segments")
 
-    comp_t, comp_pts = [], []
+    comp_t, trace_t, comp_pts = [], [], []
     for n in args.sizes:
-        t, pts = best_of(lambda n=n: kl_component(n), args.repeat)
-        comp_t.append(t)
+        t_start, (cons, u0, z) = best_of(lambda n=n: kl_start(n), args.repeat)
+        t_trace, pts = best_of(lambda c=cons, u=u0, z=z: kl_trace(c, u, z), args.repeat)
+        comp_t.append(t_start + t_trace)
+        trace_t.append(t_trace)
         comp_pts.append(pts)
-        table.record(f"component through the start, {n}-rotor KL chain", t, f"{pts} points",
-                     n=n, points=pts, us_per_point=1e6 * t / pts)
+        table.record(f"component through the start, {n}-rotor KL chain", t_start + t_trace,
+                     f"{pts} points", n=n, points=pts, zero_mode_s=t_start, trace_s=t_trace,
+                     us_per_point=1e6 * t_trace / pts)
     if len(args.sizes) >= 2:
-        per_point = [t / p for t, p in zip(comp_t, comp_pts, strict=True)]
+        per_point = [t / p for t, p in zip(trace_t, comp_pts, strict=True)]
         fits += [
-            {"fit": "component time ~ n^p", "p": slope(args.sizes, comp_t)},
+            {"fit": "component time (zero mode + trace) ~ n^p", "p": slope(args.sizes, comp_t)},
+            {"fit": "trace time ~ n^p", "p": slope(args.sizes, trace_t)},
             {"fit": "points per component ~ n^p", "p": slope(args.sizes, comp_pts)},
-            {"fit": "time per point ~ n^p", "p": slope(args.sizes, per_point)},
+            {"fit": "trace time per point ~ n^p", "p": slope(args.sizes, per_point)},
         ]
 
     exp_t = []
