@@ -26,7 +26,7 @@ from engine.robustness import Margin
 from engine.second_order import SecondOrderResult
 from engine.splitting import Split
 from engine.tolerances import Tolerances as EngineTolerances
-from engine.tolerances import check_resolution, scaled_tolerances
+from engine.tolerances import check_residual_scale, check_resolution, scaled_tolerances
 from engine.trace import TraceOptions
 from engine.vectors import normalised
 from service.schemas import common as c
@@ -60,6 +60,7 @@ def problem_in(
     lengths = engine_linkage.lengths
     scale = float(np.median(lengths)) if lengths.size else 1.0
     tol = scaled_tolerances(scale, **given)
+    check_residual_scale(tol, scale)
     check_resolution(engine_linkage.positions, tol)
     return engine_linkage, tol
 
