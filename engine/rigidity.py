@@ -24,6 +24,11 @@ from engine.vectors import normalise_sign
 
 #: Largest linkage for which an inconsistent sparse search falls back to a dense SVD.
 DENSE_FALLBACK_MAX_FREE = 4000
+#: Default method: dense SVD up to this many free coordinates, sparse above. The dense SVD is
+#: O(M^3) (a 256-rotor chain, M = 512: about 0.12 s on one core) while the sparse search costs
+#: about 10 ms there; they break even near M = 150 on Kane-Lubensky chains. The dense method is
+#: kept for small linkages because it reports every singular value.
+FIRST_ORDER_DENSE_MAX_FREE = 200
 
 
 @dataclass(frozen=True)
@@ -250,14 +255,23 @@ def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool)
     By linearity of the determinant in its first row, ``x . t = det([x; J])`` for every ``x``;
     solving with one LU factorisation of the augmented matrix ``B = [w; J]`` gives ``t`` without
     forming minors. ``w`` should have a component along the zero mode (the zero mode itself is
-    best conditioned).
+    best conditioned). For sparse ``J`` the first row of ``B`` is the unit vector at the largest
+    ``|w_k|`` instead (same ``t``; see the comment in the code). ``orientation`` is the sign of
+    ``t . w = det([w; J])`` either way.
     """
     m = jac.shape[1]
     vanishing = TangentForm(np.zeros(m), -np.inf, 0)
     if critical:
         return vanishing
     if sp.issparse(jac):
-        aug: np.ndarray | sp.spmatrix = sp.vstack([sp.csr_matrix(w.reshape(1, -1)), jac])
+        # A dense first row makes sparse LU fill in completely (a 10,000-rotor chain: seconds
+        # and gigabytes). Any first row x with det([x; J]) != 0 gives the same t, because
+        # det([y; J]) = det(B) y^T B^{-1} e_1 for B = [x; J] and every y. The unit row e_k at
+        # the largest |w_k| is sparse and costs at most a factor 1 / |w_k| <= sqrt(M) in the
+        # conditioning of B (B^{-1} e_1 = w / w_k when w spans the null space of J).
+        k = int(np.argmax(np.abs(w)))
+        row = sp.csr_matrix(([1.0], ([0], [k])), shape=(1, m))
+        aug: np.ndarray | sp.spmatrix = sp.vstack([row, jac], format="csc")
     else:
         aug = np.vstack([w, jac])
     fac = Factor(aug)
@@ -285,7 +299,8 @@ def first_order(
     Parameters
     ----------
     sparse : bool, optional
-        Force the sparse (True) or dense (False) method; default by size.
+        Force the sparse (True) or dense (False) method; default: sparse above
+        ``FIRST_ORDER_DENSE_MAX_FREE`` free coordinates.
 
     Examples
     --------
@@ -297,7 +312,7 @@ def first_order(
     tol = tolerances or Tolerances()
     cons = Constraints(linkage)
     u = linkage.coordinates()
-    use_sparse = cons.use_sparse if sparse is None else sparse
+    use_sparse = cons.n_free > FIRST_ORDER_DENSE_MAX_FREE if sparse is None else sparse
     use_sparse = use_sparse and cons.n_constraints > 0 and cons.n_free > 2
     jac = cons.jacobian(u, sparse=use_sparse)
     method = "sparse-eigsh" if use_sparse else "dense-svd"
