@@ -6,10 +6,10 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from service.schemas.common import BarValues, TolerancesUsed, VertexVectors
+from service.schemas.common import BarValues, Bulk, TolerancesUsed, VertexVectors
 
 
-class Projection(BaseModel):
+class Projection(Bulk):
     projection_residual: float = Field(
         description="largest |l - L| at the analysed configuration (after projection)"
     )
