@@ -12,7 +12,10 @@ rotors, ``n - 1`` coupling bars, ``M = 2n`` free coordinates):
 * ours, through HTTP: ``POST /v1/analysis/rigidity`` with the preset's JSON (as returned by
   ``GET /v1/presets/kl-chain?n=...``), the real service on a loopback port, one client; the
   time includes sending the body, validation, the worker process, the projection onto the
-  constraints, the analysis, the response model and JSON both ways;
+  constraints, the analysis, the response model and JSON both ways, and the client's parse of
+  the answer. Twice: with ``bench.harness.served()`` (uvicorn in a thread of this process, so
+  client and server share one interpreter and its garbage collector) and with ``uvicorn
+  service.main:app`` in a process of its own, as deployed;
 * PyRigi (numerical mode): ``Framework.inf_flexes(numerical=True, fixed_vertices=pins)`` (the
   pins get flex 0, i.e. the null space of the rigidity matrix without the pins' columns: our
   ``J``) plus ``Framework.stresses(numerical=True)`` -- the calls the issue names. PyRigi's
@@ -55,6 +58,8 @@ import resource  # noqa: E402
 import subprocess  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
+from collections.abc import Iterator  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -62,7 +67,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.harness import Table, best_of, served  # noqa: E402
+from bench.harness import Table, best_of, free_port, served  # noqa: E402
 from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
 from engine.presets import build_preset  # noqa: E402
 from engine.rigidity import first_order  # noqa: E402
@@ -137,6 +142,60 @@ def peak_memory(n: int) -> dict[str, Any]:
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 
 
+@contextmanager
+def served_process(timeout: float = 60.0) -> Iterator[str]:
+    """The service as deployed: ``uvicorn service.main:app`` in its own process on a free
+    loopback port (no client work shares its interpreter, as it does with ``served()``)."""
+    import httpx
+
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
+         "--port", str(port), "--log-level", "warning"],
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                if httpx.get(url + "/health", timeout=1.0).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if time.monotonic() > deadline or proc.poll() is not None:
+                raise RuntimeError("the service did not start")
+            time.sleep(0.1)
+        yield url
+    finally:
+        proc.terminate()
+        proc.wait(timeout)
+
+
+def through_http(client: Any, n: int, repeat: int) -> tuple[float, dict[str, Any]]:
+    """Best time of ``POST /v1/analysis/rigidity`` with the ``n``-rotor preset's JSON, the
+    client's JSON parse of the answer included."""
+    body = {"linkage": client.get("/v1/presets/kl-chain", params={"n": n}).json()}
+    payload = json.dumps(body).encode()
+
+    def call() -> dict[str, Any]:
+        t0 = time.perf_counter()
+        r = client.post("/v1/analysis/rigidity", content=payload,
+                        headers={"content-type": "application/json"})
+        r.raise_for_status()
+        t1 = time.perf_counter()
+        out = r.json()
+        parse = time.perf_counter() - t1
+        # a summary only: keeping whole answers alive would slow the collector later
+        return {"dof": out["dof"], "stresses": len(out["self_stresses"]),
+                "parse_seconds": parse, "post_seconds": t1 - t0,
+                "response_bytes": len(r.content)}
+
+    call()  # warm: worker processes started
+    seconds, out = best_of(call, repeat)
+    return seconds, {**out, "request_bytes": len(payload)}
+
+
 def http_detail(resp: dict[str, Any]) -> str:
     return (f"request {resp['request_bytes'] / 1e6:.2f} MB, response "
             f"{resp['response_bytes'] / 1e6:.2f} MB, client JSON parse "
@@ -164,37 +223,20 @@ def main() -> None:
     # Ours first, PyRigi (sympy underneath) last: its objects would stay in this process's heap,
     # and the service in the thread below pays garbage-collector passes over all of them.
     ours: dict[int, dict[str, Any]] = {}
-    with served() as url, httpx.Client(base_url=url, timeout=300.0) as client:
-
-        def through_http(n: int) -> tuple[float, dict[str, Any]]:
-            body = {"linkage": client.get("/v1/presets/kl-chain", params={"n": n}).json()}
-            payload = json.dumps(body).encode()
-
-            def call() -> dict[str, Any]:
-                t0 = time.perf_counter()
-                r = client.post("/v1/analysis/rigidity", content=payload,
-                                headers={"content-type": "application/json"})
-                r.raise_for_status()
-                t1 = time.perf_counter()
-                out = r.json()
-                parse = time.perf_counter() - t1
-                # a summary only: keeping whole answers alive would slow the collector later
-                return {"dof": out["dof"], "stresses": len(out["self_stresses"]),
-                        "parse_seconds": parse, "post_seconds": t1 - t0,
-                        "response_bytes": len(r.content)}
-
-            call()  # warm: worker processes started
-            seconds, out = best_of(call, args.repeat)
-            return seconds, {**out, "request_bytes": len(payload)}
-
-        for n in args.sizes + args.large:
-            lk = build_preset("kl-chain", {"n": n})
-            t_eng, rig = best_of(lambda lk=lk: first_order(lk), args.repeat)
-            t_http, resp = through_http(n)
-            counts = (rig.dof, rig.self_stresses.shape[0])
-            assert (resp["dof"], resp["stresses"]) == counts
-            ours[n] = {"engine": t_eng, "http": t_http, "resp": resp, "counts": counts,
-                       "label": f"M={rig.n_free}, {rig.method}"}
+    for n in args.sizes + args.large:
+        lk = build_preset("kl-chain", {"n": n})
+        t_eng, rig = best_of(lambda lk=lk: first_order(lk), args.repeat)
+        cpu0 = time.process_time()
+        first_order(lk)
+        ours[n] = {"engine": t_eng, "engine_cpu": time.process_time() - cpu0,
+                   "counts": (rig.dof, rig.self_stresses.shape[0]),
+                   "label": f"M={rig.n_free}, {rig.method}"}
+    for name, server in (("http", served), ("http_process", served_process)):
+        with server() as url, httpx.Client(base_url=url, timeout=300.0) as client:
+            for n in args.sizes + args.large:
+                t_http, resp = through_http(client, n, args.repeat)
+                assert (resp["dof"], resp["stresses"]) == ours[n]["counts"]
+                ours[n][name], ours[n][name + "_resp"] = t_http, resp
 
     for n in args.sizes + args.large:
         o = ours[n]
@@ -208,9 +250,14 @@ def main() -> None:
             assert counts == o["counts"], (counts, o["counts"])
         vs = {"speedup": t_peer / o["engine"]} if t_peer else {}
         table.record(f"{n}-rotor chain, ours engine ({o['label']})", o["engine"],
-                     f"dof {o['counts'][0]}, stresses {o['counts'][1]}", **vs, **mem)
+                     f"dof {o['counts'][0]}, stresses {o['counts'][1]}",
+                     cpu_seconds=o["engine_cpu"], **vs, **mem)
         vs = {"speedup": t_peer / o["http"]} if t_peer else {}
-        table.record(f"{n}-rotor chain, ours HTTP", o["http"], http_detail(o["resp"]), **vs)
+        table.record(f"{n}-rotor chain, ours HTTP", o["http"], http_detail(o["http_resp"]),
+                     **vs)
+        vs = {"speedup": t_peer / o["http_process"]} if t_peer else {}
+        table.record(f"{n}-rotor chain, ours HTTP, uvicorn in its own process",
+                     o["http_process"], http_detail(o["http_process_resp"]), **vs)
         if t_peer and counts:
             table.record(f"{n}-rotor chain, PyRigi inf_flexes(pins) + stresses", t_peer,
                          f"flexes {counts[0]}, stresses {counts[1]} (best of {reps})")
