@@ -227,8 +227,8 @@ def _sparse_null_spaces(
     return rank, svals, right, left
 
 
-#: A smallest nonzero singular value is reported only when its Ritz residual is below this
-#: fraction of ``s_max`` (its error is at most the residual, and typically its square / gap).
+#: A smallest nonzero singular value is reported only when its error bound (see
+#: :func:`_smallest_nonzero`) is below this fraction of ``s_max``.
 SMALL_SV_RESIDUAL_RTOL = 1e-9
 
 
@@ -247,10 +247,13 @@ def _smallest_nonzero(
     Those Ritz vectors can be poor when the null space is large: the null directions dominate
     the Krylov space by ~1e12 and swamp the rest (a random linkage with 62 zero modes gave
     0.0206 for a singular value of 0.0215). So they are refined by block inverse iteration
-    with the null space projected out, followed by Rayleigh-Ritz, until every Ritz residual is
-    below ``SMALL_SV_RESIDUAL_RTOL * s_max`` (or ``steps`` run out); only values with such a
-    residual are reported. Each negative Ritz value ``-s`` of the augmented matrix is one
-    singular value ``s``.
+    with the null space projected out, followed by Rayleigh-Ritz, until every Ritz value is
+    certified (or ``steps`` run out), and only certified values are reported: a Ritz value
+    ``theta`` with residual ``r`` lies within ``r`` of an eigenvalue, and within ``r^2 / gap``
+    when the rest of the spectrum is ``gap`` away (estimated by the other Ritz values);
+    certified means ``r <= tol`` or ``r <= 1e3 tol`` and ``r^2 / gap <= tol``, with
+    ``tol = SMALL_SV_RESIDUAL_RTOL * s_max``. Each negative Ritz value ``-s`` of the augmented
+    matrix is one singular value ``s``.
     """
     n = aug.shape[0]
     if start.shape[1] == 0 or n - found.shape[1] < 2:

@@ -51,7 +51,21 @@ def random_sparse_linkage(n_vertices: int, seed: int, dead_point: bool = False) 
     return build_linkage(2, vertices, bars)
 
 
+def free_strip(n: int, d: int = 2) -> Linkage:
+    """A free triangulated strip (nothing fixed): rigid in 2D, so only the 3 trivial motions;
+    in 3D it also folds along its diagonals."""
+    rng = np.random.default_rng(n)
+    pos = [[k / 2, float(k % 2)] + ([float(rng.uniform(-0.1, 0.1))] if d == 3 else [])
+           for k in range(n)]
+    vertices = [VertexSpec(f"v{k}", p) for k, p in enumerate(pos)]
+    bars = [BarSpec(f"b{k}-{k + j}", (f"v{k}", f"v{k + j}")) for j in (1, 2)
+            for k in range(n - j)]
+    return build_linkage(d, vertices, bars)
+
+
 CATALOGUE = {
+    "free strip-110 (2D, trivial motions only)": lambda: free_strip(110),
+    "free strip-80 (3D, M=240)": lambda: free_strip(80, d=3),
     "kl-chain-110 (M=220, generic)": lambda: build_preset("kl-chain", {"n": 110}),
     "kl-chain-300 (M=600)": lambda: build_preset("kl-chain", {"n": 300}),
     "straight kl-chain-110 (109 stresses, 110 zero modes)": lambda: straight_kl_chain(110),
