@@ -255,6 +255,9 @@ def _build_vectorised(
     off = np.abs(current[pinned] - given[pinned]) > length_atol * np.maximum(1.0, given[pinned])
     if np.any(off):
         return None
+    lengths = np.where(missing, current, given)
+    if len(bars) and np.min(lengths) < MIN_LENGTH_RATIO * float(np.max(lengths)):
+        return None  # a zero-length bar: the loop names it
     return Linkage(
         dimension=dimension,
         vertex_ids=tuple(vertex_ids),
@@ -262,7 +265,7 @@ def _build_vectorised(
         fixed=fixed,
         bar_ids=tuple(bar_ids),
         ends=ends,
-        lengths=np.where(missing, current, given),
+        lengths=lengths,
     )
 
 

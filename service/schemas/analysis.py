@@ -6,10 +6,10 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from service.schemas.common import BarValues, Bulk, TolerancesUsed, VertexVectors
+from service.schemas.common import BarValues, TolerancesUsed, VertexVectors
 
 
-class Projection(Bulk):
+class Projection(BaseModel):
     projection_residual: float = Field(
         description="largest |l - L| at the analysed configuration (after projection)"
     )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import pickle
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -47,25 +46,6 @@ Fixed = Annotated[StrictBool | list[StrictBool], WrapValidator(_one_fixed_error)
 
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
-
-
-def _unpickle_in_bulk(cls: type[BaseModel], blob: bytes) -> Any:
-    """Inverse of :meth:`Bulk.__reduce__`."""
-    with gc_paused():
-        state = pickle.loads(blob)
-        obj = cls.__new__(cls)
-        obj.__setstate__(state)
-    return obj
-
-
-class Bulk(BaseModel):
-    """A response that may hold per-vertex dictionaries of a large linkage. It travels from the
-    engine's worker processes by pickle: its state is pickled into one bytes object, so that
-    unpickling its ~10^5 small objects happens with the collector paused (service.gcpause)."""
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        blob = pickle.dumps(self.__getstate__(), protocol=pickle.HIGHEST_PROTOCOL)
-        return (_unpickle_in_bulk, (type(self), blob))
 
 
 class Vertex(Strict):

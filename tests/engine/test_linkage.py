@@ -145,3 +145,10 @@ def test_several_problems_report_the_first_as_the_loop_does():
     with pytest.raises(InvalidLinkage) as err:
         build_linkage(2, [P, VertexSpec("S", [1, 1], [True, 1])], [])
     assert err.value.loc == ("vertices", 1, "fixed")
+
+
+def test_vectorised_build_refuses_a_zero_length_bar_like_the_loop():
+    far = VertexSpec("F", [5.0, 5.0])
+    with pytest.raises(InvalidLinkage) as err:
+        build_linkage(2, [P, A, far], [BarSpec("long", "PA"), BarSpec("tiny", ("A", "F"), 1e-13)])
+    assert err.value.loc == ("bars", 1, "length")
