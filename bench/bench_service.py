@@ -31,13 +31,14 @@ from harness import Table, free_port  # bench/ is on sys.path when run as a scri
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def start(uvicorn_workers: int, engine_workers: int) -> tuple[subprocess.Popen[bytes], str]:
+def start(uvicorn_workers: int, engine_workers: int, extra: list[str]
+          ) -> tuple[subprocess.Popen[bytes], str]:
     port = free_port()
     env = {**os.environ, "LINKAGE_WORKERS": str(engine_workers)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1", "--port",
          str(port), "--workers", str(uvicorn_workers), "--log-level", "warning",
-         "--no-access-log"],
+         "--no-access-log", *extra],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 120
@@ -100,13 +101,16 @@ def main() -> None:
     parser.add_argument("--clients", type=int, nargs="+", default=[1, 8, 32])
     parser.add_argument("--configs", nargs="+", default=["1x1", "1x2", "2x1"],
                         help="uvicorn workers x engine workers per uvicorn process")
+    parser.add_argument("--uvicorn-args", default="",
+                        help='more uvicorn options, e.g. "--loop asyncio --http h11"')
     parser.add_argument("--json", type=Path, default=Path("bench/results/service.json"))
     args = parser.parse_args()
 
-    table = Table(f"service throughput over loopback ({os.cpu_count()} cores)")
+    table = Table(f"service throughput over loopback ({os.cpu_count()} cores) "
+                  f"{args.uvicorn_args}".strip())
     for config in args.configs:
         uv, eng = (int(x) for x in config.split("x"))
-        proc, url = start(uv, eng)
+        proc, url = start(uv, eng, args.uvicorn_args.split())
         try:
             four_bar = httpx.get(url + "/v1/presets/four-bar", params={"theta": 0.5}).json()
             chain = httpx.get(url + "/v1/presets/kl-chain", params={"n": 100}).json()

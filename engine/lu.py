@@ -16,19 +16,21 @@ import scipy.sparse.linalg as spla
 def parity(perm: np.ndarray) -> int:
     """+1 for an even permutation, -1 for an odd one (``n - cycles`` transpositions).
 
-    Cycles are counted without a Python loop over the entries (this runs once per traced
-    point): pointer doubling labels every entry with the smallest index of its cycle in
-    ``ceil(log2 n)`` vectorised rounds, and each cycle has exactly one entry equal to its label.
+    Cycles are counted without a Python loop over the entries (sparse LU permutations have
+    tens of thousands): after ``k`` rounds of pointer doubling, ``label[i]`` is the smallest
+    index among ``i, perm(i), ..., perm^(2^k - 1)(i)``, so after ``ceil(log2 n)`` rounds it is
+    the smallest index of the cycle through ``i`` and each cycle has one entry with
+    ``label[i] == i``.
     """
     perm = np.asarray(perm, dtype=np.intp)
     n = len(perm)
     label = np.arange(n)
-    step = perm
-    reach = 1  # label[i] = min of perm^m(i) for 0 <= m < reach
-    while reach < n:
-        label = np.minimum(label, label[step])
-        step = step[step]
-        reach *= 2
+    jump = perm.copy()
+    span = 1
+    while span < n:
+        label = np.minimum(label, label[jump])
+        jump = jump[jump]
+        span *= 2
     cycles = int(np.count_nonzero(label == np.arange(n)))
     return -1 if (n - cycles) % 2 else 1
 

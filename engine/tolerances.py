@@ -13,6 +13,8 @@ RESIDUAL_REL = 1e-9
 #: A coordinate ``x`` is resolved in float64 to about ``eps |x|``; positions whose resolution is
 #: coarser than ``residual_atol / RESOLUTION_MARGIN`` cannot be analysed to that tolerance.
 RESOLUTION_MARGIN = 8.0
+#: Largest ``residual_atol`` relative to the median bar length.
+MAX_RESIDUAL_REL = 1e-6
 #: Smallest relative tolerance (``rank_rtol``, ``q_rtol``) that means anything in float64.
 MIN_RELATIVE = 1e-14
 
@@ -83,6 +85,18 @@ def scaled_tolerances(
         if value is not None:
             changes[name] = value
     return replace(tol, **changes)
+
+
+def check_residual_scale(tol: Tolerances, length_scale: float) -> None:
+    """Refuse a ``residual_atol`` that is not small against the bars (more than
+    ``MAX_RESIDUAL_REL`` of the median length ``length_scale``): configurations that far off
+    the lengths are not points of the configuration space, and every search would wander."""
+    if tol.residual_atol > MAX_RESIDUAL_REL * length_scale:
+        raise InvalidTolerance(
+            f"residual_atol = {tol.residual_atol:g} is not small against the bars (median "
+            f"length {length_scale:g}): at most {MAX_RESIDUAL_REL:g} of it",
+            loc=("tolerances", "residual_atol"),
+        )
 
 
 def check_resolution(positions: np.ndarray, tol: Tolerances) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 from engine.configuration_space import explore
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
-from engine.design import Target, design, verify
+from engine.design import Target, check_request, design, verify
 from engine.errors import InvalidRequest
 from engine.rigidity import first_order
 from engine.robustness import robustness
@@ -104,9 +104,10 @@ def critical_values(body: CriticalValuesRequest, settings: Settings) -> Critical
 
 def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    targets = [Target(t.branch_point, t.sign) for t in body.targets]
+    check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
     at, _ = on_constraints(linkage, tol)
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
-    targets = [Target(t.branch_point, t.sign) for t in body.targets]
     margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
     result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
     checks = verify(at, crit, targets, result.perturbation, tol) if result.feasible else []

@@ -281,3 +281,37 @@ def _dumps(obj: Json) -> str:
     import json
 
     return json.dumps(obj)
+
+
+@pytest.mark.parametrize("atol", [1.0, 1e-3, 2e-6])
+def test_residual_tolerance_that_is_not_small_against_the_bars(client: Any, atol: float) -> None:
+    """Configurations that far off the lengths are no points of the configuration space (the
+    tracer wandered for minutes at 1e-3): at most 1e-6 of the median bar length."""
+    r = client.post("/v1/analysis/critical-points",
+                    json={"linkage": four_bar(), "tolerances": {"residual_atol": atol}})
+    body = expect(client, r, ["body", "tolerances", "residual_atol"])
+    assert "median" in body["detail"]
+    ok = client.post("/v1/analysis/rigidity",
+                     json={"linkage": four_bar(1e7 * atol), "tolerances": {"residual_atol": atol}})
+    assert ok.status_code == 200, ok.text  # the same value is fine for bars 1e7 times longer
+
+
+@pytest.mark.parametrize("field,value,loc", [
+    ("adjustable", ["nope"], ["adjustable", 0]),
+    ("targets", [{"branch_point": 0, "sign": 0}], ["targets", 0, "sign"]),
+])
+def test_design_refuses_bad_requests_before_exploring(monkeypatch: Any, field: str, value: Json,
+                                                     loc: list[str | int]) -> None:
+    from engine.errors import InvalidRequest
+    from service import jobs
+    from service.config import Settings
+    from service.schemas.space import DesignRequest
+
+    def explore(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("explored before validating the request")
+
+    monkeypatch.setattr(jobs, "explore", explore)
+    body = {**bodies(four_bar())["/v1/design/splitting"], field: value}
+    with pytest.raises(InvalidRequest) as err:
+        jobs.design_splitting(DesignRequest.model_validate(body), Settings())
+    assert list(err.value.loc) == loc
