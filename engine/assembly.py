@@ -9,6 +9,7 @@ projected onto the constraint set.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,22 +129,27 @@ def assemblies_at(
     return out, truncated
 
 
-def projected_random_starts(
+def iter_projected_random_starts(
     linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
-) -> list[np.ndarray]:
-    """``count`` random perturbations of the given positions (scale: the median bar length),
-    each projected onto the constraints; only the projections that succeed are returned."""
+) -> Iterator[np.ndarray]:
+    """The projections of :func:`projected_random_starts`, one at a time."""
     cons = Constraints(linkage)
     scale = float(np.median(linkage.lengths[cons.bars])) if cons.n_constraints else 1.0
     free = ~linkage.fixed
-    out = []
     for _ in range(count):
         pos = np.array(linkage.positions, dtype=float)
         pos[free] += scale * rng.normal(size=int(free.sum()))
         res = project(linkage.with_positions(pos), tol)
         if res.success:
-            out.append(linkage.coordinates(res.positions))
-    return out
+            yield linkage.coordinates(res.positions)
+
+
+def projected_random_starts(
+    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
+) -> list[np.ndarray]:
+    """``count`` random perturbations of the given positions (scale: the median bar length),
+    each projected onto the constraints; only the projections that succeed are returned."""
+    return list(iter_projected_random_starts(linkage, tol, count, rng))
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,66 @@ class Seeds:
 
     points: list[np.ndarray]
     report: dict[str, object]
+
+
+def iter_seeds(
+    linkage: Linkage,
+    tol: Tolerances,
+    report: dict[str, object],
+    angles: int = 90,
+    budget: int = 64,
+    random_starts: int = 16,
+    seed: int = 0,
+    max_rotors: int = 4,
+) -> Iterator[np.ndarray]:
+    """The seeds of :func:`seeds`, in the same order, generated on demand.
+
+    A consumer that stops early (the explorer stops at its component budget) does not pay for
+    the seeds it never looks at: on long chains the random projections are by far the most
+    expensive part (dense least squares from far-off starts, most of which fail). ``report``
+    is filled as generation proceeds; its counts describe the seeds generated so far.
+    """
+    cons = Constraints(linkage)
+    rng = np.random.default_rng(seed)
+    swept: list[str] = []
+    offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
+    grid = 2 * np.pi * (np.arange(angles) + offset) / angles
+    candidates = rotors(linkage)
+    if len(candidates) > max_rotors:
+        pick = np.linspace(0, len(candidates) - 1, max_rotors).round().astype(int)
+        candidates = [candidates[k] for k in sorted(set(pick.tolist()))]
+    counts = {"seeds": 0, "random_starts_projected": 0}
+    report.update({
+        "rotor_sweeps": swept,
+        "angles_per_rotor": 0,
+        "assembly_budget_per_angle": budget,
+        "assemblies_truncated": False,
+        "random_starts": random_starts,
+        **counts,
+    })
+    for rotor in candidates:
+        plan = dyad_plan(linkage, rotor)
+        if plan is None:
+            continue
+        swept.append(linkage.bar_ids[rotor])
+        report["angles_per_rotor"] = angles
+        for angle in grid:
+            found, cut = assemblies_at(linkage, rotor, plan, float(angle), budget)
+            if cut:
+                report["assemblies_truncated"] = True
+            for pos in found:
+                u = linkage.coordinates(pos)
+                if cons.max_residual(u) <= max(1e3 * tol.residual_atol, 1e-7):
+                    counts["seeds"] += 1
+                    report.update(counts)
+                    yield u
+    # The random projections come last, drawn from one generator in order: stopping early
+    # never changes the seeds that were generated.
+    for u in iter_projected_random_starts(linkage, tol, random_starts, rng):
+        counts["seeds"] += 1
+        counts["random_starts_projected"] += 1
+        report.update(counts)
+        yield u
 
 
 def seeds(
@@ -165,39 +231,8 @@ def seeds(
 ) -> Seeds:
     """Seeds from rotor sweeps (dyad-decomposable planar linkages, at most ``max_rotors``
     rotors, spread along the bar list) and random projections."""
-    cons = Constraints(linkage)
-    rng = np.random.default_rng(seed)
-    points: list[np.ndarray] = []
-    swept: list[str] = []
-    truncated = False
-    offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
-    grid = 2 * np.pi * (np.arange(angles) + offset) / angles
-    candidates = rotors(linkage)
-    if len(candidates) > max_rotors:
-        pick = np.linspace(0, len(candidates) - 1, max_rotors).round().astype(int)
-        candidates = [candidates[k] for k in sorted(set(pick.tolist()))]
-    for rotor in candidates:
-        plan = dyad_plan(linkage, rotor)
-        if plan is None:
-            continue
-        swept.append(linkage.bar_ids[rotor])
-        for angle in grid:
-            found, cut = assemblies_at(linkage, rotor, plan, float(angle), budget)
-            truncated |= cut
-            for pos in found:
-                u = linkage.coordinates(pos)
-                if cons.max_residual(u) <= max(1e3 * tol.residual_atol, 1e-7):
-                    points.append(u)
-    random_points = projected_random_starts(linkage, tol, random_starts, rng)
-    points += random_points
-    projected = len(random_points)
-    report: dict[str, object] = {
-        "rotor_sweeps": swept,
-        "angles_per_rotor": angles if swept else 0,
-        "assembly_budget_per_angle": budget,
-        "assemblies_truncated": truncated,
-        "random_starts": random_starts,
-        "random_starts_projected": projected,
-        "seeds": len(points),
-    }
+    report: dict[str, object] = {}
+    points = list(
+        iter_seeds(linkage, tol, report, angles, budget, random_starts, seed, max_rotors)
+    )
     return Seeds(points, report)

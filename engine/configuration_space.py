@@ -20,24 +20,40 @@ critical point exists; it declines (and the steps above run) at or near critical
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import projected_random_starts, rotors, seeds
+from engine.assembly import iter_seeds, projected_random_starts, rotors
+from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.dyads import closed_form_space
-from engine.errors import InvalidLinkage
+from engine.errors import InvalidLinkage, InvalidRequest
 from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
-from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_curve
+from engine.trace import (
+    Curve,
+    TraceOptions,
+    correct,
+    polyline_distance,
+    segment_distance,
+    trace_curve,
+)
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
 MULTISTART_MAX_FREE = 64
+#: Smallest ``step_max`` accepted, relative to the median bar length.
+MIN_STEP_MAX_REL = 1e-6
+
+
+#: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
+#: method (measured faster than the dense SVD from about 100 rotors of a chain).
+SPARSE_SEED_RIGIDITY_MIN_FREE = 128
 
 
 @dataclass(frozen=True)
@@ -119,9 +135,16 @@ class _Explorer:
         self.opt = options
         self.h_max = options.trace.resolved_step_max(self.cons)
         self.scale = float(np.median(linkage.lengths[self.cons.bars]))
+        if self.h_max < MIN_STEP_MAX_REL * self.scale:
+            raise InvalidRequest(
+                f"step_max = {self.h_max:g} is below {MIN_STEP_MAX_REL:g} of the median bar "
+                f"length ({self.scale:g}): a curve would need more points than any budget",
+                loc=("options", "step_max"),
+            )
         self.curves: list[Curve] = []
         self.tree: cKDTree | None = None
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self.tree_first: np.ndarray = np.zeros(0, dtype=int)
         self.report: dict[str, object] = {}
 
     # -- curves ---------------------------------------------------------------------------
@@ -129,6 +152,13 @@ class _Explorer:
         pts = [np.array(c.points) for c in self.curves]
         self.tree = cKDTree(np.vstack(pts))
         self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+        # index of each curve's first point in the tree: a point's offset in its curve
+        self.tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+    def _tree_point(self, i: int) -> tuple[Curve, int]:
+        """The curve owning tree point ``i`` and the point's index along it."""
+        owner = int(self.tree_owner[i])
+        return self.curves[owner], int(i) - int(self.tree_first[owner])
 
     def on_traced(self, u: np.ndarray) -> bool:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
@@ -139,8 +169,7 @@ class _Explorer:
         for d, i in zip(np.atleast_1d(dist), np.atleast_1d(idx), strict=True):
             if d > self.h_max:
                 continue
-            curve = self.curves[int(self.tree_owner[i])]
-            offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+            curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
             v = p + ((u - p) @ t) * t
             w, ok, _ = correct(self.cons, v, t, self.tol)
@@ -149,7 +178,12 @@ class _Explorer:
         return False
 
     def trace_from(self, u: np.ndarray) -> Curve | None:
-        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol)
+        # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
+        # Lanczos, same rank rule), a dense SVD costs O(M^3) per traced curve (0.1-0.2 s at
+        # M = 200 to 400, more than tracing the curve).
+        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
+                          sparse=True if self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
+                          else None)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = trace_curve(self.cons, u, rig.zero_modes[0], self.tol, self.opt.trace)
@@ -166,13 +200,15 @@ class _Explorer:
         return curve
 
     def trace_all(self, start: np.ndarray | None) -> None:
-        found = seeds(
-            self.linkage, self.tol, self.opt.angles, self.opt.assembly_budget,
+        # Seeds are generated on demand: once the component budget is reached the rest (on long
+        # chains the costly random projections) is never computed; the report then counts the
+        # seeds generated up to that point.
+        found = iter_seeds(
+            self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
         )
-        self.report.update(found.report)
         truncated = False
-        for u in ([start] if start is not None else []) + found.points:
+        for u in itertools.chain([start] if start is not None else [], found):
             if self.on_traced(u):
                 continue
             if len(self.curves) >= self.opt.max_components:
@@ -228,8 +264,7 @@ class _Explorer:
                                            ref.stress_residual))
             elif self.tree is not None:
                 _, i = self.tree.query(ref.u)
-                curve = self.curves[int(self.tree_owner[i])]
-                offset = int(i) - int(np.flatnonzero(self.tree_owner == self.tree_owner[i])[0])
+                curve, offset = self._tree_point(int(i))
                 on = curve.points[offset]
                 misses.append(NearMiss(on, singular_gap(self.cons, on),
                                        float(np.linalg.norm(on - ref.u)),
@@ -426,6 +461,12 @@ def explore(
             components.append(Component(cp.u[None, :], True, False, [k], []))
     _mark_through_start(components, start, ex.h_max)
     search = dict(ex.report)
+    count = chain_components(linkage)
+    if count is not None:
+        # the true total for rotor chains (four-bar decomposition), also when the budget of
+        # traced components is far below it (a 100-rotor spinner chain has 2^99)
+        search["components_total"] = count.components
+        search["components_total_rule"] = count.rule
     search.update(
         {
             "critical_points_found": len(crit),
@@ -445,24 +486,12 @@ def explore(
 # -- closed-form path ------------------------------------------------------------------------
 
 
-def _distance_to_walk(points: np.ndarray, x: np.ndarray) -> float:
-    """Distance from ``x`` (M,) to the polyline ``points`` (n, M), vectorised over segments."""
-    if len(points) == 1:
-        return float(np.linalg.norm(points[0] - x))
-    a, ab = points[:-1], np.diff(points, axis=0)
-    denom = np.einsum("ij,ij->i", ab, ab)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(denom > 0, np.einsum("ij,ij->i", x - a, ab) / denom, 0.0)
-    closest = a + np.clip(s, 0.0, 1.0)[:, None] * ab
-    return float(np.min(np.linalg.norm(closest - x, axis=1)))
-
-
 def _mark_through_start(components: list[Component], start: np.ndarray | None,
                         h_max: float) -> None:
     """Flag the component that passes through ``start`` (nearest walk, within ``h_max``)."""
     if start is None or not components:
         return
-    dist = [_distance_to_walk(c.points, start) for c in components]
+    dist = [polyline_distance(c.points, start) for c in components]
     best = int(np.argmin(dist))
     if dist[best] <= h_max:
         c = components[best]
@@ -527,7 +556,7 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
     free = ~np.asarray(lk.fixed)
     walks = [c[:, free] for c in cf.components]
     if start is not None:  # as the tracer, which starts there: the given one first
-        walks.sort(key=lambda w: _distance_to_walk(w, start) > ex.h_max)
+        walks.sort(key=lambda w: polyline_distance(w, start) > ex.h_max)
     truncated = len(walks) > opt.max_components
     walks = walks[: opt.max_components]
     report: dict[str, object] = {
@@ -567,6 +596,10 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
         report["critical_candidates"] = 0
     components = [Component(w, True, False, [], []) for w in walks]
     _mark_through_start(components, start, ex.h_max)
+    count = chain_components(lk)
+    if count is not None:  # as in the general path
+        report["components_total"] = count.components
+        report["components_total_rule"] = count.rule
     report.update({
         "critical_points_found": 0,
         "segments_complete": True,

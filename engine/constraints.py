@@ -15,9 +15,11 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from engine.errors import NoNearbySolution
 from engine.linkage import Linkage
+from engine.lu import parity
 from engine.tolerances import Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
@@ -43,6 +45,19 @@ class Constraints:
         self.n_constraints = len(self.bars)
         self.n_free = linkage.n_free
         self.targets = linkage.lengths[self.bars] ** 2  # (Ea,) L^2
+        # Bar vectors as differences of entries of ``[u, fixed coordinates]``: two gathers per
+        # evaluation (the tracer evaluates them several times per point).
+        d = linkage.dimension
+        fixed = np.asarray(linkage.fixed).ravel()
+        self._fixed_values = np.array(linkage.positions, dtype=float).ravel()[fixed]
+        slot = np.empty(fixed.size, dtype=np.intp)
+        slot[~fixed] = np.arange(int((~fixed).sum()))
+        slot[fixed] = int((~fixed).sum()) + np.arange(int(fixed.sum()))
+        axes = np.arange(d)
+        self._gather_i = slot[self._i[:, None] * d + axes]  # (Ea, d)
+        self._gather_j = slot[self._j[:, None] * d + axes]
+        self._band_cache: tuple[int, tuple[int, int, np.ndarray, int, np.ndarray, int]] | None = \
+            None
 
     @property
     def use_sparse(self) -> bool:
@@ -65,10 +80,117 @@ class Constraints:
         ax = np.concatenate([axes[keep_i], axes[keep_j]])
         return r, c, s, ax
 
+    @cached_property
+    def _csr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSR structure of J, computed once: the order taking pattern values to CSR order,
+        the column indices and the row pointers (the values change, the structure never)."""
+        r, c, _, _ = self._pattern
+        order = np.lexsort((c, r))
+        indptr = np.searchsorted(r[order], np.arange(self.n_constraints + 1))
+        return order, c[order].astype(np.int32), indptr.astype(np.int32)
+
+    @cached_property
+    def _csc_below(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSC structure of ``[0; J]`` (J one row down, an empty first row): the order taking
+        pattern values to CSC order, the row indices and the column pointers."""
+        r, c, _, _ = self._pattern
+        order = np.lexsort((r, c))
+        indptr = np.searchsorted(c[order], np.arange(self.n_free + 1))
+        return order, (r[order] + 1).astype(np.int32), indptr.astype(np.int32)
+
+    def unit_bordered_jacobian(self, u: np.ndarray, k: int) -> sp.csc_matrix:
+        """``[e_k; J(u)]`` (Ea + 1, M) as CSC: ``J`` with one extra entry, so its LU has the
+        fill of ``J`` alone (a dense border row would fill the factors)."""
+        order, rows, indptr = self._csc_below
+        at = int(indptr[k])
+        data = np.insert(self.jacobian_values(u)[order], at, 1.0)
+        indices = np.insert(rows, at, 0)
+        ptr = indptr.copy()
+        ptr[k + 1:] += 1
+        mat = sp.csc_matrix((data, indices, ptr), shape=(self.n_constraints + 1, self.n_free))
+        mat.has_canonical_format = True  # row 0 comes first in column k: still sorted
+        return mat
+
+    @cached_property
+    def _band_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """A fixed reordering that makes ``J`` (and ``[e_k; J]``) a band matrix when the linkage
+        allows it (chains): columns by reverse Cuthill-McKee on the coupling graph of the
+        coordinates, rows by the mean position of their columns. Returns the position of each
+        column, the band row of each pattern entry's bar (before inserting the unit row) and
+        its band column, the sorted row keys, and the sign of the two permutations."""
+        r, c, _, _ = self._pattern
+        m, ea = self.n_free, self.n_constraints
+        inc = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(ea, m))
+        order = reverse_cuthill_mckee((inc.T @ inc).tocsr(), symmetric_mode=True)
+        col_pos = np.empty(m, dtype=np.intp)
+        col_pos[order] = np.arange(m)
+        key = np.bincount(r, weights=col_pos[c], minlength=ea) / np.bincount(r, minlength=ea)
+        rows = np.argsort(key, kind="stable")
+        rank = np.empty(ea, dtype=np.intp)
+        rank[rows] = np.arange(ea)
+        return col_pos, rank[r], col_pos[c], key[rows], parity(col_pos) * parity(rank)
+
+    def _unit_band_layout(self, k: int) -> tuple[int, int, np.ndarray, int, np.ndarray, int]:
+        """Band layout of ``[e_k; J]``: ``kl``, ``ku``, the flat index into ``ab`` of each
+        pattern entry, that of the unit entry, the band row of each original row, and the sign
+        of the reordering. The last one is kept: ``k`` (the largest entry of the tangent)
+        changes rarely from one traced point to the next."""
+        if self._band_cache is not None and self._band_cache[0] == k:
+            return self._band_cache[1]
+        col_pos, entry_rank, entry_col, keys, sign = self._band_layout
+        ck = int(col_pos[k])
+        ins = int(np.searchsorted(keys, ck, side="right"))  # the unit row's band row
+        diff = entry_rank + (entry_rank >= ins) - entry_col
+        kl = max(int(diff.max()), ins - ck, 0)
+        ku = max(int(-diff.min()), ck - ins, 0)
+        m = self.n_free
+        flat = (kl + ku + diff) * m + entry_col
+        unit = (kl + ku + ins - ck) * m + ck
+        row_rank = self._band_row_rank
+        row_pos = np.concatenate([[ins], row_rank + (row_rank >= ins)])
+        # moving the unit row from the top to band row ``ins`` is a cycle of length ins + 1
+        layout = (kl, ku, flat, unit, row_pos, sign * (-1 if ins % 2 else 1))
+        self._band_cache = (k, layout)
+        return layout
+
+    def unit_bordered_band(
+        self, u: np.ndarray, k: int, max_work: int
+    ) -> tuple[np.ndarray, int, int, np.ndarray, np.ndarray, int] | None:
+        """``[e_k; J(u)]`` (square) reordered to band storage for LAPACK ``gbtrf``: ``ab``,
+        ``kl``, ``ku``, the band row of each original row and band column of each column, and
+        the sign of the reordering; None when ``kl (kl + ku)`` (the work per column) exceeds
+        ``max_work``: then the band form is no cheaper than a general sparse LU."""
+        kl, ku, flat, unit, row_pos, sign = self._unit_band_layout(k)
+        if kl * (kl + ku) > max_work:
+            return None
+        ab = np.zeros((2 * kl + ku + 1, self.n_free))
+        ab.flat[flat] = self.jacobian_values(u)
+        ab.flat[unit] = 1.0
+        return ab, kl, ku, row_pos, self._band_layout[0], sign
+
+    @cached_property
+    def _band_row_rank(self) -> np.ndarray:
+        """The band row of each bar (before inserting the unit row), (Ea,)."""
+        out = np.empty(self.n_constraints, dtype=np.intp)
+        out[self._pattern[0]] = self._band_layout[1]
+        return out
+
+    @cached_property
+    def _bordered_csc(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """CSC structure of ``[row; J]`` (a dense first row over all M columns): the order
+        taking ``concatenate([row, J values in pattern order])`` to CSC order, the row indices
+        and the column pointers."""
+        r, c, _, _ = self._pattern
+        rows = np.concatenate([np.zeros(self.n_free, dtype=np.int64), r + 1])
+        cols = np.concatenate([np.arange(self.n_free), c])
+        order = np.lexsort((rows, cols))
+        indptr = np.searchsorted(cols[order], np.arange(self.n_free + 1))
+        return order, rows[order].astype(np.int32), indptr.astype(np.int32)
+
     def bar_vectors(self, u: np.ndarray) -> np.ndarray:
         """``p_i - p_j`` for each active bar, (Ea, d)."""
-        pos = self.linkage.positions_of(u)
-        return pos[self._i] - pos[self._j]
+        ext = np.concatenate([u, self._fixed_values])
+        return ext[self._gather_i] - ext[self._gather_j]
 
     def squared_lengths(self, u: np.ndarray) -> np.ndarray:
         """``f(u) = l^2``, (Ea,)."""
@@ -83,14 +205,36 @@ class Constraints:
         """Analytic Jacobian ``J = d(l^2)/du``, (Ea, M): ``2 (p_i - p_j)`` on the coordinates of
         end ``i`` and its negative on those of end ``j`` (fixed coordinates dropped)."""
         sparse = self.use_sparse if sparse is None else sparse
-        r, c, s, ax = self._pattern
-        vals = 2.0 * s * self.bar_vectors(u)[r, ax]
+        r, c, _, _ = self._pattern
+        vals = self.jacobian_values(u)
         shape = (self.n_constraints, self.n_free)
         if sparse:
-            return sp.csr_matrix((vals, (r, c)), shape=shape)
+            order, indices, indptr = self._csr
+            return sp.csr_matrix((vals[order], indices.copy(), indptr.copy()), shape=shape)
         jac = np.zeros(shape)
         jac[r, c] = vals  # each (bar, coordinate) pair occurs once: a bar's ends differ
         return jac
+
+    def jacobian_values(self, u: np.ndarray) -> np.ndarray:
+        """The nonzero values of ``J(u)`` in the order of the (fixed) sparsity pattern."""
+        r, _, s, ax = self._pattern
+        return 2.0 * s * self.bar_vectors(u)[r, ax]
+
+    def bordered_jacobian(
+        self, u: np.ndarray, row: np.ndarray, sparse: bool | None = None
+    ) -> np.ndarray | sp.csc_matrix:
+        """``[row; J(u)]``, (Ea + 1, M): sparse as CSC (ready for LU) from the structure
+        computed once, so that only the values are refreshed."""
+        sparse = self.use_sparse if sparse is None else sparse
+        if not sparse:
+            return np.vstack([row, self.jacobian(u, sparse=False)])
+        order, indices, indptr = self._bordered_csc
+        data = np.concatenate([np.asarray(row, dtype=float), self.jacobian_values(u)])[order]
+        mat = sp.csc_matrix(
+            (data, indices.copy(), indptr.copy()), shape=(self.n_constraints + 1, self.n_free)
+        )
+        mat.has_canonical_format = True  # sorted, no duplicates: by construction
+        return mat
 
     def stress_hessian(
         self, sigma: np.ndarray, sparse: bool | None = None

@@ -46,18 +46,27 @@ class DesignResult:
     message: str
 
 
-def _validate(
-    linkage: Linkage, crit: list[CriticalPoint], targets: list[Target], adjustable: list[str]
-) -> np.ndarray:
+def check_request(linkage: Linkage, targets: list[Target], adjustable: list[str]) -> np.ndarray:
+    """Validate what needs no exploration (call it before exploring, so that a bad request is
+    refused at once): targets given with signs +-1, adjustable bars known, changeable and
+    distinct. Returns the indices of the adjustable bars."""
     if not targets:
         raise InvalidRequest("give at least one target", loc=("targets",))
     if not adjustable:
         raise InvalidRequest("give at least one adjustable bar", loc=("adjustable",))
-    idx = []
-    for k, bar in enumerate(adjustable):
-        idx.append(changeable_bar(linkage, bar, ("adjustable", k)))
+    idx = [changeable_bar(linkage, bar, ("adjustable", k)) for k, bar in enumerate(adjustable)]
     if len(set(idx)) != len(idx):
         raise InvalidRequest("adjustable bars repeat", loc=("adjustable",))
+    for k, t in enumerate(targets):
+        if t.sign not in (-1, 1):
+            raise InvalidRequest("sign must be 1 or -1", loc=("targets", k, "sign"))
+    return np.array(idx)
+
+
+def _validate(
+    linkage: Linkage, crit: list[CriticalPoint], targets: list[Target], adjustable: list[str]
+) -> np.ndarray:
+    idx = check_request(linkage, targets, adjustable)
     for k, t in enumerate(targets):
         if not 0 <= t.branch_point < len(crit):
             raise InvalidRequest(
@@ -69,9 +78,7 @@ def _validate(
                 f"critical point {t.branch_point} is {crit[t.branch_point].kind}, not a branch "
                 "point", loc=("targets", k, "branch_point"),
             )
-        if t.sign not in (-1, 1):
-            raise InvalidRequest("sign must be 1 or -1", loc=("targets", k, "sign"))
-    return np.array(idx)
+    return idx
 
 
 def _conflicts(rows: np.ndarray, targets: list[Target]) -> list[Conflict]:

@@ -24,6 +24,11 @@ from engine.vectors import normalise_sign
 
 #: Largest linkage for which an inconsistent sparse search falls back to a dense SVD.
 DENSE_FALLBACK_MAX_FREE = 4000
+#: Default method: dense SVD up to this many free coordinates, sparse above. The dense SVD is
+#: O(M^3) (a 256-rotor chain, M = 512: about 0.12 s on one core) while the sparse search costs
+#: about 10 ms there; they break even near M = 150 on Kane-Lubensky chains. The dense method is
+#: kept for small linkages because it reports every singular value.
+FIRST_ORDER_DENSE_MAX_FREE = 200
 
 
 @dataclass(frozen=True)
@@ -153,7 +158,9 @@ def _sparse_null_spaces(
     above the threshold ``rtol * s_max``, so null vectors always come first. Lanczos can miss
     copies of a repeated eigenvalue, so the search is repeated on the operator with the vectors
     found so far projected out (deflation) until the nearest remaining eigenvalue lies above the
-    threshold. Raises :class:`NumericalFailure` when the counts are inconsistent.
+    threshold, and then completed by block inverse iteration (:func:`_complete_null_space`),
+    which also finds copies that every Lanczos round missed. Raises :class:`NumericalFailure`
+    when the counts are inconsistent.
     """
     ea, m = jac.shape
     n = ea + m
@@ -174,7 +181,7 @@ def _sparse_null_spaces(
     if lu is None:
         raise NumericalFailure("sparse LU of the shifted augmented matrix failed")
     found = np.zeros((n, 0))
-    small: list[float] = []
+    others: list[np.ndarray] = []  # Ritz vectors of eigenvalues above the threshold
     k = min(n - 2, abs(m - ea) + 8)
     for _ in range(64):
         basis = found
@@ -198,17 +205,17 @@ def _sparse_null_spaces(
             q, r = np.linalg.qr(new)
             keep = np.abs(np.diag(r)) > 1e-6
             found = np.hstack([found, q[:, keep]])
-        other = vecs[:, ~null]  # Rayleigh quotients: second-order accurate eigenvalues
-        rq = np.einsum("ij,ij->j", other, aug @ other) / np.einsum("ij,ij->j", other, other)
-        small += [float(-x) for x in rq if x < 0]
+        others.append(vecs[:, ~null])
         if not null.all():
             break  # the nearest remaining eigenvalue is above the threshold
         k = min(2 * k, n - 2)
     else:
         raise NumericalFailure("sparse null-space search did not terminate")
+    found = _complete_null_space(aug, lu, found, thresh, rng)
     for _ in range(2):  # polish: block inverse iteration damps other directions by >= 1e-4 a step
         if found.shape[1]:
-            found = np.linalg.qr(np.column_stack([lu.solve(x) for x in found.T]))[0]
+            found = np.linalg.qr(lu.solve(found))[0]
+    small = _smallest_nonzero(aug, lu, found, np.hstack(others), s_max, rng)
     left, right = _span_rows(found[:ea].T), _span_rows(found[ea:].T)
     rank = m - right.shape[0]
     if right.shape[0] - left.shape[0] != m - ea or rank > min(ea, m) or rank < 0:
@@ -218,6 +225,118 @@ def _sparse_null_spaces(
     zero_sv = np.linalg.norm(jac.T @ left.T, axis=0) if left.shape[0] else np.zeros(0)
     svals = np.concatenate([[s_max], np.sort(small)[::-1], np.sort(zero_sv)[::-1]])
     return rank, svals, right, left
+
+
+#: A smallest nonzero singular value is reported only when its error bound (see
+#: :func:`_smallest_nonzero`) is below this fraction of ``s_max``.
+SMALL_SV_RESIDUAL_RTOL = 1e-9
+
+
+def _smallest_nonzero(
+    aug: sp.csc_matrix,
+    lu: spla.SuperLU,
+    found: np.ndarray,
+    start: np.ndarray,
+    s_max: float,
+    rng: np.random.Generator,
+    steps: int = 8,
+) -> list[float]:
+    """The smallest nonzero singular values of ``J`` that can be certified, from the Lanczos
+    Ritz vectors ``start`` (n, k) of eigenvalues above the threshold.
+
+    Those Ritz vectors can be poor when the null space is large: the null directions dominate
+    the Krylov space by ~1e12 and swamp the rest (a random linkage with 62 zero modes gave
+    0.0206 for a singular value of 0.0215). So they are refined by block inverse iteration
+    with the null space projected out, followed by Rayleigh-Ritz, until every Ritz value is
+    certified (or ``steps`` run out), and only certified values are reported: a Ritz value
+    ``theta`` with residual ``r`` lies within ``r`` of an eigenvalue, and within ``r^2 / gap``
+    when the rest of the spectrum is ``gap`` away (estimated by the other Ritz values);
+    certified means ``r <= tol`` or ``r <= 1e3 tol`` and ``r^2 / gap <= tol``, with
+    ``tol = SMALL_SV_RESIDUAL_RTOL * s_max``. Each negative Ritz value ``-s`` of the augmented
+    matrix is one singular value ``s``.
+    """
+    n = aug.shape[0]
+    if start.shape[1] == 0 or n - found.shape[1] < 2:
+        return []
+    limit = SMALL_SV_RESIDUAL_RTOL * s_max
+    ok = np.zeros(0, dtype=bool)
+    theta = np.zeros(0)
+    for step in range(steps + 1):
+        if step == 0:
+            q, r = np.linalg.qr(_deflate(start, found))
+            x = q[:, np.abs(np.diag(r)) > 1e-6 * np.abs(np.diag(r)).max()]
+        else:
+            x = np.linalg.qr(_deflate(_deflate(lu.solve(x), found), found))[0]
+        ax = aug @ x
+        h = x.T @ ax
+        theta, w = np.linalg.eigh(0.5 * (h + h.T))
+        res = np.linalg.norm(ax @ w - (x @ w) * theta, axis=0)
+        # |theta - lambda| <= res always, and <= res^2 / gap with gap the distance to the rest
+        # of the spectrum (estimated by the other Ritz values)
+        gap = np.array([np.min(np.abs(np.delete(theta, i) - t)) if len(theta) > 1 else np.inf
+                        for i, t in enumerate(theta)])
+        ok = (res <= limit) | ((res <= 1e3 * limit) & (res**2 <= limit * gap))
+        if ok.all():
+            break
+        extra = min(8, n - found.shape[1] - x.shape[1])
+        if step == 0 and extra > 0:  # a wider block converges faster
+            x = np.hstack([x, _deflate(rng.normal(size=(n, extra)), found)])
+    return [float(-t) for t, good in zip(theta, ok, strict=True) if t < 0 and good]
+
+
+#: Largest null space the sparse search handles (the block vectors are dense, (E_a + M, k)).
+SPARSE_MAX_NULLITY = 2000
+
+
+def _deflate(x: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """``x`` with the span of the orthonormal columns of ``basis`` projected out."""
+    return x - basis @ (basis.T @ x) if basis.shape[1] else x
+
+
+def _complete_null_space(
+    aug: sp.csc_matrix,
+    lu: spla.SuperLU,
+    found: np.ndarray,
+    thresh: float,
+    rng: np.random.Generator,
+    block: int = 8,
+    steps: int = 3,
+) -> np.ndarray:
+    """Add the null vectors of ``aug`` that the Lanczos rounds missed to ``found`` (n, k).
+
+    Lanczos from one start vector sees a repeated eigenvalue once in exact arithmetic, and the
+    rounds stop at the first eigenvalue above the threshold even when copies of 0 are still
+    missing (a straight chain of 80 free vertices: 73 of 81 found). Block inverse iteration has
+    no such blind spot: a random block, with ``found`` projected out, is multiplied ``steps``
+    times by the shifted inverse, which enlarges every remaining null direction against all
+    others by at least ``s / (thresh + |shift|)`` per step, and Rayleigh-Ritz then exposes them.
+    A block that comes back all null may hide more: it doubles and the check is repeated until
+    it finds none.
+    """
+    n = aug.shape[0]
+    while True:
+        p = min(block, n - found.shape[1])
+        if p <= 0:
+            return found
+
+        x = np.linalg.qr(_deflate(rng.normal(size=(n, p)), found))[0]
+        for _ in range(steps):
+            # twice: the solve enlarges rounding-level components along ``found`` by 1e12
+            x = np.linalg.qr(_deflate(_deflate(lu.solve(x), found), found))[0]
+        h = x.T @ (aug @ x)
+        theta, w = np.linalg.eigh(0.5 * (h + h.T))
+        null = np.abs(theta) <= thresh
+        if not null.any():
+            return found
+        new = _deflate(x @ w[:, null], found)
+        q, r = np.linalg.qr(new)
+        found = np.hstack([found, q[:, np.abs(np.diag(r)) > 1e-6]])
+        if found.shape[1] > SPARSE_MAX_NULLITY:
+            raise NumericalFailure(
+                f"null space larger than {SPARSE_MAX_NULLITY} for the sparse search"
+            )
+        if null.all():
+            block *= 2
 
 
 def _largest_singular_value(jac: sp.csr_matrix, rng: np.random.Generator, steps: int = 60) -> float:
@@ -250,14 +369,23 @@ def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool)
     By linearity of the determinant in its first row, ``x . t = det([x; J])`` for every ``x``;
     solving with one LU factorisation of the augmented matrix ``B = [w; J]`` gives ``t`` without
     forming minors. ``w`` should have a component along the zero mode (the zero mode itself is
-    best conditioned).
+    best conditioned). For sparse ``J`` the first row of ``B`` is the unit vector at the largest
+    ``|w_k|`` instead (same ``t``; see the comment in the code). ``orientation`` is the sign of
+    ``t . w = det([w; J])`` either way.
     """
     m = jac.shape[1]
     vanishing = TangentForm(np.zeros(m), -np.inf, 0)
     if critical:
         return vanishing
     if sp.issparse(jac):
-        aug: np.ndarray | sp.spmatrix = sp.vstack([sp.csr_matrix(w.reshape(1, -1)), jac])
+        # A dense first row makes sparse LU fill in completely (a 10,000-rotor chain: seconds
+        # and gigabytes). Any first row x with det([x; J]) != 0 gives the same t, because
+        # det([y; J]) = det(B) y^T B^{-1} e_1 for B = [x; J] and every y. The unit row e_k at
+        # the largest |w_k| is sparse and costs at most a factor 1 / |w_k| <= sqrt(M) in the
+        # conditioning of B (B^{-1} e_1 = w / w_k when w spans the null space of J).
+        k = int(np.argmax(np.abs(w)))
+        row = sp.csr_matrix(([1.0], ([0], [k])), shape=(1, m))
+        aug: np.ndarray | sp.spmatrix = sp.vstack([row, jac], format="csc")
     else:
         aug = np.vstack([w, jac])
     fac = Factor(aug)
@@ -285,7 +413,8 @@ def first_order(
     Parameters
     ----------
     sparse : bool, optional
-        Force the sparse (True) or dense (False) method; default by size.
+        Force the sparse (True) or dense (False) method; default: sparse above
+        ``FIRST_ORDER_DENSE_MAX_FREE`` free coordinates.
 
     Examples
     --------
@@ -297,7 +426,7 @@ def first_order(
     tol = tolerances or Tolerances()
     cons = Constraints(linkage)
     u = linkage.coordinates()
-    use_sparse = cons.use_sparse if sparse is None else sparse
+    use_sparse = cons.n_free > FIRST_ORDER_DENSE_MAX_FREE if sparse is None else sparse
     use_sparse = use_sparse and cons.n_constraints > 0 and cons.n_free > 2
     jac = cons.jacobian(u, sparse=use_sparse)
     method = "sparse-eigsh" if use_sparse else "dense-svd"

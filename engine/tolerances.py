@@ -2,9 +2,21 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from engine.errors import InvalidTolerance
+import numpy as np
+
+from engine.errors import InvalidLinkage, InvalidTolerance
+
+#: Default ``residual_atol`` relative to the linkage's median bar length.
+RESIDUAL_REL = 1e-9
+#: A coordinate ``x`` is resolved in float64 to about ``eps |x|``; positions whose resolution is
+#: coarser than ``residual_atol / RESOLUTION_MARGIN`` cannot be analysed to that tolerance.
+RESOLUTION_MARGIN = 8.0
+#: Largest ``residual_atol`` relative to the median bar length.
+MAX_RESIDUAL_REL = 1e-6
+#: Smallest relative tolerance (``rank_rtol``, ``q_rtol``) that means anything in float64.
+MIN_RELATIVE = 1e-14
 
 
 @dataclass(frozen=True)
@@ -29,9 +41,80 @@ class Tolerances:
     q_rtol: float = 1e-6
 
     def __post_init__(self) -> None:
-        for name in ("rank_rtol", "residual_atol", "q_rtol"):
+        if not (self.residual_atol > 0 and np.isfinite(self.residual_atol)):
+            raise InvalidTolerance(
+                f"must be a positive number, got {self.residual_atol!r}",
+                loc=("tolerances", "residual_atol"),
+            )
+        for name in ("rank_rtol", "q_rtol"):
             value = getattr(self, name)
             if not (value > 0 and value < 1):
                 raise InvalidTolerance(
                     f"must lie in (0, 1), got {value!r}", loc=("tolerances", name)
                 )
+        for name in ("rank_rtol", "q_rtol"):
+            # Computed singular values and eigenvalues carry errors of a few eps times the
+            # largest one: a relative threshold below that decides nothing.
+            value = getattr(self, name)
+            if value < MIN_RELATIVE:
+                raise InvalidTolerance(
+                    f"must be at least {MIN_RELATIVE:g} (a few machine epsilons), got {value!r}",
+                    loc=("tolerances", name),
+                )
+
+
+def scaled_tolerances(
+    length_scale: float, rank_rtol: float | None = None, residual_atol: float | None = None,
+    q_rtol: float | None = None,
+) -> Tolerances:
+    """Tolerances for a linkage whose bars are about ``length_scale`` long.
+
+    ``residual_atol`` defaults to ``RESIDUAL_REL * length_scale`` (``1e-9`` for unit bars), so
+    that the same linkage drawn in metres or in micrometres is analysed alike; the relative
+    tolerances do not depend on the scale. Values that are given are kept.
+
+    Examples
+    --------
+    >>> scaled_tolerances(1e-6).residual_atol
+    1e-15
+    """
+    tol = Tolerances()
+    changes: dict[str, float] = {"residual_atol": RESIDUAL_REL * length_scale}
+    for name, value in (("rank_rtol", rank_rtol), ("residual_atol", residual_atol),
+                        ("q_rtol", q_rtol)):
+        if value is not None:
+            changes[name] = value
+    return replace(tol, **changes)
+
+
+def check_residual_scale(tol: Tolerances, length_scale: float) -> None:
+    """Refuse a ``residual_atol`` that is not small against the bars (more than
+    ``MAX_RESIDUAL_REL`` of the median length ``length_scale``): configurations that far off
+    the lengths are not points of the configuration space, and every search would wander."""
+    if tol.residual_atol > MAX_RESIDUAL_REL * length_scale:
+        raise InvalidTolerance(
+            f"residual_atol = {tol.residual_atol:g} is not small against the bars (median "
+            f"length {length_scale:g}): at most {MAX_RESIDUAL_REL:g} of it",
+            loc=("tolerances", "residual_atol"),
+        )
+
+
+def check_resolution(positions: np.ndarray, tol: Tolerances) -> None:
+    """Refuse positions that float64 cannot resolve to ``residual_atol``.
+
+    Near ``|x| = 1e12`` a coordinate is only known to about ``1e-4``: bars of unit length there
+    cannot be held to ``1e-9``, and every answer would be noise. Raises
+    :class:`InvalidLinkage` naming the vertex with the largest coordinate.
+    """
+    mags = np.max(np.abs(positions), axis=1) if positions.size else np.zeros(0)
+    if mags.size == 0:
+        return
+    k = int(np.argmax(mags))
+    resolution = float(np.finfo(float).eps * mags[k])
+    if RESOLUTION_MARGIN * resolution > tol.residual_atol:
+        raise InvalidLinkage(
+            f"coordinates as large as {mags[k]:.3g} are resolved in float64 only to about "
+            f"{resolution:.2g}, coarser than residual_atol = {tol.residual_atol:.3g} allows: "
+            "move the linkage near the origin (or raise tolerances.residual_atol)",
+            loc=("vertices", k, "position"),
+        )

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from engine.constraints import Constraints
 from engine.critical import singular_gap
-from engine.lu import Factor
+from engine.lu import BandLU, BorderedFactor, Factor
 from engine.tolerances import Tolerances
 
 
@@ -56,13 +56,30 @@ class TraceOptions:
 #: unlike SVD, sparse wins early: the Jacobians of chains are banded).
 SPARSE_LU_MIN_FREE = 48
 
+#: Band LU of ``[e_k; J]`` while its work per column ``kl (kl + ku)`` stays below this (a chain
+#: has kl, ku of about 3); wider bands go to SuperLU.
+BAND_MAX_WORK = 256
+
 
 def augmented(cons: Constraints, u: np.ndarray, row: np.ndarray) -> np.ndarray | sp.spmatrix:
-    """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage."""
-    jac = cons.jacobian(u, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
-    if sp.issparse(jac):
-        return sp.vstack([sp.csr_matrix(row.reshape(1, -1)), jac]).tocsc()
-    return np.vstack([row, jac])
+    """``[row; J(u)]``, (M, M) for a one-degree-of-freedom linkage (sparse: CSC)."""
+    return cons.bordered_jacobian(u, row, sparse=cons.n_free > SPARSE_LU_MIN_FREE)
+
+
+def factor_augmented(
+    cons: Constraints, u: np.ndarray, row: np.ndarray
+) -> Factor | BorderedFactor:
+    """LU of ``[row; J(u)]``: dense for small linkages; sparse through ``[e_k; J]`` and a
+    rank-one update (:class:`engine.lu.BorderedFactor`: the dense row would fill a direct sparse
+    LU), ``[e_k; J]`` factorised as a band matrix when a fixed reordering makes it narrow
+    (chains) and by SuperLU otherwise; the direct sparse LU if ``[e_k; J]`` is singular."""
+    if cons.n_free <= SPARSE_LU_MIN_FREE:
+        return Factor(augmented(cons, u, row))
+    k = int(np.argmax(np.abs(row)))
+    band = cons.unit_bordered_band(u, k, BAND_MAX_WORK)
+    base = BandLU(*band) if band is not None else Factor(cons.unit_bordered_jacobian(u, k))
+    fac = BorderedFactor(base, k, row)
+    return fac if fac.ok else Factor(augmented(cons, u, row))
 
 
 @dataclass(frozen=True)
@@ -72,16 +89,16 @@ class TangentInfo:
     tangent: np.ndarray
     sign: int
     logdet: float
-    factor: Factor
+    factor: Factor | BorderedFactor
 
 
 def tangent_at(cons: Constraints, u: np.ndarray, t_prev: np.ndarray) -> TangentInfo | None:
     """Tangent continued from ``t_prev``; None where ``[t_prev; J]`` is singular (at a
     critical point, or with ``t_prev`` orthogonal to the curve)."""
-    fac = Factor(augmented(cons, u, t_prev))
+    fac = factor_augmented(cons, u, t_prev)
     if not fac.ok:
         return None
-    y = fac.solve(np.eye(1, cons.n_free, 0).ravel())
+    y = fac.solve_first()
     norm = float(np.linalg.norm(y))
     if not np.isfinite(norm) or norm == 0.0:
         return None
@@ -93,7 +110,7 @@ def correct(
     v: np.ndarray,
     t: np.ndarray,
     tol: Tolerances,
-    factor: Factor | None = None,
+    factor: Factor | BorderedFactor | None = None,
     max_iter: int = 12,
 ) -> tuple[np.ndarray, bool, int]:
     """Newton in the hyperplane ``{w : t.(w - v) = 0}`` onto ``l(w) = L``.
@@ -102,14 +119,16 @@ def correct(
     point) the iteration is chord Newton (no refactorisation), otherwise it refactors at
     ``v`` once. Returns the point, whether ``max|l - L| <= residual_atol``, and the iterations.
     """
-    fac = factor if factor is not None else Factor(augmented(cons, v, t))
+    fac = factor if factor is not None else factor_augmented(cons, v, t)
     if not fac.ok:
         return v, False, 0
     w = v.copy()
     prev = np.inf
+    lengths = cons.linkage.lengths[cons.bars]
     for it in range(1, max_iter + 1):
-        g = cons.squared_lengths(w) - cons.targets
-        res = cons.max_residual(w)
+        sq = cons.squared_lengths(w)  # once per iteration: both the residual and g use it
+        g = sq - cons.targets
+        res = float(np.max(np.abs(np.sqrt(sq) - lengths))) if sq.size else 0.0
         if res <= tol.residual_atol:
             return w, True, it - 1
         norm = float(np.linalg.norm(g))
@@ -154,9 +173,14 @@ def trace_curve(
     fails, or the tangent turns by more than ``max_turn``; it grows by 1.5 after easy steps.
     """
     h_max = options.resolved_step_max(cons)
-    h_min = 1e-9 * h_max
-    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
     lengths = cons.linkage.lengths[cons.bars]
+    # Below ~1e-12 of the linkage's scale a step no longer moves u in floating point: the
+    # smallest step is bounded there whatever step_max is, and every pass of the loop (kept
+    # or halved) counts against a budget, so no option can make a trace run forever.
+    scale = max(float(np.max(np.abs(u0), initial=0.0)), float(np.median(lengths)))
+    h_min = max(1e-9 * h_max, 1e-12 * scale)
+    budget = 40 * options.max_points + 1000
+    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
     curve = Curve()
     info = tangent_at(cons, u0, t0 / np.linalg.norm(t0))
     if info is None:
@@ -174,6 +198,10 @@ def trace_curve(
     close_after = 4 * h_max if min_arc_to_close is None else min_arc_to_close
     fac = info.factor
     while len(curve.points) < options.max_points:
+        budget -= 1
+        if budget < 0:
+            curve.stop = "step budget"
+            return curve
         if h < h_min:
             curve.stop = "step underflow"
             return curve
@@ -240,6 +268,19 @@ def closest_on_segment(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> np.n
 def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
     """Distance from ``target`` to the segment ``[a, b]``."""
     return float(np.linalg.norm(closest_on_segment(a, b, target) - target))
+
+
+def polyline_distance(points: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the polyline through ``points`` (n, M), vectorised over
+    its segments (one point: the distance to it)."""
+    if len(points) < 2:
+        return float(np.linalg.norm(points[0] - target))
+    a, ab = points[:-1], np.diff(points, axis=0)
+    denom = np.einsum("ij,ij->i", ab, ab)
+    num = np.einsum("ij,ij->i", target - a, ab)
+    s = np.clip(np.divide(num, denom, out=np.zeros_like(num), where=denom > 0), 0.0, 1.0)
+    gap = a + s[:, None] * ab - target
+    return float(np.sqrt(np.min(np.einsum("ij,ij->i", gap, gap))))
 
 
 def _lands_on(

@@ -8,16 +8,12 @@ problem+json in :mod:`service.errors`.
 
 from __future__ import annotations
 
-import gc
-from collections.abc import Iterator
-from contextlib import contextmanager
-
 import numpy as np
 
 from engine.configuration_space import explore
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
-from engine.design import Target, design, verify
+from engine.design import Target, check_request, design, verify
 from engine.errors import InvalidRequest
 from engine.rigidity import first_order
 from engine.robustness import robustness
@@ -49,30 +45,26 @@ def is_light(body: AnalysisRequest) -> bool:
 
 
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     return mappers.rigidity_out(at, first_order(at, tol), proj)
 
 
 def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOrderResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     return mappers.second_order_out(at, second_order(at, tol), proj)
 
 
 def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     res = explore(at, tol, mappers.space_options_in(body.options))
     return mappers.critical_points_out(at, res, proj, tol)
 
 
 def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     # the response carries no near misses: where the closed form certifies that there is no
     # critical point, the critical-point search is skipped
@@ -87,31 +79,8 @@ def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse
     return mappers.space_out(at, res, proj, tol)
 
 
-@contextmanager
-def _no_gc() -> Iterator[None]:
-    """Pause the cyclic garbage collector: a large answer is ~10^6 fresh floats and lists (no
-    cycles), and every collection would rescan all of them (it tripled the mapping time)."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
-
-
-def configuration_space_json(body: SpaceRequest, settings: Settings) -> bytes:
-    """:func:`configuration_space` serialised to JSON in the worker (pydantic-core's encoder):
-    bytes cross the process boundary and the event loop only sends them (pickling and encoding
-    the model in the service process would cost seconds for 10^5 points)."""
-    with _no_gc():
-        answer = configuration_space(body, settings)
-        return answer.__pydantic_serializer__.to_json(answer, by_alias=True)
-
-
 def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
@@ -120,8 +89,7 @@ def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
 
 
 def robustness_margin(body: RobustnessRequest, settings: Settings) -> RobustnessResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     adjustable = None if body.adjustable is None else list(body.adjustable)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
@@ -129,8 +97,7 @@ def robustness_margin(body: RobustnessRequest, settings: Settings) -> Robustness
 
 
 def critical_values(body: CriticalValuesRequest, settings: Settings) -> CriticalValuesResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     opts = body.options.model_dump(exclude_none=True) if body.options else {}
     axes = [(a.bar, a.min, a.max) for a in body.axes]
@@ -138,11 +105,11 @@ def critical_values(body: CriticalValuesRequest, settings: Settings) -> Critical
 
 
 def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
-    linkage = mappers.linkage_in(body.linkage, settings.limits)
-    tol = mappers.tolerances_in(body.tolerances)
+    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    targets = [Target(t.branch_point, t.sign) for t in body.targets]
+    check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
     at, _ = on_constraints(linkage, tol)
     crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
-    targets = [Target(t.branch_point, t.sign) for t in body.targets]
     margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
     result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
     checks = verify(at, crit, targets, result.perturbation, tol) if result.feasible else []

@@ -18,7 +18,7 @@ from engine.constraints import ProjectionResult
 from engine.critical import CriticalPoint
 from engine.critical_values import Slice
 from engine.design import Check, DesignResult
-from engine.linkage import BarSpec, Limits, VertexSpec, build_linkage
+from engine.linkage import Limits, build_linkage
 from engine.linkage import Linkage as EngineLinkage
 from engine.presets import PRESETS
 from engine.rigidity import RigidityResult
@@ -27,8 +27,10 @@ from engine.robustness import Margin
 from engine.second_order import SecondOrderResult
 from engine.splitting import Split
 from engine.tolerances import Tolerances as EngineTolerances
+from engine.tolerances import check_residual_scale, check_resolution, scaled_tolerances
 from engine.trace import TraceOptions
 from engine.vectors import normalised
+from service.gcpause import gc_paused
 from service.schemas import common as c
 from service.schemas import space
 from service.schemas.analysis import (
@@ -41,18 +43,26 @@ from service.schemas.presets import PresetInfo
 
 def linkage_in(model: c.Linkage, limits: Limits) -> EngineLinkage:
     """Request linkage -> validated engine linkage (raises EngineError with field locations)."""
-    return build_linkage(
-        model.dimension,
-        [VertexSpec(v.id, v.position, v.fixed) for v in model.vertices],
-        [BarSpec(b.id, b.ends, b.length) for b in model.bars],
-        limits,
-    )
+    # The request models have the fields of VertexSpec and BarSpec: passed as they are, since
+    # copying 20,000 of them into dataclasses costs more than the whole check.
+    with gc_paused():
+        return build_linkage(model.dimension, model.vertices, model.bars, limits)
 
 
-def tolerances_in(model: c.Tolerances | None) -> EngineTolerances:
-    """Request tolerances -> engine tolerances (defaults where unset)."""
-    given = model.model_dump(exclude_none=True) if model else {}
-    return EngineTolerances(**given)
+def problem_in(
+    linkage: c.Linkage, tolerances: c.Tolerances | None, limits: Limits
+) -> tuple[EngineLinkage, EngineTolerances]:
+    """Request linkage and tolerances -> validated engine linkage and the tolerances to use:
+    those given, else the defaults, with ``residual_atol`` scaled to the linkage's median bar
+    length. Positions that float64 cannot resolve to that tolerance are refused."""
+    engine_linkage = linkage_in(linkage, limits)
+    given = tolerances.model_dump(exclude_none=True) if tolerances else {}
+    lengths = engine_linkage.lengths
+    scale = float(np.median(lengths)) if lengths.size else 1.0
+    tol = scaled_tolerances(scale, **given)
+    check_residual_scale(tol, scale)
+    check_resolution(engine_linkage.positions, tol)
+    return engine_linkage, tol
 
 
 def tolerances_out(tol: EngineTolerances) -> c.TolerancesUsed:
@@ -116,32 +126,48 @@ def _tangent_form_out(linkage: EngineLinkage, tf: EngineTangentForm | None) -> T
     vector = normalised(tf.direction)
     # t = |t| * direction and vector = +-direction: the sign is the orientation.
     orientation = int(np.sign(vector @ tf.direction)) if tf.orientation != 0 else 0
-    return TangentForm(
+    return TangentForm.model_construct(
         vector=vertex_vectors(linkage, vector),
         orientation=orientation,
-        log10_magnitude=tf.log10_magnitude if math.isfinite(tf.log10_magnitude) else None,
+        log10_magnitude=(
+            float(tf.log10_magnitude) if math.isfinite(tf.log10_magnitude) else None
+        ),
     )
 
 
 def rigidity_out(
     linkage: EngineLinkage, rig: RigidityResult, proj: ProjectionResult
 ) -> RigidityResponse:
-    return RigidityResponse(
-        rank=rig.rank,
-        n_free=rig.n_free,
-        n_constraints=rig.n_constraints,
-        expected_dof=rig.expected_dof,
-        dof=rig.dof,
-        critical=rig.critical,
+    """Built without validation (``model_construct``): every field is made here from engine
+    arrays with the schema's Python types, and validating the per-vertex dictionaries of a
+    10,000-rotor chain again would cost more than the analysis (a test checks that the result
+    validates and serialises identically)."""
+    with gc_paused():
+        return _rigidity_response(linkage, rig, proj)
+
+
+def _rigidity_response(
+    linkage: EngineLinkage, rig: RigidityResult, proj: ProjectionResult
+) -> RigidityResponse:
+    return RigidityResponse.model_construct(
+        rank=int(rig.rank),
+        n_free=int(rig.n_free),
+        n_constraints=int(rig.n_constraints),
+        expected_dof=int(rig.expected_dof),
+        dof=int(rig.dof),
+        critical=bool(rig.critical),
         singular_values=rig.singular_values.tolist(),
-        singular_values_complete=rig.singular_values_complete,
+        singular_values_complete=bool(rig.singular_values_complete),
         zero_modes=[vertex_vectors(linkage, z) for z in rig.zero_modes],
-        trivial_motions=rig.trivial_motions,
+        trivial_motions=int(rig.trivial_motions),
         self_stresses=[bar_values(linkage, s) for s in rig.self_stresses],
         tangent_form=_tangent_form_out(linkage, rig.tangent_form),
-        method=rig.method,
+        method=str(rig.method),
         tolerances=tolerances_out(rig.tolerances),
-        **_projection_fields(linkage, proj),  # type: ignore[arg-type]
+        projection_residual=float(proj.residual),
+        input_residual=float(proj.input_residual),
+        projection_distance=float(proj.distance),
+        configuration=positions_out(linkage, proj.positions),
     )
 
 
@@ -242,8 +268,10 @@ def space_out(
     linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances
 ) -> space.SpaceResponse:
     owner = {s: k for k, comp in enumerate(res.components) for s in comp.segments}
+    with gc_paused():  # ~10^6 floats and lists for 10^5 points
+        components = [_component_out(linkage, c) for c in res.components]
     return space.SpaceResponse(
-        components=[_component_out(linkage, c) for c in res.components],
+        components=components,
         critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
         segments=[
             space.SegmentOut.model_validate(

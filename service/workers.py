@@ -27,8 +27,10 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any, TypeVar
 
 import pebble
+from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
+from starlette.responses import Response
 
 from service.config import Settings
 
@@ -165,10 +167,22 @@ def engine_pool(request: Request) -> EnginePool:
     return pool
 
 
-async def engine_call(request: Request, settings: Settings, fn: Callable[[B, Settings], T],
-                      body: B, light: bool = False) -> T:
-    """The job ``fn(body, settings)`` for an endpoint: in the service's thread pool when
-    ``light`` (bounded cost), else in a worker process under ``settings.time_limit_s``."""
+def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings) -> bytes:
+    """Run a job and serialise its answer where it ran: in a worker that is in parallel with
+    the event loop, and one bytes object crosses the process boundary instead of a model tree
+    (for answers with many points this is most of the cost of the hop)."""
+    return fn(body, settings).model_dump_json(by_alias=True).encode()
+
+
+async def engine_call(request: Request, settings: Settings,
+                      fn: Callable[[B, Settings], BaseModel], body: B,
+                      light: bool = False) -> Response:
+    """The JSON answer of the job ``fn(body, settings)`` for an endpoint (the route's
+    ``response_model`` documents it): in the service's thread pool when ``light`` (bounded
+    cost), else in a worker process under ``settings.time_limit_s``."""
     if light:
-        return await run_in_threadpool(fn, body, settings)
-    return await engine_pool(request).run(settings.time_limit_s, fn, body, settings)
+        payload = await run_in_threadpool(_as_json, fn, body, settings)
+    else:
+        payload = await engine_pool(request).run(settings.time_limit_s, _as_json, fn, body,
+                                                 settings)
+    return Response(payload, media_type="application/json")

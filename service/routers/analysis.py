@@ -28,7 +28,7 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 @router.post("/rigidity", response_model=RigidityResponse, responses=_problems)
 async def rigidity(
     body: AnalysisRequest, request: Request, settings: SettingsDep
-) -> RigidityResponse:
+) -> Response:
     """First-order analysis: rank, zero modes, self-stresses, trivial motions, tangent form."""
     return await engine_call(request, settings, jobs.rigidity, body, light=jobs.is_light(body))
 
@@ -36,7 +36,7 @@ async def rigidity(
 @router.post("/second-order", response_model=SecondOrderResponse, responses=_problems)
 async def second_order_analysis(
     body: AnalysisRequest, request: Request, settings: SettingsDep
-) -> SecondOrderResponse:
+) -> Response:
     """Second-order analysis: regular, branch (with branch tangents), rigid or degenerate."""
     light = jobs.is_light(body)
     return await engine_call(request, settings, jobs.second_order_analysis, body, light=light)
@@ -47,7 +47,7 @@ async def second_order_analysis(
 )
 async def critical_points(
     body: SpaceRequest, request: Request, settings: SettingsDep
-) -> CriticalPointsResponse:
+) -> Response:
     """Every critical point for the given lengths (or the closest approaches when none)."""
     return await engine_call(request, settings, jobs.critical_points, body)
 
@@ -60,15 +60,13 @@ async def configuration_space(
 ) -> Response:
     """Every component of a one-degree-of-freedom linkage, traced; at critical lengths also the
     segments between critical points."""
-    # A SpaceResponse serialised by the worker (answers can hold 10^5 points): sent as it is.
-    content = await engine_call(request, settings, jobs.configuration_space_json, body)
-    return Response(content, media_type="application/json")
+    return await engine_call(request, settings, jobs.configuration_space, body)
 
 
 @router.post("/splitting", response_model=SplittingResponse, responses=_problems)
 async def splitting(
     body: SplittingRequest, request: Request, settings: SettingsDep
-) -> SplittingResponse:
+) -> Response:
     """How each branch point splits under the length change ``perturbation`` (Appendix A)."""
     return await engine_call(request, settings, jobs.splitting, body)
 
@@ -76,7 +74,7 @@ async def splitting(
 @router.post("/robustness", response_model=RobustnessResponse, responses=_problems)
 async def robustness_margin(
     body: RobustnessRequest, request: Request, settings: SettingsDep
-) -> RobustnessResponse:
+) -> Response:
     """Smallest change of the adjustable lengths (Euclidean norm) that reaches a critical value:
     the fabrication tolerance of a design."""
     return await engine_call(request, settings, jobs.robustness_margin, body)
@@ -87,7 +85,7 @@ async def robustness_margin(
 )
 async def critical_values(
     body: CriticalValuesRequest, request: Request, settings: SettingsDep
-) -> CriticalValuesResponse:
+) -> Response:
     """The slice of the critical value set in two lengths over a box, and one sample point per
     region with its number of components and a topology signature."""
     return await engine_call(request, settings, jobs.critical_values, body)

@@ -1,6 +1,6 @@
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Depends, Request, Response
 
 from service import jobs
 from service.config import Settings, get_settings
@@ -17,7 +17,7 @@ _problems = problem_responses(400, 413, 422, 503, 504)
 @router.post("/splitting", response_model=DesignResponse, responses=_problems)
 async def design_splitting(
     body: DesignRequest, request: Request, settings: Annotated[Settings, Depends(get_settings)]
-) -> DesignResponse:
+) -> Response:
     """Smallest largest change of the adjustable bars that splits the targeted branch points
     with the requested signs; every feasible answer is verified by re-tracing."""
     return await engine_call(request, settings, jobs.design_splitting, body)

@@ -8,12 +8,16 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    ModelWrapValidatorHandler,
     StrictBool,
     ValidationError,
     ValidatorFunctionWrapHandler,
     WrapValidator,
+    model_validator,
 )
 from pydantic_core import PydanticCustomError
+
+from service.gcpause import gc_paused
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
@@ -62,10 +66,61 @@ class Bar(Strict):
     )
 
 
+def _restore(cls: type[BaseModel], values: dict[str, Any], fields_set: set[str]) -> Any:
+    """A model from values that were validated before it was pickled (no validation)."""
+    obj = cls.__new__(cls)
+    object.__setattr__(obj, "__dict__", values)
+    object.__setattr__(obj, "__pydantic_fields_set__", fields_set)
+    object.__setattr__(obj, "__pydantic_extra__", None)
+    object.__setattr__(obj, "__pydantic_private__", None)
+    return obj
+
+
+def _restore_linkage(
+    state: dict[str, Any],
+    fields_set: set[str],
+    vertices: tuple[list[str], list[list[float]], list[Any], list[bool]],
+    bars: tuple[list[str], list[list[str]], list[float | None], list[bool]],
+) -> Linkage:
+    """Inverse of :meth:`Linkage.__reduce__`."""
+    v_set, v_fixed_set = {"id", "position"}, {"id", "position", "fixed"}
+    b_set, b_length_set = {"id", "ends"}, {"id", "ends", "length"}
+    with gc_paused():
+        state["vertices"] = [
+            _restore(Vertex, {"id": i, "position": p, "fixed": f},
+                     set(v_fixed_set if s else v_set))
+            for i, p, f, s in zip(*vertices, strict=True)
+        ]
+        state["bars"] = [
+            _restore(Bar, {"id": i, "ends": e, "length": ln}, set(b_length_set if s else b_set))
+            for i, e, ln, s in zip(*bars, strict=True)
+        ]
+    return _restore(Linkage, state, fields_set)
+
+
 class Linkage(Strict):
     dimension: Literal[2, 3] = 2
     vertices: list[Vertex] = Field(min_length=1, max_length=MAX_ITEMS)
     bars: list[Bar] = Field(default_factory=list, max_length=MAX_ITEMS)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _validate_in_bulk(cls, data: Any, handler: ModelWrapValidatorHandler[Linkage]) -> Linkage:
+        # A large linkage is some 10^5 small objects: see service.gcpause.
+        with gc_paused():
+            return handler(data)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Requests travel to the engine's worker processes by pickle. Pickled model by model,
+        # a 10,000-rotor chain (40,000 models) takes about 0.7 s to pickle and unpickle; as
+        # columns of plain values it takes a fraction of that. Both ends hold validated models.
+        vs, bs = self.vertices, self.bars
+        vertices = ([v.id for v in vs], [v.position for v in vs], [v.fixed for v in vs],
+                    ["fixed" in v.__pydantic_fields_set__ for v in vs])
+        bars = ([b.id for b in bs], [b.ends for b in bs], [b.length for b in bs],
+                ["length" in b.__pydantic_fields_set__ for b in bs])
+        state = {k: v for k, v in self.__dict__.items() if k not in ("vertices", "bars")}
+        return (_restore_linkage, (state, set(self.__pydantic_fields_set__), vertices, bars))
 
     model_config = ConfigDict(
         extra="forbid",
@@ -88,14 +143,20 @@ class Linkage(Strict):
     )
 
 
+# Relative thresholds below a few machine epsilons decide nothing (engine.tolerances).
+_RelTol = Annotated[float, Field(strict=True, ge=1e-14, lt=1, allow_inf_nan=False)]
+_AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
+
+
 class Tolerances(Strict):
-    rank_rtol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
+    rank_rtol: _RelTol | None = Field(
         None, description="singular values <= rank_rtol * s_max count as zero (default 1e-8)"
     )
-    residual_atol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
-        None, description="largest allowed bar-length error of a configuration (default 1e-9)"
+    residual_atol: _AbsTol | None = Field(
+        None, description="largest allowed bar-length error of a configuration (default 1e-9 "
+        "times the median bar length)"
     )
-    q_rtol: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
+    q_rtol: _RelTol | None = Field(
         None, description="eigenvalues of Q below q_rtol * ||H_sigma|| count as zero (default 1e-6)"
     )
 

@@ -18,28 +18,30 @@ from service.schemas.common import (
     VertexVectors,
 )
 
+_StrainTol = Annotated[float, Field(strict=True, gt=0, le=0.2, allow_inf_nan=False)]
+
 
 class SpaceOptions(Strict):
-    max_points: Annotated[int, Field(ge=10, le=200_000)] | None = Field(
+    max_points: Annotated[int, Field(strict=True, ge=10, le=200_000)] | None = Field(
         None, description="budget of points per traced curve (default 20000)"
     )
-    strain_tol: Annotated[float, Field(gt=0, le=0.2, allow_inf_nan=False)] | None = Field(
+    strain_tol: _StrainTol | None = Field(
         None, description="largest relative bar strain of a predictor step (default 0.01)"
     )
-    step_max: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
+    step_max: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = Field(
         None, description="largest distance between consecutive points (default: a tenth of "
         "the median bar length)"
     )
-    angles: Annotated[int, Field(ge=4, le=2000)] | None = Field(
+    angles: Annotated[int, Field(strict=True, ge=4, le=2000)] | None = Field(
         None, description="rotor angles swept for seeds (default 60)"
     )
-    random_starts: Annotated[int, Field(ge=0, le=1000)] | None = Field(
+    random_starts: Annotated[int, Field(strict=True, ge=0, le=1000)] | None = Field(
         None, description="random starts for seeds and for the critical-point search (default 12)"
     )
-    max_components: Annotated[int, Field(ge=1, le=1000)] | None = Field(
+    max_components: Annotated[int, Field(strict=True, ge=1, le=1000)] | None = Field(
         None, description="budget of traced components (default 32)"
     )
-    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = Field(
+    seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] | None = Field(
         None, description="seed of the random starts (default 0)"
     )
 
@@ -137,16 +139,16 @@ class SplittingResponse(BaseModel):
 
 
 class TargetIn(Strict):
-    branch_point: Annotated[int, Field(ge=0)]
-    sign: Annotated[int, Field(ge=-1, le=1)]
+    branch_point: Annotated[int, Field(strict=True, ge=0)]
+    sign: Annotated[int, Field(strict=True, ge=-1, le=1)]
 
 
 class DesignRequest(Strict):
     linkage: Linkage
     targets: list[TargetIn] = Field(min_length=1, max_length=1000)
     adjustable: list[Ident] = Field(min_length=1, max_length=10_000)
-    max_change: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
-    margin: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = Field(
+    max_change: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = None
+    margin: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = Field(
         None, description="required sign * Delta / |dDelta/dL| (default 1e-4 of the median "
         "bar length)"
     )
@@ -205,16 +207,16 @@ class RobustnessResponse(BaseModel):
 
 class AxisIn(Strict):
     bar: Ident
-    min: Annotated[float, Field(gt=0, allow_inf_nan=False)]
-    max: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    min: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
+    max: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
 
 
 class CriticalValuesOptions(Strict):
-    resolution: Annotated[int, Field(ge=8, le=400)] | None = Field(
+    resolution: Annotated[int, Field(strict=True, ge=8, le=400)] | None = Field(
         None, description="raster of the regions and step of the curves: box / resolution "
         "(default 48)"
     )
-    seeds_per_axis: Annotated[int, Field(ge=2, le=20)] | None = Field(
+    seeds_per_axis: Annotated[int, Field(strict=True, ge=2, le=20)] | None = Field(
         None, description="sample lengths per axis where curves are seeded (default 5)"
     )
 

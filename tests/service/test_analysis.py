@@ -194,3 +194,79 @@ def test_numerical_failure_is_a_problem_not_a_crash(client, monkeypatch):
     monkeypatch.undo()
     again = client.post("/v1/analysis/rigidity", json={"linkage": four_bar(client)})
     assert again.status_code == 200
+
+
+def test_rigidity_of_a_large_chain_through_the_worker(client):
+    """A 150-rotor chain (M = 300): the sparse method, in a worker process (the request and
+    the response cross by pickle), with the invariants checked on the JSON."""
+    linkage = client.get("/v1/presets/kl-chain?n=150").json()
+    r = client.post("/v1/analysis/rigidity", json={"linkage": linkage})
+    assert r.status_code == 200
+    body = r.json()
+    assert body["method"] == "sparse-eigsh" and not body["singular_values_complete"]
+    assert (body["rank"], body["dof"], body["self_stresses"], body["critical"]) == (
+        299, 1, [], False)
+    assert_normalised(body["zero_modes"])
+    assert_normalised([body["tangent_form"]["vector"]])
+    assert body["tangent_form"]["orientation"] in (-1, 1)
+    # J z = 0 from the JSON alone: each bar's length is stationary along the zero mode
+    pos = body["configuration"]
+    z = body["zero_modes"][0]
+    for bar in linkage["bars"]:
+        a, b = bar["ends"]
+        rate = np.dot(np.subtract(pos[a], pos[b]), np.subtract(z[a], z[b]))
+        assert abs(rate) < 1e-10
+    s = np.sort(body["singular_values"])
+    assert s[0] > 1e-3 and np.isclose(body["singular_values"][0], s[-1])
+
+
+def test_rigidity_response_is_what_validation_would_build():
+    """rigidity_out skips validation (model_construct): the result must validate to the same
+    model and JSON, and survive the trip back from a worker (pickle) unchanged."""
+    import pickle
+
+    from engine.constraints import on_constraints
+    from engine.presets import build_preset
+    from engine.rigidity import first_order
+    from engine.tolerances import Tolerances
+    from service import mappers
+    from service.schemas.analysis import RigidityResponse
+
+    for name, params in (("four-bar", {}), ("kl-chain", {"n": 120}), ("three-rotor", {})):
+        at, proj = on_constraints(build_preset(name, params), Tolerances())
+        out = mappers.rigidity_out(at, first_order(at), proj)
+        again = RigidityResponse.model_validate(out.model_dump())
+        assert again == out and again.model_dump_json() == out.model_dump_json()
+        back = pickle.loads(pickle.dumps(out))
+        assert type(back) is RigidityResponse and back == out
+        assert back.model_dump_json() == out.model_dump_json()
+        assert back.model_fields_set == out.model_fields_set
+
+
+def test_request_linkage_survives_pickling_as_columns():
+    """The request goes to a worker as columns; it must come back as the same validated models
+    (with the same fields set, so that defaults stay distinguishable from given values)."""
+    import pickle
+
+    from service.schemas.common import AnalysisRequest
+
+    req = AnalysisRequest.model_validate({
+        "linkage": {
+            "dimension": 2,
+            "vertices": [
+                {"id": "P", "position": [0.0, 0.0], "fixed": True},
+                {"id": "S", "position": [1.0, 0.0], "fixed": [False, True]},
+                {"id": "A", "position": [0.5, 0.8]},
+            ],
+            "bars": [{"id": "a", "ends": ["P", "A"]}, {"id": "b", "ends": ["A", "S"],
+                                                       "length": 1.0}],
+        },
+        "tolerances": {"rank_rtol": 1e-9},
+    })
+    back = pickle.loads(pickle.dumps(req))
+    assert back == req and back.model_dump_json() == req.model_dump_json()
+    for x, y in zip(back.linkage.vertices + back.linkage.bars,
+                    req.linkage.vertices + req.linkage.bars, strict=True):
+        assert type(x) is type(y) and x.model_fields_set == y.model_fields_set
+    assert back.linkage.model_fields_set == req.linkage.model_fields_set
+    assert back.tolerances == req.tolerances
