@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.assembly import projected_random_starts, rotors, seeds
+from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
 from engine.errors import InvalidLinkage
@@ -115,6 +116,8 @@ class _Explorer:
         self.tree: cKDTree | None = None
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
         self.report: dict[str, object] = {}
+        self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
+            else None
 
     # -- curves ---------------------------------------------------------------------------
     def _rebuild_tree(self) -> None:
@@ -157,6 +160,29 @@ class _Explorer:
             )
         return curve
 
+    def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
+        """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
+        linkages): each point is tested from its 4 nearest points of ``curve`` within the step
+        bound (a superset of the tests :meth:`on_traced` makes for that curve), and a point
+        counts as on the curve only when a hyperplane correction lands on it."""
+        assert self.batched is not None  # only called for small linkages
+        pts = np.array(curve.points)
+        tans = np.array(curve.tangents)
+        k = min(4, len(pts))
+        dist, idx = cKDTree(pts).query(us, k=k)
+        dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+        which, nearest = np.nonzero(dist <= self.h_max)
+        on = np.zeros(len(us), dtype=bool)
+        if not len(which):
+            return on
+        p, t = pts[idx[which, nearest]], tans[idx[which, nearest]]
+        u = us[which]
+        v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+        w, ok = self.batched.correct(v, t, self.tol)
+        hit = ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)
+        on[which[hit]] = True
+        return on
+
     def trace_all(self, start: np.ndarray | None) -> None:
         found = seeds(
             self.linkage, self.tol, self.opt.angles, self.opt.assembly_budget,
@@ -164,8 +190,14 @@ class _Explorer:
         )
         self.report.update(found.report)
         truncated = False
-        for u in ([start] if start is not None else []) + found.points:
-            if self.on_traced(u):
+        points = ([start] if start is not None else []) + found.points
+        # Small linkages: after each new curve every remaining seed is tested against it in
+        # one batch, so a seed reached in the loop below is on no traced curve already.
+        batch = self.batched is not None and len(points) > 0
+        stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
+        covered = np.zeros(len(points), dtype=bool)
+        for n, u in enumerate(points):
+            if covered[n] or (not batch and self.on_traced(u)):
                 continue
             if len(self.curves) >= self.opt.max_components:
                 truncated = True
@@ -175,6 +207,9 @@ class _Explorer:
                 continue
             self.curves.append(curve)
             self._rebuild_tree()
+            if batch and n + 1 < len(points):
+                rest = n + 1 + np.flatnonzero(~covered[n + 1:])
+                covered[rest[self.on_curve(stack[rest], curve)]] = True
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated
         self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)
@@ -225,7 +260,7 @@ class _Explorer:
                 on = curve.points[offset]
                 misses.append(NearMiss(on, singular_gap(self.cons, on),
                                        float(np.linalg.norm(on - ref.u)),
-                                       ref.length_residual, ref.u))
+                                       ref.length_residual, ref.u, ref.sigma))
         exact, degenerate = _merge_non_isolated(exact)
         misses = _dedupe_misses(misses, self.scale)
         return exact, misses, degenerate
@@ -347,6 +382,60 @@ def _euler_walks(n_nodes: int, segs: list[Segment]) -> list[list[tuple[int, bool
         if path:
             walks.append(path[::-1])
     return walks
+
+
+@dataclass(frozen=True)
+class CriticalSearch:
+    """Outcome of :func:`find_critical_points`: :class:`SpaceResult` without the components
+    and segments."""
+
+    critical_points: list[CriticalPoint]
+    near_misses: list[NearMiss]
+    search: dict[str, object]
+    degenerate: bool
+
+
+def find_critical_points(
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    start_on_space: bool = True,
+) -> CriticalSearch:
+    """Critical points and near misses of a 1-DOF linkage, as :func:`explore` finds them,
+    without building the segments and components.
+
+    The critical points come from the traced curves (sign changes and deep minima of the
+    augmented determinant, closest approaches) and the multistart, exactly as in
+    :func:`explore`; the segments only connect critical points already found (a ray traced
+    from a branch point crosses any other critical point on its way and goes on to a known
+    one), so they add nothing to the search: its ``complete`` here is that of the curves
+    (component budget, assemblies, no open curve) and of the classification (not degenerate).
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> res = find_critical_points(build_preset("four-bar", {"L2": 1.0}))
+    >>> len(res.critical_points), res.search["complete"]
+    (3, True)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
+    ex = _Explorer(linkage, tol, opt)
+    ex.trace_all(linkage.coordinates() if start_on_space else None)
+    crit, misses, degenerate = ex.critical_points()
+    search = dict(ex.report)
+    search.update(
+        {
+            "critical_points_found": len(crit),
+            "step_max": ex.h_max,
+            "strain_tol": opt.trace.strain_tol,
+            "complete": not ex.report.get("component_budget_reached", False)
+            and not ex.report.get("assemblies_truncated", False)
+            and not ex.report.get("open_curves", 0)
+            and not degenerate,
+        }
+    )
+    return CriticalSearch(crit, misses if not crit else [], search, degenerate)
 
 
 def explore(

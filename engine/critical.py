@@ -11,6 +11,7 @@ exact critical point. The rows are scaled so that the first block is a length er
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,44 @@ class Refined:
     length_residual: float
     stress_residual: float
     critical: bool
+
+
+class DenseStressHessian:
+    """``H_sigma`` (M, M) as a dense matrix, for small linkages, without sparse assembly.
+
+    ``Hess(l_a^2) = 2 (e_i - e_j)(e_i - e_j)^T (x) I_d`` restricted to free coordinates: with
+    ``B`` (Ea, M) the signed incidence of bars and free coordinates (+1 at end ``i``, -1 at end
+    ``j``), ``H_sigma = (B^T diag(2 sigma) B) * [same axis]``. Two small dense products per
+    call instead of a COO assembly and conversion (the hot spot of the augmented-system Jacobian
+    in profiles); :meth:`engine.constraints.Constraints.stress_hessian` stays the reference.
+    """
+
+    def __init__(self, cons: Constraints) -> None:
+        lk = cons.linkage
+        vertex, axis = np.nonzero(~lk.fixed)  # free coordinate k is (vertex[k], axis[k])
+        ends = lk.ends[cons.bars]
+        rows = np.arange(cons.n_constraints)
+        inc = np.zeros((cons.n_constraints, lk.n_vertices))
+        inc[rows, ends[:, 0]] += 1.0
+        inc[rows, ends[:, 1]] -= 1.0
+        self._b = inc[:, vertex]  # (Ea, M)
+        self._same_axis = (axis[:, None] == axis[None, :]).astype(float)
+
+    def __call__(self, sigma: np.ndarray) -> np.ndarray:
+        return ((self._b.T * (2.0 * np.asarray(sigma, dtype=float))) @ self._b) * self._same_axis
+
+
+_HESSIANS: weakref.WeakKeyDictionary[Constraints, DenseStressHessian] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def dense_stress_hessian(cons: Constraints, sigma: np.ndarray) -> np.ndarray:
+    """``H_sigma`` of ``cons`` as a dense (M, M) array (the map is built once per ``cons``)."""
+    hess = _HESSIANS.get(cons)
+    if hess is None:
+        hess = _HESSIANS[cons] = DenseStressHessian(cons)
+    return hess(sigma)
 
 
 def _smallest_left_singular(jac: np.ndarray) -> np.ndarray:
@@ -63,7 +102,7 @@ def refine_critical(
     def jacobian(x: np.ndarray) -> np.ndarray:
         u, s = x[:m], x[m:]
         jac = cons.jacobian(u, sparse=False)
-        hess = cons.stress_hessian(s, sparse=False)
+        hess = dense_stress_hessian(cons, s)
         top = np.hstack([jac / (2 * lengths)[:, None], np.zeros((e, e))])
         mid = np.hstack([hess / scale, jac.T / scale])
         bot = np.concatenate([np.zeros(m), 2 * s])[None, :]
@@ -111,6 +150,7 @@ class NearMiss:
     distance: float
     length_gap: float
     critical_u: np.ndarray
+    critical_sigma: np.ndarray | None = None  # the unit self-stress at ``critical_u``
 
 
 def classify(linkage: Linkage, u: np.ndarray, tol: Tolerances) -> SecondOrderResult:
