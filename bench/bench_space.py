@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from engine.configuration_space import SpaceOptions, explore
+from engine.configuration_space import SpaceOptions, explore, find_critical_points
 from engine.constraints import Constraints
 from engine.presets import build_preset
 from engine.rigidity import first_order
@@ -39,6 +39,25 @@ def kl_component(n: int) -> int:
     return len(curve.points)
 
 
+def critical_points_http(repeat: int) -> tuple[float, dict]:
+    """Best-of time of POST /v1/analysis/critical-points for the three-rotor through the real
+    service (uvicorn on a loopback port, worker processes as deployed), after one warm-up."""
+    import httpx
+    from harness import served
+
+    with served() as url, httpx.Client(base_url=url, timeout=120.0) as client:
+        linkage = client.get("/v1/presets/three-rotor").json()
+        body = {"linkage": linkage}
+        client.post("/v1/analysis/critical-points", json=body).raise_for_status()  # warm-up
+
+        def once() -> dict:
+            r = client.post("/v1/analysis/critical-points", json=body)
+            r.raise_for_status()
+            return dict(r.json())
+
+        return best_of(once, repeat)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=3)
@@ -59,8 +78,14 @@ def main() -> None:
                f"{len(res.components)} components, {pts} points, "
                f"{len(res.critical_points)} critical points")
     t, res = best_of(lambda: explore(build_preset("three-rotor")), args.repeat)
-    record("all critical points, three-rotor (all lengths a)", t,
+    record("configuration space, three-rotor (all lengths a)", t,
            f"{len(res.critical_points)} critical points, {len(res.segments)} segments")
+    t, crit = best_of(lambda: find_critical_points(build_preset("three-rotor")), args.repeat)
+    record("all critical points, three-rotor (engine)", t,
+           f"{len(crit.critical_points)} critical points")
+    t, body = critical_points_http(args.repeat)
+    record("all critical points, three-rotor (HTTP, POST critical-points)", t,
+           f"{len(body['critical_points'])} critical points")
     for n in (50, 100, 200):
         t, pts = best_of(lambda n=n: kl_component(n), args.repeat)
         record(f"component through the start, {n}-rotor KL chain", t, f"{pts} points")
