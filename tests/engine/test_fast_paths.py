@@ -15,7 +15,7 @@ from engine.configuration_space import (
     find_critical_points,
 )
 from engine.constraints import Constraints
-from engine.critical import dense_stress_hessian
+from engine.critical import AugmentedSystem, dense_stress_hessian
 from engine.critical_values import GRID_OFFSET, _onto_solutions, _System, _validate
 from engine.presets import build_preset
 from engine.tolerances import Tolerances
@@ -136,3 +136,36 @@ def test_seed_grid_avoids_the_diagonal():
     frac = (np.arange(n) + GRID_OFFSET[:, None]) / n  # (2, n): seed fractions per axis
     assert np.min(np.abs(frac[0][:, None] - frac[1][None, :])) > 1e-3
     assert np.all((frac > 0) & (frac < 1))
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_augmented_system_equals_its_definition(name):
+    """F and dF of the refinement against the expressions of the module docstring, built from
+    the reference Constraints methods (sparse Hessian assembly)."""
+    lk = build_preset(*LINKAGES[name])
+    cons = Constraints(lk)
+    sys = AugmentedSystem(cons)
+    m, e = cons.n_free, cons.n_constraints
+    lengths = lk.lengths[cons.bars]
+    scale = 2.0 * float(np.median(lengths))
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        u = lk.coordinates() + 0.1 * rng.normal(size=m)
+        s = rng.normal(size=e)
+        x = np.concatenate([u, s])
+        jac = cons.jacobian(u, sparse=False)
+        f_ref = np.concatenate([(cons.squared_lengths(u) - cons.targets) / (2 * lengths),
+                                jac.T @ s / scale, [s @ s - 1.0]])
+        hess = cons.stress_hessian(s, sparse=True).toarray()
+        d_ref = np.vstack([
+            np.hstack([jac / (2 * lengths)[:, None], np.zeros((e, e))]),
+            np.hstack([hess / scale, jac.T / scale]),
+            np.concatenate([np.zeros(m), 2 * s])[None, :],
+        ])
+        assert np.allclose(sys.residual(x), f_ref, rtol=1e-13, atol=1e-13)
+        assert np.allclose(sys.jacobian(x), d_ref, rtol=1e-13, atol=1e-13)
+        # and the Jacobian is the derivative of the residual (central differences)
+        h = 1e-6
+        fd = np.column_stack([(sys.residual(x + h * ei) - sys.residual(x - h * ei)) / (2 * h)
+                              for ei in np.eye(m + e)])
+        assert np.allclose(sys.jacobian(x), fd, atol=1e-6)
