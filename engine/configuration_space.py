@@ -35,6 +35,9 @@ from engine.trace import Curve, TraceOptions, correct, segment_distance, trace_c
 #: traced curves (no random multistart on the augmented system).
 MULTISTART_MAX_FREE = 64
 
+#: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
+SEED_CHUNK = 128
+
 
 @dataclass(frozen=True)
 class SpaceOptions:
@@ -171,16 +174,16 @@ class _Explorer:
         k = min(4, len(pts))
         dist, idx = cKDTree(pts).query(us, k=k)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
-        which, nearest = np.nonzero(dist <= self.h_max)
         on = np.zeros(len(us), dtype=bool)
-        if not len(which):
-            return on
-        p, t = pts[idx[which, nearest]], tans[idx[which, nearest]]
-        u = us[which]
-        v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
-        w, ok = self.batched.correct(v, t, self.tol)
-        hit = ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)
-        on[which[hit]] = True
+        for r in range(k):  # nearest curve point first; the next only where that one failed
+            which = np.flatnonzero(~on & (dist[:, r] <= self.h_max))
+            if not len(which):
+                continue
+            p, t = pts[idx[which, r]], tans[idx[which, r]]
+            u = us[which]
+            v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+            w, ok = self.batched.correct(v, t, self.tol)
+            on[which[ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)]] = True
         return on
 
     def trace_all(self, start: np.ndarray | None) -> None:
@@ -191,12 +194,21 @@ class _Explorer:
         self.report.update(found.report)
         truncated = False
         points = ([start] if start is not None else []) + found.points
-        # Small linkages: after each new curve every remaining seed is tested against it in
-        # one batch, so a seed reached in the loop below is on no traced curve already.
+        # Small linkages: the seeds are tested in chunks, each against every curve traced so
+        # far in one batch per curve (``tested`` counts the curves a seed has been tested
+        # against), so a seed reached in the loop below is tested against every traced curve.
         batch = self.batched is not None and len(points) > 0
         stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
         covered = np.zeros(len(points), dtype=bool)
+        tested = np.zeros(len(points), dtype=int)
         for n, u in enumerate(points):
+            if batch and not covered[n] and tested[n] < len(self.curves):
+                chunk = np.arange(n, min(len(points), n + SEED_CHUNK))
+                for c in range(int(tested[chunk].min()), len(self.curves)):
+                    sel = chunk[~covered[chunk] & (tested[chunk] <= c)]
+                    if len(sel):
+                        covered[sel[self.on_curve(stack[sel], self.curves[c])]] = True
+                tested[chunk] = len(self.curves)
             if covered[n] or (not batch and self.on_traced(u)):
                 continue
             if len(self.curves) >= self.opt.max_components:
@@ -207,9 +219,6 @@ class _Explorer:
                 continue
             self.curves.append(curve)
             self._rebuild_tree()
-            if batch and n + 1 < len(points):
-                rest = n + 1 + np.flatnonzero(~covered[n + 1:])
-                covered[rest[self.on_curve(stack[rest], curve)]] = True
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated
         self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)

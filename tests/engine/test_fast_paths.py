@@ -169,3 +169,24 @@ def test_augmented_system_equals_its_definition(name):
         fd = np.column_stack([(sys.residual(x + h * ei) - sys.residual(x - h * ei)) / (2 * h)
                               for ei in np.eye(m + e)])
         assert np.allclose(sys.jacobian(x), fd, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["four-bar", "equilateral four-bar", "three-rotor",
+                                  "kl-chain 6"])
+def test_batched_seed_loop_traces_what_the_one_at_a_time_loop_traces(name):
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4 if "kl" in name else 32)
+    runs = []
+    for batched in (True, False):
+        ex = _Explorer(lk, TOL, opt)
+        if not batched:
+            ex.batched = None  # the reference: on_traced for one seed at a time
+        ex.trace_all(lk.coordinates())
+        runs.append(ex)
+    fast, ref = runs
+    assert fast.batched is not None
+    assert len(fast.curves) == len(ref.curves)
+    assert fast.report == ref.report
+    for a, b in zip(fast.curves, ref.curves, strict=True):
+        assert a.stop == b.stop and len(a.points) == len(b.points)
+        assert np.allclose(a.points[0], b.points[0])
