@@ -82,7 +82,7 @@ class BatchedConstraints:
             idx = np.flatnonzero(live)
             sq = self.squared_lengths(w[idx])
             g = sq - self.lengths**2
-            res = np.max(np.abs(np.sqrt(sq) - self.lengths), axis=1)
+            res = np.max(np.abs(np.sqrt(sq) - self.lengths), axis=1, initial=0.0)
             done = res <= tol.residual_atol
             ok[idx[done]] = True
             live[idx[done]] = False
@@ -97,6 +97,7 @@ class BatchedConstraints:
                 w[idx] = w[idx] + np.linalg.solve(mats[idx], rhs[:, :, None])[:, :, 0]
         if live.any():  # out of iterations: judge the last iterate
             idx = np.flatnonzero(live)
-            res = np.max(np.abs(np.sqrt(self.squared_lengths(w[idx])) - self.lengths), axis=1)
+            res = np.max(np.abs(np.sqrt(self.squared_lengths(w[idx])) - self.lengths), axis=1,
+                         initial=0.0)
             ok[idx] = res <= tol.residual_atol
         return w, ok
