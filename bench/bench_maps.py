@@ -22,6 +22,28 @@ def timed(fn):  # noqa: ANN001, ANN201 - tiny helper
     return time.perf_counter() - t0, out
 
 
+def slice_http(resolution: int) -> tuple[float, dict]:
+    """Time of POST /v1/analysis/critical-values (four-bar, (L2, L3) in [0.3, 2.2]^2) through
+    the real service (uvicorn on a loopback port, worker processes as deployed), after a
+    warm-up request on a small slice."""
+    import httpx
+    from harness import served
+
+    with served() as url, httpx.Client(base_url=url, timeout=300.0) as client:
+        linkage = client.get("/v1/presets/four-bar", params={"L2": 1.2}).json()
+        axes = [{"bar": "L2", "min": 0.3, "max": 2.2}, {"bar": "L3", "min": 0.3, "max": 2.2}]
+
+        def once(res: int) -> dict:
+            r = client.post("/v1/analysis/critical-values",
+                            json={"linkage": linkage, "axes": axes,
+                                  "options": {"resolution": res}})
+            r.raise_for_status()
+            return dict(r.json())
+
+        once(8)  # warm-up: worker processes started, imports done
+        return timed(lambda: once(resolution))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--json", type=Path, default=Path("bench/results/maps.json"))
@@ -36,8 +58,11 @@ def main() -> None:
     for res in (48, 200):
         t, s = timed(lambda r=res: critical_value_slice(
             four_bar, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)], resolution=r))
-        record(f"four-bar slice (L2, L3), resolution {res}x{res}", t,
+        record(f"four-bar slice (L2, L3), resolution {res}x{res} (engine)", t,
                f"{len(s.curves)} curves, {len(s.regions)} regions")
+    t, body = slice_http(200)
+    record("four-bar slice (L2, L3), resolution 200x200 (HTTP, POST critical-values)", t,
+           f"{len(body['curves'])} curves, {len(body['regions'])} regions")
     gated = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
     t, s = timed(lambda: critical_value_slice(
         gated, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], resolution=48,

@@ -42,6 +42,7 @@ from engine.configuration_space import (  # noqa: E402
     SpaceOptions,
     _Explorer,
     explore,
+    find_critical_points,
 )
 from engine.constraints import Constraints  # noqa: E402
 from engine.presets import build_preset  # noqa: E402
@@ -64,6 +65,23 @@ def kl_trace(cons: Constraints, u0: np.ndarray, z: np.ndarray) -> int:
     curve = trace_curve(cons, u0, z, Tolerances(), TraceOptions())
     assert curve.stop == "closed"
     return len(curve.points)
+
+
+def critical_points_http(repeat: int) -> tuple[float, dict[str, Any]]:
+    """Best-of time of POST /v1/analysis/critical-points for the three-rotor through the real
+    service (uvicorn on a loopback port, worker processes as deployed), after one warm-up."""
+    import httpx
+
+    with served() as url, httpx.Client(base_url=url, timeout=120.0) as client:
+        body = {"linkage": client.get("/v1/presets/three-rotor").json()}
+        client.post("/v1/analysis/critical-points", json=body).raise_for_status()  # warm-up
+
+        def once() -> dict[str, Any]:
+            r = client.post("/v1/analysis/critical-points", json=body)
+            r.raise_for_status()
+            return dict(r.json())
+
+        return best_of(once, repeat)
 
 
 def slope(x: list[float], y: list[float]) -> float:
@@ -97,8 +115,15 @@ def main() -> None:
                          f"{len(res.components)} components, {pts} points, "
                          f"{len(res.critical_points)} critical points")
         t, res = best_of(lambda: explore(build_preset("three-rotor")), args.repeat)
-        table.record("all critical points, three-rotor (all lengths a)", t,
+        table.record("configuration space, three-rotor (all lengths a)", t,
                      f"{len(res.critical_points)} critical points, {len(res.segments)} segments")
+        t, crit = best_of(lambda: find_critical_points(build_preset("three-rotor")), args.repeat)
+        table.record("all critical points, three-rotor (engine)", t,
+                     f"{len(crit.critical_points)} critical points")
+        if not args.no_http:
+            t, body = critical_points_http(args.repeat)
+            table.record("all critical points, three-rotor (HTTP, POST critical-points)", t,
+                         f"{len(body['critical_points'])} critical points")
 
     comp_t, trace_t, comp_pts = [], [], []
     for n in args.sizes:

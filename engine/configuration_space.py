@@ -21,12 +21,14 @@ critical point exists; it declines (and the steps above run) at or near critical
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.assembly import iter_seeds, projected_random_starts, rotors
+from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
@@ -54,6 +56,9 @@ MIN_STEP_MAX_REL = 1e-6
 #: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
 #: method (measured faster than the dense SVD from about 100 rotors of a chain).
 SPARSE_SEED_RIGIDITY_MIN_FREE = 128
+
+#: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
+SEED_CHUNK = 128
 
 
 @dataclass(frozen=True)
@@ -146,6 +151,8 @@ class _Explorer:
         self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
         self.tree_first: np.ndarray = np.zeros(0, dtype=int)
         self.report: dict[str, object] = {}
+        self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
+            else None
 
     # -- curves ---------------------------------------------------------------------------
     def _rebuild_tree(self) -> None:
@@ -199,6 +206,29 @@ class _Explorer:
             )
         return curve
 
+    def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
+        """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
+        linkages): each point is tested from its 4 nearest points of ``curve`` within the step
+        bound (a superset of the tests :meth:`on_traced` makes for that curve), and a point
+        counts as on the curve only when a hyperplane correction lands on it."""
+        assert self.batched is not None  # only called for small linkages
+        pts = np.array(curve.points)
+        tans = np.array(curve.tangents)
+        k = min(4, len(pts))
+        dist, idx = cKDTree(pts).query(us, k=k)
+        dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+        on = np.zeros(len(us), dtype=bool)
+        for r in range(k):  # nearest curve point first; the next only where that one failed
+            which = np.flatnonzero(~on & (dist[:, r] <= self.h_max))
+            if not len(which):
+                continue
+            p, t = pts[idx[which, r]], tans[idx[which, r]]
+            u = us[which]
+            v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+            w, ok = self.batched.correct(v, t, self.tol)
+            on[which[ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)]] = True
+        return on
+
     def trace_all(self, start: np.ndarray | None) -> None:
         # Seeds are generated on demand: once the component budget is reached the rest (on long
         # chains the costly random projections) is never computed; the report then counts the
@@ -208,8 +238,27 @@ class _Explorer:
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
         )
         truncated = False
-        for u in itertools.chain([start] if start is not None else [], found):
-            if self.on_traced(u):
+        first = [start] if start is not None else []
+        # Small linkages: every seed is generated (they are cheap) and tested in chunks, each
+        # against every curve traced so far in one batch per curve (``tested`` counts the
+        # curves a seed has been tested against), so a seed reached in the loop below is tested
+        # against every traced curve. Large ones take seeds lazily and test them one by one.
+        batch = self.batched is not None
+        points: Iterable[np.ndarray] = list(itertools.chain(first, found)) if batch \
+            else itertools.chain(first, found)
+        stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
+        batch = batch and len(stack) > 0
+        covered = np.zeros(len(stack), dtype=bool)
+        tested = np.zeros(len(stack), dtype=int)
+        for n, u in enumerate(points):
+            if batch and not covered[n] and tested[n] < len(self.curves):
+                chunk = np.arange(n, min(len(stack), n + SEED_CHUNK))
+                for c in range(int(tested[chunk].min()), len(self.curves)):
+                    sel = chunk[~covered[chunk] & (tested[chunk] <= c)]
+                    if len(sel):
+                        covered[sel[self.on_curve(stack[sel], self.curves[c])]] = True
+                tested[chunk] = len(self.curves)
+            if (covered[n] if batch else self.on_traced(u)):
                 continue
             if len(self.curves) >= self.opt.max_components:
                 truncated = True
@@ -268,7 +317,7 @@ class _Explorer:
                 on = curve.points[offset]
                 misses.append(NearMiss(on, singular_gap(self.cons, on),
                                        float(np.linalg.norm(on - ref.u)),
-                                       ref.length_residual, ref.u))
+                                       ref.length_residual, ref.u, ref.sigma))
         exact, degenerate = _merge_non_isolated(exact)
         misses = _dedupe_misses(misses, self.scale)
         return exact, misses, degenerate
@@ -392,6 +441,60 @@ def _euler_walks(n_nodes: int, segs: list[Segment]) -> list[list[tuple[int, bool
     return walks
 
 
+@dataclass(frozen=True)
+class CriticalSearch:
+    """Outcome of :func:`find_critical_points`: :class:`SpaceResult` without the components
+    and segments."""
+
+    critical_points: list[CriticalPoint]
+    near_misses: list[NearMiss]
+    search: dict[str, object]
+    degenerate: bool
+
+
+def find_critical_points(
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    start_on_space: bool = True,
+) -> CriticalSearch:
+    """Critical points and near misses of a 1-DOF linkage, as :func:`explore` finds them,
+    without building the segments and components.
+
+    The critical points come from the traced curves (sign changes and deep minima of the
+    augmented determinant, closest approaches) and the multistart, exactly as in
+    :func:`explore`; the segments only connect critical points already found (a ray traced
+    from a branch point crosses any other critical point on its way and goes on to a known
+    one), so they add nothing to the search: its ``complete`` here is that of the curves
+    (component budget, assemblies, no open curve) and of the classification (not degenerate).
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> res = find_critical_points(build_preset("four-bar", {"L2": 1.0}))
+    >>> len(res.critical_points), res.search["complete"]
+    (3, True)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
+    ex = _Explorer(linkage, tol, opt)
+    ex.trace_all(linkage.coordinates() if start_on_space else None)
+    crit, misses, degenerate = ex.critical_points()
+    search = dict(ex.report)
+    search.update(
+        {
+            "critical_points_found": len(crit),
+            "step_max": ex.h_max,
+            "strain_tol": opt.trace.strain_tol,
+            "complete": not ex.report.get("component_budget_reached", False)
+            and not ex.report.get("assemblies_truncated", False)
+            and not ex.report.get("open_curves", 0)
+            and not degenerate,
+        }
+    )
+    return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
 def explore(
     linkage: Linkage,
     tolerances: Tolerances | None = None,
@@ -403,8 +506,9 @@ def explore(
     configuration space: see :func:`engine.constraints.on_constraints`).
 
     ``near_misses=False`` says the caller does not need the near misses: where the closed form
-    of :mod:`engine.dyads` certifies that no critical point exists, the critical-point search
-    (which finds the near misses, and would find no critical point) is then skipped.
+    of :mod:`engine.dyads` certifies that no critical point exists, or the rules of
+    :mod:`engine.chain_count` prove it for a rotor chain, the critical-point search (which
+    finds the near misses, and would find no critical point) is then skipped.
 
     Examples
     --------
@@ -428,7 +532,17 @@ def explore(
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
     ex.trace_all(start)
-    crit, misses, degenerate = ex.critical_points()
+    count = chain_components(linkage)
+    if count is not None and not near_misses:
+        # The chain rules prove that there is no critical point (engine.chain_count): the
+        # search would only find near misses, which the caller does not want. On long chains
+        # it is most of the cost (dense refinements on 2n unknowns).
+        crit: list[CriticalPoint] = []
+        misses: list[NearMiss] = []
+        degenerate = False
+        ex.report["critical_search"] = f"skipped: {count.rule} proves no critical point"
+    else:
+        crit, misses, degenerate = ex.critical_points()
     # Segments need every critical point classified; with a degenerate one the traced curves
     # themselves are the answer (they may pass through critical points).
     segs, seg_complete = ex.segments(crit) if not degenerate else ([], False)
@@ -461,7 +575,6 @@ def explore(
             components.append(Component(cp.u[None, :], True, False, [k], []))
     _mark_through_start(components, start, ex.h_max)
     search = dict(ex.report)
-    count = chain_components(linkage)
     if count is not None:
         # the true total for rotor chains (four-bar decomposition), also when the budget of
         # traced components is far below it (a 100-rotor spinner chain has 2^99)

@@ -27,12 +27,27 @@ import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
 
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.configuration_space import (
+    SpaceOptions,
+    explore,
+    find_critical_points,
+    rotor_angles,
+    winding,
+)
 from engine.constraints import Constraints
-from engine.critical import refine_critical
+from engine.critical import dense_stress_hessian, refine_critical
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
 from engine.tolerances import Tolerances
+
+#: Where in its grid cell each seed length sits, per axis: irrational and different on the two
+#: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
+#: critical values of symmetric linkages lie (a seed at critical lengths is the slowest and least
+#: robust exploration there is; its neighbours seed the same curves from regular lengths).
+GRID_OFFSET = np.array([0.5 + (np.sqrt(2.0) - 1.0) / 10.0, 0.5 - (np.sqrt(5.0) - 2.0) / 10.0])
+
+#: Point budget of one curve in a seed exploration.
+SEED_MAX_POINTS = 2000
 
 
 @dataclass(frozen=True)
@@ -96,7 +111,7 @@ class _System:
         out[: self.e, : self.m] = jac / self.s
         for k, r in enumerate(self.rows):
             out[r, self.m + self.e + k] = -2.0 * p[k] / self.s
-        hess = self.cons.stress_hessian(sig, sparse=False)
+        hess = dense_stress_hessian(self.cons, sig)
         out[self.e : self.e + self.m, : self.m] = hess / self.s
         out[self.e : self.e + self.m, self.m : self.m + self.e] = jac.T / self.s
         out[-1, self.m : self.m + self.e] = 2.0 * sig
@@ -128,6 +143,26 @@ def _correct(sys: _System, v: np.ndarray, t: np.ndarray) -> np.ndarray | None:
             return None
         x = x + dx
     return x if np.max(np.abs(sys.g(x))) <= 1e-10 else None
+
+
+def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndarray:
+    """A solution of ``G = 0`` near ``x0``: Gauss-Newton with minimum-norm steps (``G`` has two
+    more unknowns than equations, so its solutions near a regular point form a curve and the
+    iteration converges quadratically onto it); where that does not converge, least squares
+    (trust region) from ``x0`` as before. Either way the caller checks ``|G| <= 1e-9``."""
+    x = x0.copy()
+    for _ in range(max_iter):
+        g = sys.g(x)
+        if not np.all(np.isfinite(g)):
+            break
+        if np.max(np.abs(g)) <= 1e-13:
+            return x
+        x = x - np.linalg.lstsq(sys.dg(x), g, rcond=None)[0]
+    if np.all(np.isfinite(g := sys.g(x))) and np.max(np.abs(g)) <= 1e-12:
+        return x
+    sol = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                        max_nfev=200)
+    return np.asarray(sol.x)
 
 
 def _continue(
@@ -221,7 +256,13 @@ def critical_value_slice(
     h_max = float(min(span)) / resolution
     curves_x: list[np.ndarray] = []
     seeds_tried = seeds_used = 0
-    seed_opt = replace(opt, max_components=min(opt.max_components, 8))
+    # A seed exploration need not be complete (it only has to reach critical configurations
+    # near its lengths), so its curves get a point budget: one that fails to close (as near a
+    # branch point at critical lengths) must not cost a full trace budget.
+    seed_opt = replace(
+        opt, max_components=min(opt.max_components, 8),
+        trace=replace(opt.trace, max_points=min(opt.trace.max_points, SEED_MAX_POINTS)),
+    )
 
     def known(x: np.ndarray) -> bool:
         """The seed's lengths lie on a curve already traced (other assemblies of the same
@@ -230,22 +271,25 @@ def critical_value_slice(
         return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * float(max(span))
                    for c in curves_x)
 
-    grid = [box[:, 0] + span * (np.array([i, j]) + 0.5) / seeds_per_axis
+    grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
             for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
     for p0 in grid:
         lengths = linkage.lengths.copy()
         lengths[ax[0].bar], lengths[ax[1].bar] = p0
         at = linkage.with_lengths(lengths)
-        res = explore(at, tol, seed_opt, start_on_space=False)
+        # Only the critical configurations are needed here: no segments, no components.
+        res = find_critical_points(at, tol, seed_opt, start_on_space=False)
         cons = Constraints(at)
-        starts = [cp.u for cp in res.critical_points] + [m.critical_u for m in res.near_misses]
-        for u0 in starts:
+        starts: list[tuple[np.ndarray, np.ndarray | None]] = (
+            [(cp.u, None) for cp in res.critical_points]
+            + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
+        )
+        for u0, s0 in starts:
             seeds_tried += 1
-            ref = refine_critical(cons, u0, tol)
-            x0 = np.concatenate([ref.u, ref.sigma, p0])
-            sol = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15,
-                                gtol=1e-15, max_nfev=200)
-            x = sol.x
+            if s0 is None:  # (a near miss's configuration is refined already, with its stress)
+                ref = refine_critical(cons, u0, tol)
+                u0, s0 = ref.u, ref.sigma
+            x = _onto_solutions(sys, np.concatenate([u0, s0, p0]))
             if np.max(np.abs(sys.g(x))) > 1e-9 or known(x):
                 continue
             if np.any(x[-2:] < box[:, 0] - h_max) or np.any(x[-2:] > box[:, 1] + h_max):

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from engine.assembly import projected_random_starts
-from engine.configuration_space import SpaceOptions, explore
+from engine.configuration_space import SpaceOptions, find_critical_points
 from engine.constraints import Constraints
 from engine.critical import refine_critical
 from engine.errors import InvalidRequest
@@ -119,7 +119,7 @@ def robustness(
     tol = tolerances or Tolerances()
     cons = Constraints(linkage)
     adj = _adjustable_mask(linkage, adjustable)
-    space = explore(linkage, tol, options or SpaceOptions())
+    space = find_critical_points(linkage, tol, options or SpaceOptions())  # no segments needed
     starts = [cp.u for cp in space.critical_points] + [m.critical_u for m in space.near_misses]
     rng = np.random.default_rng(1234)
     for u0 in projected_random_starts(linkage, tol, extra_starts, rng):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.configuration_space import explore
+from engine.configuration_space import explore, find_critical_points
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
 from engine.design import Target, check_request, design, verify
@@ -59,7 +59,8 @@ def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOr
 def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
-    res = explore(at, tol, mappers.space_options_in(body.options))
+    # The answer holds no components or segments: only the search for critical points runs.
+    res = find_critical_points(at, tol, mappers.space_options_in(body.options))
     return mappers.critical_points_out(at, res, proj, tol)
 
 
@@ -83,7 +84,7 @@ def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
-    crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
+    crit = find_critical_points(at, tol, mappers.space_options_in(body.options)).critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
     return mappers.splitting_out(at, splits, len(crit), tol, crit)
 
@@ -109,7 +110,7 @@ def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
     targets = [Target(t.branch_point, t.sign) for t in body.targets]
     check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
     at, _ = on_constraints(linkage, tol)
-    crit = explore(at, tol, mappers.space_options_in(body.options)).critical_points
+    crit = find_critical_points(at, tol, mappers.space_options_in(body.options)).critical_points
     margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
     result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
     checks = verify(at, crit, targets, result.perturbation, tol) if result.feasible else []

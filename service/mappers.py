@@ -8,6 +8,7 @@ import numpy as np
 
 from engine.configuration_space import (
     Component,
+    CriticalSearch,
     SpaceOptions,
     SpaceResult,
     positions_along,
@@ -227,7 +228,10 @@ def _search_out(search: dict[str, object]) -> dict[str, object]:
 
 
 def critical_points_out(
-    linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances
+    linkage: EngineLinkage,
+    res: SpaceResult | CriticalSearch,
+    proj: ProjectionResult,
+    tol: EngineTolerances,
 ) -> space.CriticalPointsResponse:
     return space.CriticalPointsResponse(
         critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],

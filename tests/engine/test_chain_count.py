@@ -114,3 +114,24 @@ def test_four_bar_rule_matches_grashof_on_random_lengths() -> None:
         count = chain_components(build_preset("four-bar", {"L1": l1, "L2": l2, "L3": l3}))
         assert count is not None
         assert count.components == classical(l1, l2, l3)[0]
+
+
+@pytest.mark.parametrize("n", [3, 5])
+def test_search_skipped_where_the_rules_prove_smoothness(n: int) -> None:
+    """Without near misses, a chain the rules count skips the critical-point search: the same
+    components, windings and (no) critical points as the full search."""
+    lk = build_preset("kl-chain", {"n": n})
+    tracer = SpaceOptions(closed_form=False)  # (the closed form would answer these short chains)
+    full = explore(lk, options=tracer)
+    fast = explore(lk, options=tracer, near_misses=False)
+    assert full.search["complete"] and fast.search["complete"]
+    assert "critical_search" not in full.search
+    assert fast.search["critical_search"].startswith("skipped")
+    assert full.critical_points == fast.critical_points == []
+    assert len(fast.components) == len(full.components) == 2 ** (n - 1)
+    assert sorted(len(c.points) for c in fast.components) == \
+        sorted(len(c.points) for c in full.components)
+    # never skipped where the rules give no count (the gated chain has critical lengths)
+    gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1}), near_misses=False,
+                    options=SpaceOptions(max_components=2))
+    assert "critical_search" not in gated.search

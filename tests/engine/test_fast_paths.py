@@ -1,0 +1,192 @@
+"""The performance shortcuts against the slow or reference paths they replace."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from engine.assembly import seeds
+from engine.batched import BatchedConstraints
+from engine.configuration_space import (
+    SpaceOptions,
+    _Explorer,
+    explore,
+    find_critical_points,
+)
+from engine.constraints import Constraints
+from engine.critical import AugmentedSystem, dense_stress_hessian
+from engine.critical_values import GRID_OFFSET, _onto_solutions, _System, _validate
+from engine.presets import build_preset
+from engine.tolerances import Tolerances
+from engine.trace import correct
+
+TOL = Tolerances()
+FAST = SpaceOptions(angles=24, random_starts=4)
+LINKAGES = {
+    "four-bar": ("four-bar", {"L2": 1.2}),
+    "equilateral four-bar": ("four-bar", {}),
+    "three-rotor": ("three-rotor", {}),
+    "gated chain": ("gated-kl-chain", {"n": 4, "gate": 2}),
+    "kl-chain 6": ("kl-chain", {"n": 6}),
+}
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_dense_stress_hessian_equals_the_sparse_assembly(name):
+    cons = Constraints(build_preset(*LINKAGES[name]))
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        sigma = rng.normal(size=cons.n_constraints)
+        ref = cons.stress_hessian(sigma, sparse=True).toarray()
+        assert np.allclose(dense_stress_hessian(cons, sigma), ref, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_batched_constraints_and_correction_match_the_scalar_ones(name):
+    lk = build_preset(*LINKAGES[name])
+    cons = Constraints(lk)
+    batch = BatchedConstraints(cons)
+    rng = np.random.default_rng(11)
+    u0 = lk.coordinates()
+    us = u0 + 0.02 * rng.normal(size=(12, cons.n_free))
+    ts = rng.normal(size=us.shape)
+    ts /= np.linalg.norm(ts, axis=1)[:, None]
+    assert np.allclose(batch.squared_lengths(us), [cons.squared_lengths(u) for u in us])
+    assert np.allclose(batch.jacobians(us), [cons.jacobian(u, sparse=False) for u in us])
+    w, ok = batch.correct(us, ts, TOL)
+    for k in range(len(us)):
+        w1, ok1, _ = correct(cons, us[k], ts[k], TOL)
+        assert ok[k] == ok1
+        if ok1:
+            assert np.allclose(w[k], w1, atol=1e-10)
+
+
+@pytest.mark.parametrize("name", ["four-bar", "three-rotor", "gated chain"])
+def test_batched_seed_test_agrees_with_on_traced(name):
+    """Every seed the batch marks as on a curve is on it by the one-at-a-time test too, and
+    the seeds the batch leaves are (almost all) off every traced curve."""
+    lk = build_preset(*LINKAGES[name])
+    ex = _Explorer(lk, TOL, FAST)
+    ex.trace_all(lk.coordinates())
+    found = seeds(lk, TOL, FAST.angles, FAST.assembly_budget, FAST.random_starts, FAST.seed,
+                  FAST.max_swept_rotors)
+    stack = np.array(found.points)
+    batch = np.zeros(len(stack), dtype=bool)
+    for curve in ex.curves:
+        batch |= ex.on_curve(stack, curve)
+    single = np.array([ex.on_traced(u) for u in stack])
+    assert np.all(single <= batch)  # nothing the reference finds is missed
+    assert batch.sum() >= 0.95 * len(stack)  # and nearly every seed is on a traced curve
+
+
+@pytest.mark.parametrize("name", ["four-bar", "equilateral four-bar", "three-rotor",
+                                  "gated chain"])
+def test_find_critical_points_equals_explore(name):
+    lk = build_preset(*LINKAGES[name])
+    full = explore(lk, TOL, FAST)
+    fast = find_critical_points(lk, TOL, FAST)
+    assert len(fast.critical_points) == len(full.critical_points)
+    for a, b in zip(fast.critical_points, full.critical_points, strict=True):
+        assert np.allclose(a.u, b.u, atol=1e-12) and a.kind == b.kind
+    assert len(fast.near_misses) == len(full.near_misses)
+    for a, b in zip(fast.near_misses, full.near_misses, strict=True):
+        assert np.allclose(a.critical_u, b.critical_u, atol=1e-12)
+    assert fast.degenerate == full.degenerate
+    for key in ("curves_traced", "critical_candidates", "critical_points_found", "seeds"):
+        assert fast.search[key] == full.search[key]
+    if full.search["complete"]:
+        assert fast.search["complete"]
+
+
+def test_three_rotor_critical_points_fast_path():
+    """The critical-points endpoint's path finds the 12 branch points (cross-checked against an
+    independent multistart in test_configuration_space)."""
+    res = find_critical_points(build_preset("three-rotor"), TOL)
+    assert len(res.critical_points) == 12
+    assert all(cp.kind == "branch" for cp in res.critical_points)
+    assert res.search["complete"] and not res.degenerate
+
+
+def test_newton_onto_the_critical_set_agrees_with_least_squares():
+    """From near misses of a four-bar, the minimum-norm Newton projection and the trust-region
+    least squares it replaces both land on G = 0, on the same critical plane."""
+    lk = build_preset("four-bar", {"L2": 1.2})
+    axes = _validate(lk, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)])
+    sys = _System(lk, axes)
+    res = find_critical_points(lk, TOL, FAST)
+    assert res.near_misses
+    for m in res.near_misses:
+        x0 = np.concatenate([m.critical_u, m.critical_sigma, lk.lengths[[a.bar for a in axes]]])
+        x = _onto_solutions(sys, x0)
+        ref = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15,
+                            gtol=1e-15, max_nfev=200).x
+        assert np.max(np.abs(sys.g(x))) <= 1e-12
+        assert np.max(np.abs(sys.g(ref))) <= 1e-9
+        # both on a plane a +- L1 +- L2 +- L3 = 0 (a = L1 = 1)
+        for p in (x[-2:], ref[-2:]):
+            assert min(abs(1 + e1 + e2 * p[0] + e3 * p[1])
+                       for e1 in (1, -1) for e2 in (1, -1) for e3 in (1, -1)) <= 1e-9
+
+
+def test_seed_grid_avoids_the_diagonal():
+    """In a box with equal ranges the critical values of symmetric linkages lie on L_x = L_y
+    (the four-bar with a = L1 in its (L2, L3) slice): no seed of the offset grid is there."""
+    n = 5
+    frac = (np.arange(n) + GRID_OFFSET[:, None]) / n  # (2, n): seed fractions per axis
+    assert np.min(np.abs(frac[0][:, None] - frac[1][None, :])) > 1e-3
+    assert np.all((frac > 0) & (frac < 1))
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_augmented_system_equals_its_definition(name):
+    """F and dF of the refinement against the expressions of the module docstring, built from
+    the reference Constraints methods (sparse Hessian assembly)."""
+    lk = build_preset(*LINKAGES[name])
+    cons = Constraints(lk)
+    sys = AugmentedSystem(cons)
+    m, e = cons.n_free, cons.n_constraints
+    lengths = lk.lengths[cons.bars]
+    scale = 2.0 * float(np.median(lengths))
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        u = lk.coordinates() + 0.1 * rng.normal(size=m)
+        s = rng.normal(size=e)
+        x = np.concatenate([u, s])
+        jac = cons.jacobian(u, sparse=False)
+        f_ref = np.concatenate([(cons.squared_lengths(u) - cons.targets) / (2 * lengths),
+                                jac.T @ s / scale, [s @ s - 1.0]])
+        hess = cons.stress_hessian(s, sparse=True).toarray()
+        d_ref = np.vstack([
+            np.hstack([jac / (2 * lengths)[:, None], np.zeros((e, e))]),
+            np.hstack([hess / scale, jac.T / scale]),
+            np.concatenate([np.zeros(m), 2 * s])[None, :],
+        ])
+        assert np.allclose(sys.residual(x), f_ref, rtol=1e-13, atol=1e-13)
+        assert np.allclose(sys.jacobian(x), d_ref, rtol=1e-13, atol=1e-13)
+        # and the Jacobian is the derivative of the residual (central differences)
+        h = 1e-6
+        fd = np.column_stack([(sys.residual(x + h * ei) - sys.residual(x - h * ei)) / (2 * h)
+                              for ei in np.eye(m + e)])
+        assert np.allclose(sys.jacobian(x), fd, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["four-bar", "equilateral four-bar", "three-rotor",
+                                  "kl-chain 6"])
+def test_batched_seed_loop_traces_what_the_one_at_a_time_loop_traces(name):
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4 if "kl" in name else 32)
+    runs = []
+    for batched in (True, False):
+        ex = _Explorer(lk, TOL, opt)
+        if not batched:
+            ex.batched = None  # the reference: on_traced for one seed at a time
+        ex.trace_all(lk.coordinates())
+        runs.append(ex)
+    fast, ref = runs
+    assert fast.batched is not None
+    assert len(fast.curves) == len(ref.curves)
+    assert fast.report == ref.report
+    for a, b in zip(fast.curves, ref.curves, strict=True):
+        assert a.stop == b.stop and len(a.points) == len(b.points)
+        assert np.allclose(a.points[0], b.points[0])
