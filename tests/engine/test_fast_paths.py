@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -84,7 +86,9 @@ def test_batched_seed_test_agrees_with_on_traced(name):
                                   "gated chain"])
 def test_find_critical_points_equals_explore(name):
     lk = build_preset(*LINKAGES[name])
-    full = explore(lk, TOL, FAST)
+    # explore's closed form (engine.dyads) searches along its own walks; the tracer's curves
+    # are what find_critical_points searches, so compare with explore on those
+    full = explore(lk, TOL, replace(FAST, closed_form=False))
     fast = find_critical_points(lk, TOL, FAST)
     assert len(fast.critical_points) == len(full.critical_points)
     for a, b in zip(fast.critical_points, full.critical_points, strict=True):
@@ -186,7 +190,13 @@ def test_batched_seed_loop_traces_what_the_one_at_a_time_loop_traces(name):
     fast, ref = runs
     assert fast.batched is not None
     assert len(fast.curves) == len(ref.curves)
-    assert fast.report == ref.report
+    # Small linkages generate every seed up front; the one-at-a-time loop generates them on
+    # demand and stops at the component budget, so then it has generated fewer.
+    lazy = {"seeds", "rotor_sweeps", "random_starts_projected"}
+    same = set(ref.report) - (lazy if ref.report["component_budget_reached"] else set())
+    assert {k: fast.report[k] for k in same} == {k: ref.report[k] for k in same}
+    assert set(fast.report) == set(ref.report)
+    assert ref.report["seeds"] <= fast.report["seeds"]
     for a, b in zip(fast.curves, ref.curves, strict=True):
         assert a.stop == b.stop and len(a.points) == len(b.points)
         assert np.allclose(a.points[0], b.points[0])
