@@ -582,6 +582,14 @@ def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> C
     # exact zeros on the grid are extrema of |nu| for this purpose (a double zero hit exactly)
     zero = nu == 0
     cand = prefix & (pos_min | neg_max | zero)
+    # Only an extremum that can come within tau is refined: near its minimum a smooth nu
+    # differs from a neighbouring sample by at least its depth below the nearest one (about a
+    # quarter of that is the bound for a parabola; 16 times it leaves a wide margin). A sheet
+    # where a dyad keeps its angle (a parallelogram) has thousands of rounding-level "extrema"
+    # far from zero, all skipped here.
+    spread = np.maximum(np.where(prev_ok, np.abs(nu - prev_nu), 0.0),
+                        np.where(next_ok, np.abs(nu - next_nu), 0.0))
+    cand &= np.abs(nu) - 16.0 * spread <= tau
     si, ii, jj = np.nonzero(cand)
     if len(si):
         sgn = np.where(nu[si, ii, jj] >= 0, 1.0, -1.0)
@@ -593,7 +601,9 @@ def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> C
             _, v, _ = place(ch, t, cand_signs)
             return sgn * v[np.arange(len(t)), jj]
 
-        extreme, where = _golden_arg(signed_nu, lo, hi)
+        # 40 steps shrink the bracket to 1e-8 of its width, below the sqrt(eps) to which a
+        # minimum's place is defined anyway
+        extreme, where = _golden_arg(signed_nu, lo, hi, iters=40)
         near = extreme <= tau
         # where a later dyad does not assemble there is no configuration at that angle
         _, v_at, _ = place(ch, where, cand_signs)
@@ -698,7 +708,15 @@ def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> C
         # as well (a double zero of its nu along the circle, or a fold along it where the
         # rigidity matrix is singular) there may be critical points too.
         ends_ = linkage.ends[linkage.active]
+        seen: list[tuple[int, tuple[int, ...], float]] = []
         for r in range(len(ci)):
+            # sheets that differ only in this dyad's own root give the same circle
+            key_signs = tuple(int(x) for i, x in enumerate(s_c[r]) if i != int(cj[r]))
+            t0 = float(t_all[ci[r]])
+            if any(j0 == int(cj[r]) and s0 == key_signs and abs(t1 - t0) <= 1e-6
+                   for j0, s0, t1 in seen):
+                continue
+            seen.append((int(cj[r]), key_signs, t0))
             try:
                 u_parts += _circle_candidates(
                     ch, float(t_all[ci[r]]), s_c[r], int(cj[r]), centre[r], tau, scale, free,
@@ -782,7 +800,7 @@ def _circle_candidates(
             _, v, _ = at(t)
             return sgn * v[np.arange(len(t)), jj]
 
-        extreme, where = _golden_arg(signed_nu, lo, hi)
+        extreme, where = _golden_arg(signed_nu, lo, hi, iters=40)
         near = extreme <= tau
         if near.any():
             p, _, dd = at(where[near])
