@@ -16,6 +16,10 @@
 Planar dyad chains (a rotor and circle-circle dyads) first try the closed form of
 :mod:`engine.dyads`: every component sampled in one vectorised pass, with a certificate that no
 critical point exists; it declines (and the steps above run) at or near critical lengths.
+With ``SpaceOptions.critical_closed_form`` (opt-in), :func:`find_critical_points` of such a chain
+refines closed-form candidates instead of tracing (:func:`engine.dyads.critical_candidates`:
+wherever that certificate is in doubt) and answers only when every candidate refines to a
+critical point and none is degenerate; otherwise the steps above run.
 """
 
 from __future__ import annotations
