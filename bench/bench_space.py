@@ -120,6 +120,11 @@ def main() -> None:
         t, crit = best_of(lambda: find_critical_points(build_preset("three-rotor")), args.repeat)
         table.record("all critical points, three-rotor (engine)", t,
                      f"{len(crit.critical_points)} critical points")
+        opt_in = SpaceOptions(critical_closed_form=True)
+        t, crit = best_of(lambda: find_critical_points(build_preset("three-rotor"), None, opt_in),
+                          args.repeat)
+        table.record("all critical points, three-rotor (engine, critical_closed_form)", t,
+                     f"{len(crit.critical_points)} critical points, {crit.search['method']}")
         if not args.no_http:
             t, body = critical_points_http(args.repeat)
             table.record("all critical points, three-rotor (HTTP, POST critical-points)", t,

@@ -16,6 +16,10 @@
 Planar dyad chains (a rotor and circle-circle dyads) first try the closed form of
 :mod:`engine.dyads`: every component sampled in one vectorised pass, with a certificate that no
 critical point exists; it declines (and the steps above run) at or near critical lengths.
+With ``SpaceOptions.critical_closed_form`` (opt-in), :func:`find_critical_points` of such a chain
+refines closed-form candidates instead of tracing (:func:`engine.dyads.critical_candidates`:
+wherever that certificate is in doubt) and answers only when every candidate refines to a
+critical point and none is degenerate; otherwise the steps above run.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
-from engine.dyads import closed_form_space
+from engine.dyads import closed_form_space, critical_candidates
 from engine.errors import InvalidLinkage, InvalidRequest
 from engine.linkage import Linkage
 from engine.rigidity import first_order
@@ -75,6 +79,12 @@ class SpaceOptions:
     #: Try the closed form of :mod:`engine.dyads` first (planar dyad chains away from critical
     #: lengths); False always runs the general tracer (the tests cross-check the two).
     closed_form: bool = True
+    #: :func:`find_critical_points` of planar dyad chains from the closed-form candidates of
+    #: :func:`engine.dyads.critical_candidates` (no tracing), where they are beyond doubt. Off by
+    #: default: the points come in another order than the traced search's (indices such as
+    #: ``branch_point`` of the design endpoint refer to that order) and the report has no seeds
+    #: or traced curves. Needs ``closed_form`` too.
+    critical_closed_form: bool = False
 
 
 @dataclass(frozen=True)
@@ -299,12 +309,23 @@ class _Explorer:
         return starts
 
     def critical_points(self) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
-        exact: list[CriticalPoint] = []
-        misses: list[NearMiss] = []
         candidates = self.candidates()
         self.report["critical_candidates"] = len(candidates)
+        exact, misses, degenerate, _ = self.resolve(candidates)
+        return exact, misses, degenerate
+
+    def resolve(
+        self, candidates: Iterable[np.ndarray]
+    ) -> tuple[list[CriticalPoint], list[NearMiss], bool, int]:
+        """Refine every candidate on the augmented system; deduplicate, classify and merge the
+        critical points (near misses only against traced curves): ``(critical points, near
+        misses, degenerate, how many candidates did not refine to a critical point)``."""
+        exact: list[CriticalPoint] = []
+        misses: list[NearMiss] = []
+        failed = 0
         for u0 in candidates:
             ref = refine_critical(self.cons, u0, self.tol)
+            failed += not ref.critical
             if ref.critical:
                 if any(np.linalg.norm(ref.u - c.u) <= 1e-6 * self.scale for c in exact):
                     continue
@@ -320,7 +341,7 @@ class _Explorer:
                                        ref.length_residual, ref.u, ref.sigma))
         exact, degenerate = _merge_non_isolated(exact)
         misses = _dedupe_misses(misses, self.scale)
-        return exact, misses, degenerate
+        return exact, misses, degenerate, failed
 
     # -- segments -------------------------------------------------------------------------
     def segments(self, crit: list[CriticalPoint]) -> tuple[list[Segment], bool]:
@@ -478,6 +499,13 @@ def find_critical_points(
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
     ex = _Explorer(linkage, tol, opt)
+    if opt.closed_form and opt.critical_closed_form:
+        fast = _closed_form_critical(ex)
+        if fast is not None:
+            return fast
+    if opt.critical_closed_form:
+        ex.report["method"] = "tracer"
+        ex.report.setdefault("closed_form", "off")
     ex.trace_all(linkage.coordinates() if start_on_space else None)
     crit, misses, degenerate = ex.critical_points()
     search = dict(ex.report)
@@ -721,6 +749,62 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
         "complete": not truncated,
     })
     return SpaceResult(components, [], [], misses, report, False)
+
+
+def _closed_form_critical(ex: _Explorer) -> CriticalSearch | None:
+    """:func:`find_critical_points` from the closed-form candidates of
+    :func:`engine.dyads.critical_candidates`, or None (the general path runs;
+    ``search["closed_form"]`` then says why).
+
+    Every candidate is refined, deduplicated and classified as in the general search. The
+    answer is given only when it is beyond doubt: at least one candidate, every candidate
+    refines to a critical point (a start that does not is a near miss, i.e. lengths near but
+    not at critical values, or a failed refinement: the general search decides), and no
+    critical point is degenerate (non-isolated sets are merged by the general search). With no
+    candidate at all the certificate holds (no critical point) but the near misses come from
+    the general search, which then runs."""
+    try:
+        cc = critical_candidates(ex.linkage, ex.tol)
+    except (ArithmeticError, ValueError, MemoryError) as exc:  # a safety net, as in explore
+        ex.report["closed_form"] = f"declined: {type(exc).__name__}: {exc}"
+        return None
+    if cc.points is None:
+        ex.report["closed_form"] = cc.report["closed_form"]
+        return None
+    if not len(cc.points):
+        ex.report["closed_form"] = ("declined: no candidate (no critical point); the near "
+                                    "misses come from the general search")
+        return None
+    crit, _, degenerate, failed = ex.resolve(list(cc.points))
+    if failed or degenerate or not crit:
+        why = (f"{failed} of {len(cc.points)} candidates did not refine to a critical point"
+               if failed else "a degenerate critical point" if degenerate
+               else "no critical point")
+        ex.report["closed_form"] = f"declined: {why}"
+        return None
+    search: dict[str, object] = {
+        "method": "closed-form candidates",
+        "closed_form": "used",
+        "closed_form_rotor": cc.report["rotor"],
+        "closed_form_sheets": cc.report["sheets"],
+        "closed_form_samples": cc.report["samples"],
+        "closed_form_margin": cc.report["margin"],
+        "closed_form_extrema": cc.report.get("extrema_within_margin", 0),
+        "closed_form_doubtful_folds": cc.report.get("doubtful_folds", 0),
+        "critical_candidates": len(cc.points),
+        "critical_multistart": 0,
+        "curves_traced": 0,
+        "assemblies_truncated": False,
+        "component_budget_reached": False,
+        "open_curves": 0,
+        "critical_points_found": len(crit),
+        "step_max": ex.h_max,
+        "strain_tol": ex.opt.trace.strain_tol,
+        # every sheet of the rotor's whole turn was searched: complete as the general search is
+        # when its curves cover the space and no critical point is degenerate
+        "complete": True,
+    }
+    return CriticalSearch(crit, [], search, False)
 
 
 # -- end of closed-form path -----------------------------------------------------------------

@@ -103,13 +103,16 @@ def chain_of(linkage: Linkage) -> Chain | None:
 
 
 def place(
-    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None = None
+    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None = None,
+    given: dict[int, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (n, V, 2), ``nu`` (n, k) and squared centre distances (n, k) at angles
     ``theta`` (n,) on sheets ``signs`` (n, k) of +-1.
 
     ``flat`` (n, k) bool forces a dyad's vertex onto its centres' line (its fold point, so that
-    the two sheets that meet there give bitwise the same configuration). Where ``nu < 0`` the
+    the two sheets that meet there give bitwise the same configuration). ``given = {j: v}``
+    puts dyad ``j``'s vertex at ``v`` (n, 2) instead (a point of the circle it is free on where
+    its centres coincide). Where ``nu < 0`` the
     vertex is put on the line too; the caller masks those samples (the loop runs over the ``k``
     dyads, at most :data:`MAX_DYADS`, each vectorised over all samples).
     """
@@ -134,8 +137,11 @@ def place(
             hh = np.sqrt(np.maximum(quad, 0.0)) * inv * signs[:, j]
         if flat is not None:
             hh = np.where(flat[:, j], 0.0, hh)
-        pos[:, ch.vertex[j], 0] = c0[:, 0] + along * delta[:, 0] - hh * delta[:, 1]
-        pos[:, ch.vertex[j], 1] = c0[:, 1] + along * delta[:, 1] + hh * delta[:, 0]
+        if given is not None and j in given:
+            pos[:, ch.vertex[j]] = given[j]
+        else:
+            pos[:, ch.vertex[j], 0] = c0[:, 0] + along * delta[:, 0] - hh * delta[:, 1]
+            pos[:, ch.vertex[j], 1] = c0[:, 1] + along * delta[:, 1] + hh * delta[:, 0]
         nu[:, j] = quad / (4.0 * ra * ra * rb * rb)
         d2[:, j] = dd
     return pos, nu, d2
@@ -166,11 +172,27 @@ def _golden(
 ) -> np.ndarray:
     """Vectorised golden-section minimisation of ``f`` (arrays in, arrays out) on each
     ``[lo, hi]``; returns the smallest value seen per bracket (ends included)."""
+    return _golden_arg(f, lo, hi, iters)[0]
+
+
+def _golden_arg(
+    f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_golden` with the argument of the smallest value seen: ``(value, argument)``."""
     g = (np.sqrt(5.0) - 1.0) / 2.0
     a, b = lo.copy(), hi.copy()
     c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    best = np.minimum(np.minimum(f(a), f(b)), np.minimum(fc, fd))
+    fa, fb, fc, fd = f(a), f(b), f(c), f(d)
+    best = np.minimum(fa, fb)
+    arg = np.where(fa <= fb, a, b)
+
+    def keep(x: np.ndarray, fx: np.ndarray) -> None:
+        nonlocal best, arg
+        better = fx < best
+        best, arg = np.where(better, fx, best), np.where(better, x, arg)
+
+    keep(c, fc)
+    keep(d, fd)
     for _ in range(iters):
         left = fc < fd
         b = np.where(left, d, b)
@@ -178,10 +200,11 @@ def _golden(
         c_new = b - g * (b - a)
         d_new = a + g * (b - a)
         c, d = np.where(left, c_new, d), np.where(left, c, d_new)
-        fc_new = f(np.where(left, c, d))
+        x_new = np.where(left, c, d)
+        fc_new = f(x_new)
         fc, fd = np.where(left, fc_new, fd), np.where(left, fc, fc_new)
-        best = np.minimum(best, np.minimum(fc, fd))
-    return best
+        keep(x_new, fc_new)
+    return best, arg
 
 
 def closed_form_space(
@@ -462,3 +485,365 @@ def _closed_form(
 
 class _Decline(Exception):
     pass
+
+
+# -- candidates for critical points ---------------------------------------------------------
+
+#: More distinct candidates than this (e.g. a dyad collinear along a whole interval: a
+#: non-isolated critical set) are left to the general search.
+MAX_CANDIDATES = 64
+
+
+@dataclass(frozen=True)
+class CriticalCandidates:
+    """Starting points (n, M free coordinates) for the refinement of critical points of a
+    planar dyad chain: every place where the certificate of :func:`closed_form_space` is in
+    doubt; or why there are none to give (``points`` is None)."""
+
+    points: np.ndarray | None
+    report: dict[str, object]
+
+
+def critical_candidates(
+    linkage: Linkage, tol: Tolerances, samples: int = DETECT_SAMPLES
+) -> CriticalCandidates:
+    """Candidates for every critical point of a planar dyad chain, in closed form.
+
+    The certificate of the module docstring turned round: away from the places where one of its
+    checks is within the margin ``tau`` there is no critical point, so starting points at those
+    places (on every sheet: every extremum of a ``nu_j`` that comes within ``tau`` of zero, at
+    its refined angle; every fold that is nearly tangent or where another dyad comes within
+    ``tau``, at the fold and at that dyad's smallest ``nu`` in the fold's cell) contain a start
+    next to every critical point. The caller refines them on the augmented system
+    (:func:`engine.critical.refine_critical`).
+
+    Returns
+    -------
+    CriticalCandidates
+        ``points`` (n, M), possibly empty (then the certificate holds: no critical point); None
+        (with ``report["closed_form"]`` saying why) when the linkage is not a plain dyad chain,
+        dyad centres (nearly) coincide, values are not finite, or there are more than
+        :data:`MAX_CANDIDATES` distinct candidates.
+    """
+    ch = chain_of(linkage)
+    if ch is None:
+        return CriticalCandidates(None, {"closed_form": "declined: not a planar dyad chain"})
+    with np.errstate(all="ignore"):
+        return _candidates(linkage, ch, tol, samples)
+
+
+def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> CriticalCandidates:
+    k = ch.k
+    scale = float(np.median(linkage.lengths[linkage.active]))
+    tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
+    n = int(samples)
+    dth = 2 * np.pi / n
+    offset = (np.sqrt(5) - 1) / 2  # as closed_form_space: the same grid
+    grid = dth * (np.arange(n) + offset)
+    sheets = _sheets(k)
+    n_sheets = len(sheets)
+    report: dict[str, object] = {
+        "rotor": linkage.bar_ids[ch.rotor], "dyads": k, "sheets": n_sheets,
+        "samples": n, "margin": tau,
+    }
+
+    def decline(why: str) -> CriticalCandidates:
+        report["closed_form"] = f"declined: {why}"
+        return CriticalCandidates(None, report)
+
+    theta = np.tile(grid, n_sheets)
+    signs = np.repeat(sheets, n, axis=0)
+    _, nu, d2 = place(ch, theta, signs)
+    nu = nu.reshape(n_sheets, n, k)
+    d2 = d2.reshape(n_sheets, n, k)
+    pos_nu = nu > 0
+    prefix = np.concatenate(
+        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
+        axis=2,
+    )
+    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
+        return decline("non-finite values (coordinates or lengths too large)")
+    if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
+        # centres that coincide make a dyad's vertex free on a circle: left to the general path
+        return decline("a dyad's centres (nearly) coincide")
+
+    # candidates as (angle, sheet, flat dyad or -1)
+    c_theta: list[np.ndarray] = []
+    c_sheet: list[np.ndarray] = []
+    c_flat: list[np.ndarray] = []
+
+    # -- extrema of nu_j (the same detection as closed_form_space) within tau of zero --
+    prev_nu, next_nu = np.roll(nu, 1, axis=1), np.roll(nu, -1, axis=1)
+    prev_ok, next_ok = np.roll(prefix, 1, axis=1), np.roll(prefix, -1, axis=1)
+    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
+    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
+    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
+    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    # exact zeros on the grid are extrema of |nu| for this purpose (a double zero hit exactly)
+    zero = nu == 0
+    cand = prefix & (pos_min | neg_max | zero)
+    # Only an extremum that can come within tau is refined: near its minimum a smooth nu
+    # differs from a neighbouring sample by at least its depth below the nearest one (about a
+    # quarter of that is the bound for a parabola; 16 times it leaves a wide margin). A sheet
+    # where a dyad keeps its angle (a parallelogram) has thousands of rounding-level "extrema"
+    # far from zero, all skipped here.
+    spread = np.maximum(np.where(prev_ok, np.abs(nu - prev_nu), 0.0),
+                        np.where(next_ok, np.abs(nu - next_nu), 0.0))
+    cand &= np.abs(nu) - 16.0 * spread <= tau
+    si, ii, jj = np.nonzero(cand)
+    if len(si):
+        sgn = np.where(nu[si, ii, jj] >= 0, 1.0, -1.0)
+        lo = grid[ii] - np.where(prev_ok[si, ii, jj], dth, 0.0)
+        hi = grid[ii] + np.where(next_ok[si, ii, jj], dth, 0.0)
+        cand_signs = sheets[si]
+
+        def signed_nu(t: np.ndarray) -> np.ndarray:
+            _, v, _ = place(ch, t, cand_signs)
+            return sgn * v[np.arange(len(t)), jj]
+
+        # 40 steps shrink the bracket to 1e-8 of its width, below the sqrt(eps) to which a
+        # minimum's place is defined anyway
+        extreme, where = _golden_arg(signed_nu, lo, hi, iters=40)
+        near = extreme <= tau
+        # where a later dyad does not assemble there is no configuration at that angle
+        _, v_at, _ = place(ch, where, cand_signs)
+        later = np.arange(k)[None, :] > jj[:, None]
+        near &= ~np.any(later & (v_at < -tau), axis=1)
+        report["extrema_within_margin"] = int(near.sum())
+        c_theta.append(where[near])
+        c_sheet.append(si[near])
+        c_flat.append(np.full(int(near.sum()), -1))
+
+    # -- folds: nearly tangent, or another dyad within tau across the fold's cell --
+    valid: np.ndarray = np.asarray(pos_nu.all(axis=2), dtype=bool)
+    ends: list[tuple[int, int, int, int]] = []
+    for s in range(n_sheets):
+        v = valid[s]
+        up = np.flatnonzero(v & ~np.roll(v, 1))
+        down = np.flatnonzero(v & ~np.roll(v, -1))
+        ends += [(s, int(i), (int(i) - 1) % n, -1) for i in up]
+        ends += [(s, int(i), (int(i) + 1) % n, +1) for i in down]
+    n_doubtful_folds = 0
+    if ends:
+        e = np.array(ends)
+        es, ein, eout, edir = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+        jf = np.argmax(~pos_nu[es, eout], axis=1)
+        f_signs = sheets[es]
+        lo = grid[ein].copy()
+        hi = grid[ein] + edir * dth
+        rows = np.arange(len(es))
+        for _ in range(64):
+            mid = 0.5 * (lo + hi)
+            _, v, _ = place(ch, mid, f_signs)
+            inside = v[rows, jf] > 0
+            lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+        star = lo
+        h = 1e-3 * dth
+        _, vp, _ = place(ch, star + h, f_signs)
+        _, vm, _ = place(ch, star - h, f_signs)
+        tangent = np.abs(vp[rows, jf] - vm[rows, jf]) / (2 * h) <= np.sqrt(tau)
+        sig = np.linspace(0.0, 1.0, FOLD_CELL_SAMPLES)
+        tt = star[:, None] + (grid[ein] - star)[:, None] * sig[None, :] ** 2
+        rep_signs = np.repeat(f_signs, FOLD_CELL_SAMPLES, axis=0)
+        rep_flat = np.zeros((tt.size, k), bool)
+        rep_flat[::FOLD_CELL_SAMPLES][rows, jf] = True
+        _, vv, _ = place(ch, tt.ravel(), rep_signs, rep_flat)
+        vv = vv.reshape(len(es), FOLD_CELL_SAMPLES, k)
+        vv[rows, :, jf] = np.inf  # the fold's own dyad
+        others = vv.min(axis=2)  # (F, cells)
+        crowded = (others <= tau).any(axis=1)
+        doubtful = tangent | crowded
+        n_doubtful_folds = int(doubtful.sum())
+        # at the fold itself (its dyad flat) ...
+        c_theta.append(star[doubtful])
+        c_sheet.append(es[doubtful])
+        c_flat.append(jf[doubtful])
+        # ... and where another dyad comes closest to collinear in the fold's cell
+        at = np.argmin(others, axis=1)
+        inner = crowded & (at > 0)
+        c_theta.append(tt[rows, at][inner])
+        c_sheet.append(es[inner])
+        c_flat.append(np.full(int(inner.sum()), -1))
+
+    report["doubtful_folds"] = n_doubtful_folds
+    t_all = np.concatenate(c_theta) if c_theta else np.zeros(0)
+    s_all = np.concatenate(c_sheet).astype(int) if c_sheet else np.zeros(0, int)
+    f_all = np.concatenate(c_flat).astype(int) if c_flat else np.zeros(0, int)
+    free = ~np.asarray(linkage.fixed)
+    if not len(t_all):
+        report["candidates"] = 0
+        return CriticalCandidates(np.zeros((0, int(free.sum()))), report)
+    flat = np.zeros((len(t_all), k), bool)
+    flat[np.flatnonzero(f_all >= 0), f_all[f_all >= 0]] = True
+    pos, _, dd = place(ch, t_all, sheets[s_all], flat)
+    # A dyad whose centres coincide (at an isolated angle: nu_j, a product with d^2, has a
+    # double zero there) leaves its vertex free on a circle, every point of which has the two
+    # bars on one line. A self-stress on the pair (+w, -w) puts opposite forces +-w e on the
+    # two centres (e the unit vector from them to the vertex); it is balanced by the rest
+    # exactly when e is orthogonal to the centres' relative velocity d(a - b)/d theta: the two
+    # points of the circle at +-90 degrees from it are the candidates there.
+    coincide = dd <= (1e-6 * scale) ** 2
+    keep_rows = ~coincide.any(axis=1)
+    u_parts = [pos[keep_rows][:, free]]
+    ci, cj = np.nonzero(coincide)
+    if len(ci):
+        h = 1e-6
+        s_c = sheets[s_all[ci]]
+        pp, _, _ = place(ch, t_all[ci] + h, s_c)
+        pm, _, _ = place(ch, t_all[ci] - h, s_c)
+        rel = (pp[np.arange(len(ci)), ch.a[cj]] - pp[np.arange(len(ci)), ch.b[cj]]) - (
+            pm[np.arange(len(ci)), ch.a[cj]] - pm[np.arange(len(ci)), ch.b[cj]])
+        centre = pos[np.arange(len(ci)), ch.a[cj]]
+        if np.any(np.abs(ch.ra[cj] - ch.rb[cj]) > 1e-6 * scale):
+            return decline("a dyad's centres coincide where its radii differ")
+        for turn in (0.5 * np.pi, -0.5 * np.pi):
+            psi = np.arctan2(rel[:, 1], rel[:, 0]) + turn
+            for jj_ in np.unique(cj):
+                sel = cj == jj_
+                vtx = centre[sel] + ch.ra[jj_] * np.column_stack([np.cos(psi[sel]),
+                                                                 np.sin(psi[sel])])
+                pc, _, _ = place(ch, t_all[ci[sel]], s_c[sel], None, {int(jj_): vtx})
+                u_parts.append(pc[:, free])
+        # Along the circle the later dyads move with the vertex: where one of them is collinear
+        # as well (a double zero of its nu along the circle, or a fold along it where the
+        # rigidity matrix is singular) there may be critical points too.
+        ends_ = linkage.ends[linkage.active]
+        seen: list[tuple[int, tuple[int, ...], float]] = []
+        for r in range(len(ci)):
+            # sheets that differ only in this dyad's own root give the same circle
+            key_signs = tuple(int(x) for i, x in enumerate(s_c[r]) if i != int(cj[r]))
+            t0 = float(t_all[ci[r]])
+            if any(j0 == int(cj[r]) and s0 == key_signs and abs(t1 - t0) <= 1e-6
+                   for j0, s0, t1 in seen):
+                continue
+            seen.append((int(cj[r]), key_signs, t0))
+            try:
+                u_parts += _circle_candidates(
+                    ch, float(t_all[ci[r]]), s_c[r], int(cj[r]), centre[r], tau, scale, free,
+                    ends_, tol)
+            except _Decline as exc:
+                return decline(str(exc))
+    u = np.concatenate(u_parts)
+    if not np.all(np.isfinite(u)):
+        return decline("non-finite candidate")
+    # the same start found on several sheets (a collinear dyad's two roots coincide): once
+    keep: list[int] = []
+    for i in range(len(u)):
+        if not keep or np.min(np.linalg.norm(u[keep] - u[i], axis=1)) > 1e-6 * scale:
+            keep.append(i)
+            if len(keep) > MAX_CANDIDATES:
+                return decline(f"more than {MAX_CANDIDATES} candidates for critical points "
+                               "(a non-isolated critical set?)")
+    report["candidates"] = len(keep)
+    return CriticalCandidates(u[keep], report)
+
+
+#: Samples of the vertex's circle where a dyad's centres coincide.
+CIRCLE_SAMPLES = 2048
+
+
+def _gap(pos: np.ndarray, ends: np.ndarray, free: np.ndarray) -> float:
+    """``s_min / s_max`` of the rigidity matrix at positions ``pos`` (V, 2)."""
+    diff = pos[ends[:, 0]] - pos[ends[:, 1]]
+    jac = np.zeros((len(ends), *pos.shape))
+    rows = np.arange(len(ends))
+    jac[rows, ends[:, 0]] = 2 * diff
+    jac[rows, ends[:, 1]] = -2 * diff
+    sv = np.linalg.svd(jac[:, free].reshape(len(ends), -1), compute_uv=False)
+    return float(sv[-1] / sv[0]) if sv.size and sv[0] > 0 else 0.0
+
+
+def _circle_candidates(
+    ch: Chain, theta0: float, signs: np.ndarray, j: int, centre: np.ndarray, tau: float,
+    scale: float, free: np.ndarray, ends: np.ndarray, tol: Tolerances,
+) -> list[np.ndarray]:
+    """Candidates on the circle of dyad ``j``'s vertex (its centres coincide at ``theta0``)
+    from the later dyads on sheet ``signs``: every extremum of their ``nu`` along the circle
+    within ``tau`` of zero, and every fold along it where ``J`` is singular (decided exactly at
+    the fold; a gap between ``rank_rtol`` and ``1e-3`` declines)."""
+    k = ch.k
+    if j == k - 1:
+        return []
+    n = CIRCLE_SAMPLES
+    dps = 2 * np.pi / n
+    grid = dps * (np.arange(n) + (np.sqrt(5) - 1) / 2)
+    radius = float(ch.ra[j])
+
+    def at(psi: np.ndarray, flat: np.ndarray | None = None,
+           extra: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                np.ndarray]:
+        vtx = centre + radius * np.column_stack([np.cos(psi), np.sin(psi)])
+        return place(ch, np.full(len(psi), theta0), np.repeat(signs[None, :], len(psi), axis=0),
+                     flat, {j: vtx, **(extra or {})})
+
+    _, nu, d2 = at(grid)
+    later = np.arange(k) > j
+    pos_nu = (nu > 0) | ~later
+    prefix = np.concatenate([np.ones((n, 1), bool),
+                             np.cumprod(pos_nu, axis=1)[:, :-1].astype(bool)], axis=1) & later
+    if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
+        raise _Decline("centres coincide twice (on the circle of a dyad's vertex)")
+    out: list[np.ndarray] = []
+    prev_nu, next_nu = np.roll(nu, 1, axis=0), np.roll(nu, -1, axis=0)
+    prev_ok, next_ok = np.roll(prefix, 1, axis=0), np.roll(prefix, -1, axis=0)
+    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
+    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
+    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
+    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    ii, jj = np.nonzero(prefix & (pos_min | neg_max | (nu == 0)))
+    if len(ii):
+        sgn = np.where(nu[ii, jj] >= 0, 1.0, -1.0)
+        lo = grid[ii] - np.where(prev_ok[ii, jj], dps, 0.0)
+        hi = grid[ii] + np.where(next_ok[ii, jj], dps, 0.0)
+
+        def signed_nu(t: np.ndarray) -> np.ndarray:
+            _, v, _ = at(t)
+            return sgn * v[np.arange(len(t)), jj]
+
+        extreme, where = _golden_arg(signed_nu, lo, hi, iters=40)
+        near = extreme <= tau
+        if near.any():
+            p, _, dd = at(where[near])
+            jn = jj[near]
+            nested = dd[np.arange(len(jn)), jn] <= (1e-6 * scale) ** 2
+            out.append(p[~nested][:, free])
+            # a later dyad's centres coincide too (its vertex on a circle of its own): the same
+            # rule, with the motion along this circle; deeper nesting declines
+            for r in np.flatnonzero(nested):
+                i = int(jn[r])
+                if i != k - 1 or abs(ch.ra[i] - ch.rb[i]) > 1e-6 * scale:
+                    raise _Decline("centres coincide twice (on the circle of a dyad's vertex)")
+                h = 1e-6
+                pp, _, _ = at(where[near][r:r + 1] + h)
+                pm, _, _ = at(where[near][r:r + 1] - h)
+                rel = (pp[0, ch.a[i]] - pp[0, ch.b[i]]) - (pm[0, ch.a[i]] - pm[0, ch.b[i]])
+                for turn in (0.5 * np.pi, -0.5 * np.pi):
+                    phi = np.arctan2(rel[1], rel[0]) + turn
+                    vtx = p[r, ch.a[i]] + ch.ra[i] * np.array([np.cos(phi), np.sin(phi)])
+                    pc, _, _ = at(where[near][r:r + 1], None, {i: vtx[None, :]})
+                    out.append(pc[:, free])
+    # folds of the later dyads along the circle: J decides at the fold point itself
+    valid = np.all(pos_nu, axis=1)
+    up = np.flatnonzero(valid & ~np.roll(valid, 1))
+    down = np.flatnonzero(valid & ~np.roll(valid, -1))
+    ein = np.concatenate([up, down]).astype(int)
+    edir = np.concatenate([-np.ones(len(up), int), np.ones(len(down), int)])
+    if len(ein):
+        jf = np.argmax(~pos_nu[(ein + edir) % n], axis=1)
+        lo, hi = grid[ein].copy(), grid[ein] + edir * dps
+        rows = np.arange(len(ein))
+        for _ in range(64):
+            mid = 0.5 * (lo + hi)
+            _, v, _ = at(mid)
+            inside = v[rows, jf] > 0
+            lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+        flat = np.zeros((len(ein), k), bool)
+        flat[rows, jf] = True
+        p, _, _ = at(lo, flat)
+        for f in range(len(ein)):
+            g = _gap(p[f], ends, free)
+            if g <= 1e3 * tol.rank_rtol:
+                out.append(p[f][None, free])
+            elif g < 1e-3:
+                raise _Decline("a fold on the circle of a dyad's vertex is nearly singular")
+    return out
