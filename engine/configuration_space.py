@@ -16,7 +16,7 @@
 Planar dyad chains (a rotor and circle-circle dyads) first try the closed form of
 :mod:`engine.dyads`: every component sampled in one vectorised pass, with a certificate that no
 critical point exists; it declines (and the steps above run) at or near critical lengths.
-With ``SpaceOptions.critical_closed_form`` (opt-in), :func:`find_critical_points` of such a chain
+With ``SpaceOptions.critical_closed_form`` (default), :func:`find_critical_points` of such a chain
 refines closed-form candidates instead of tracing (:func:`engine.dyads.critical_candidates`:
 wherever that certificate is in doubt) and answers only when every candidate refines to a
 critical point and none is degenerate; otherwise the steps above run.
@@ -80,11 +80,10 @@ class SpaceOptions:
     #: lengths); False always runs the general tracer (the tests cross-check the two).
     closed_form: bool = True
     #: :func:`find_critical_points` of planar dyad chains from the closed-form candidates of
-    #: :func:`engine.dyads.critical_candidates` (no tracing), where they are beyond doubt. Off by
-    #: default: the points come in another order than the traced search's (indices such as
-    #: ``branch_point`` of the design endpoint refer to that order) and the report has no seeds
-    #: or traced curves. Needs ``closed_form`` too.
-    critical_closed_form: bool = False
+    #: :func:`engine.dyads.critical_candidates` (no tracing), where they are beyond doubt
+    #: (critical points are in one canonical order whichever path finds them; the report then
+    #: has no seeds or traced curves). Needs ``closed_form`` too; False always traces.
+    critical_closed_form: bool = True
 
 
 @dataclass(frozen=True)
@@ -340,6 +339,10 @@ class _Explorer:
                                        float(np.linalg.norm(on - ref.u)),
                                        ref.length_residual, ref.u, ref.sigma))
         exact, degenerate = _merge_non_isolated(exact)
+        # One canonical order, whichever path found them (closed-form candidates, traced
+        # curves, multistart): every endpoint numbers the critical points alike, so a
+        # branch_point index from one answer means the same point in another.
+        exact.sort(key=lambda c: tuple(np.round(c.u / self.scale, 5)))
         misses = _dedupe_misses(misses, self.scale)
         return exact, misses, degenerate, failed
 

@@ -20,6 +20,7 @@ from engine.configuration_space import (
     SpaceOptions,
     _closed_form_critical,
     _Explorer,
+    explore,
     find_critical_points,
 )
 from engine.dyads import critical_candidates
@@ -170,7 +171,20 @@ def test_degenerate_three_rotor_declines():
     assert str(ex.report["closed_form"]).startswith("declined")
 
 
-def test_off_by_default():
-    # the default search is the traced one, as before (its order and report unchanged)
-    res = find_critical_points(build_preset("four-bar"), TOL)
-    assert "method" not in res.search and res.search["seeds"] > 0
+@pytest.mark.parametrize("name,params", [("four-bar", {}), ("three-rotor", {})])
+def test_on_by_default_and_numbered_like_the_traced_search(name: str, params: dict) -> None:
+    """The closed-form candidates answer by default; with them off the traced search answers,
+    and both number the critical points alike (one canonical order), so an index such as the
+    design endpoint's branch_point means the same point whichever path found it, and the same
+    as in explore's answer."""
+    lk = build_preset(name, params)
+    fast = find_critical_points(lk, TOL)
+    assert fast.search["method"] == "closed-form candidates"
+    traced = find_critical_points(lk, TOL, SpaceOptions(critical_closed_form=False))
+    assert "method" not in traced.search and traced.search["seeds"] > 0
+    full = explore(lk, TOL, SpaceOptions(closed_form=False))
+    assert len(fast.critical_points) == len(traced.critical_points) == len(full.critical_points)
+    for a, b, c in zip(fast.critical_points, traced.critical_points, full.critical_points,
+                       strict=True):
+        assert np.linalg.norm(a.u - b.u) <= 1e-6 and np.linalg.norm(a.u - c.u) <= 1e-6
+        assert a.kind == b.kind == c.kind == "branch"

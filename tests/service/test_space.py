@@ -86,13 +86,27 @@ def test_design_endpoint(client):
     assert body["feasible"] is True and body["verified"] is True
     assert set(body["perturbation"]) == {"r1", "L1", "L2"}
     assert body["predicted"][0]["connects"] == body["predicted"][0]["traced_connects"]
+    # A tied pair: two branch points whose splitting gradients g = 4 sigma L on the adjustable
+    # bars are parallel (the paper's six tied pairs: their Delta always share a sign), found
+    # from the critical-points answer (the same numbering as design's); opposite signs on them
+    # cannot both hold.
+    crit = post(client, "/v1/analysis/critical-points", {"linkage": lk, "options": FAST})
+    length = {b["id"]: b["length"] for b in lk["bars"]}
+    adjustable = ["r1", "L1", "L2"]
+    grads = np.array([[4 * c["self_stress"][b] * length[b] for b in adjustable]
+                      for c in crit["critical_points"]])
+    grads /= np.linalg.norm(grads, axis=1, keepdims=True)
+    cos = grads @ grads.T - 3 * np.eye(len(grads))
+    i, j = (int(k) for k in np.unravel_index(np.argmax(cos), cos.shape))
+    assert cos[i, j] > 1 - 1e-9 and i != j
+    i, j = min(i, j), max(i, j)
     tied = post(client, "/v1/design/splitting", {
         "linkage": lk,
-        "targets": [{"branch_point": 1, "sign": 1}, {"branch_point": 5, "sign": -1}],
-        "adjustable": ["r1", "L1", "L2"], "options": FAST,
+        "targets": [{"branch_point": i, "sign": 1}, {"branch_point": j, "sign": -1}],
+        "adjustable": adjustable, "options": FAST,
     })
     assert tied["feasible"] is False and tied["verified"] is None
-    assert tied["conflicts"][0]["branch_points"] == [1, 5]
+    assert tied["conflicts"][0]["branch_points"] == [i, j]
 
 
 def test_errors_of_the_new_endpoints(client):
