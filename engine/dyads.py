@@ -242,10 +242,29 @@ def closed_form_space(
         return _closed_form(linkage, ch, tol, step_max, max_points, samples)
 
 
-def _closed_form(
-    linkage: Linkage, ch: Chain, tol: Tolerances, step_max: float, max_points: int,
-    samples: int,
-) -> ClosedForm:
+@dataclass(frozen=True)
+class _Sampled:
+    """Every sheet of a dyad chain on the detection grid (shared by the closed form and the
+    critical-point candidates, so both see the same grid): ``nu`` and ``d2`` (sheets, n, k),
+    ``prefix[s, i, j]`` (dyads before ``j`` assembled, so ``nu_j`` is defined there), the margin
+    ``tau`` and the report so far; ``problem`` says why the closed form cannot be used."""
+
+    k: int
+    scale: float
+    tau: float
+    n: int
+    dth: float
+    grid: np.ndarray
+    sheets: np.ndarray
+    nu: np.ndarray
+    d2: np.ndarray
+    pos_nu: np.ndarray
+    prefix: np.ndarray
+    report: dict[str, object]
+    problem: str | None
+
+
+def _sample_sheets(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> _Sampled:
     k = ch.k
     scale = float(np.median(linkage.lengths[linkage.active]))
     tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
@@ -259,26 +278,37 @@ def _closed_form(
         "rotor": linkage.bar_ids[ch.rotor], "dyads": k, "sheets": n_sheets,
         "samples": n, "margin": tau,
     }
+    _, nu, d2 = place(ch, np.tile(grid, n_sheets), np.repeat(sheets, n, axis=0))
+    nu = nu.reshape(n_sheets, n, k)
+    d2 = d2.reshape(n_sheets, n, k)
+    pos_nu = nu > 0
+    prefix = np.concatenate(
+        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
+        axis=2,
+    )
+    problem = None
+    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
+        problem = "non-finite values (coordinates or lengths too large)"
+    elif np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
+        # centres that coincide make a dyad's vertex free on a circle
+        problem = "a dyad's centres (nearly) coincide"
+    return _Sampled(k, scale, tau, n, dth, grid, sheets, nu, d2, pos_nu, prefix, report, problem)
+
+
+def _closed_form(
+    linkage: Linkage, ch: Chain, tol: Tolerances, step_max: float, max_points: int,
+    samples: int,
+) -> ClosedForm:
+    sm = _sample_sheets(linkage, ch, tol, samples)
+    k, tau, n, dth, grid, sheets = sm.k, sm.tau, sm.n, sm.dth, sm.grid, sm.sheets
+    n_sheets, nu, pos_nu, prefix, report = len(sheets), sm.nu, sm.pos_nu, sm.prefix, sm.report
 
     def decline(why: str) -> ClosedForm:
         report["closed_form"] = f"declined: {why}"
         return ClosedForm(None, report)
 
-    theta = np.tile(grid, n_sheets)
-    signs = np.repeat(sheets, n, axis=0)
-    _, nu, d2 = place(ch, theta, signs)
-    nu = nu.reshape(n_sheets, n, k)
-    d2 = d2.reshape(n_sheets, n, k)
-    pos_nu = nu > 0
-    # prefix[s, i, j]: dyads before j are assembled (so nu_j is defined there)
-    prefix = np.concatenate(
-        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
-        axis=2,
-    )
-    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
-        return decline("non-finite values (coordinates or lengths too large)")
-    if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
-        return decline("a dyad's centres (nearly) coincide")
+    if sm.problem is not None:
+        return decline(sm.problem)
 
     # -- every discrete extremum of nu_j that does not change sign: refine on its bracket --
     prev_nu, next_nu = np.roll(nu, 1, axis=1), np.roll(nu, -1, axis=1)
@@ -533,39 +563,16 @@ def critical_candidates(
 
 
 def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> CriticalCandidates:
-    k = ch.k
-    scale = float(np.median(linkage.lengths[linkage.active]))
-    tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
-    n = int(samples)
-    dth = 2 * np.pi / n
-    offset = (np.sqrt(5) - 1) / 2  # as closed_form_space: the same grid
-    grid = dth * (np.arange(n) + offset)
-    sheets = _sheets(k)
-    n_sheets = len(sheets)
-    report: dict[str, object] = {
-        "rotor": linkage.bar_ids[ch.rotor], "dyads": k, "sheets": n_sheets,
-        "samples": n, "margin": tau,
-    }
+    sm = _sample_sheets(linkage, ch, tol, samples)
+    k, scale, tau, n, dth, grid, sheets = sm.k, sm.scale, sm.tau, sm.n, sm.dth, sm.grid, sm.sheets
+    n_sheets, nu, pos_nu, prefix, report = len(sheets), sm.nu, sm.pos_nu, sm.prefix, sm.report
 
     def decline(why: str) -> CriticalCandidates:
         report["closed_form"] = f"declined: {why}"
         return CriticalCandidates(None, report)
 
-    theta = np.tile(grid, n_sheets)
-    signs = np.repeat(sheets, n, axis=0)
-    _, nu, d2 = place(ch, theta, signs)
-    nu = nu.reshape(n_sheets, n, k)
-    d2 = d2.reshape(n_sheets, n, k)
-    pos_nu = nu > 0
-    prefix = np.concatenate(
-        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
-        axis=2,
-    )
-    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
-        return decline("non-finite values (coordinates or lengths too large)")
-    if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
-        # centres that coincide make a dyad's vertex free on a circle: left to the general path
-        return decline("a dyad's centres (nearly) coincide")
+    if sm.problem is not None:
+        return decline(sm.problem)
 
     # candidates as (angle, sheet, flat dyad or -1)
     c_theta: list[np.ndarray] = []
