@@ -58,8 +58,6 @@ import resource  # noqa: E402
 import subprocess  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
-from collections.abc import Iterator  # noqa: E402
-from contextlib import contextmanager  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -67,7 +65,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.harness import Table, best_of, free_port, served  # noqa: E402
+from bench.harness import Table, best_of, served, served_process  # noqa: E402
 from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
 from engine.presets import build_preset  # noqa: E402
 from engine.rigidity import first_order  # noqa: E402
@@ -140,36 +138,6 @@ def peak_memory(n: int) -> dict[str, Any]:
     out = subprocess.run([sys.executable, __file__, "--child", str(n)], capture_output=True,
                          text=True, check=True)
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
-
-
-@contextmanager
-def served_process(timeout: float = 60.0) -> Iterator[str]:
-    """The service as deployed: ``uvicorn service.main:app`` in its own process on a free
-    loopback port (no client work shares its interpreter, as it does with ``served()``)."""
-    import httpx
-
-    port = free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
-         "--port", str(port), "--log-level", "warning"],
-        cwd=Path(__file__).resolve().parents[1],
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                if httpx.get(url + "/health", timeout=1.0).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.monotonic() > deadline or proc.poll() is not None:
-                raise RuntimeError("the service did not start")
-            time.sleep(0.1)
-        yield url
-    finally:
-        proc.terminate()
-        proc.wait(timeout)
 
 
 def through_http(client: Any, n: int, repeat: int) -> tuple[float, dict[str, Any]]:

@@ -19,46 +19,12 @@ import argparse
 import asyncio
 import os
 import statistics
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import httpx
-from harness import Table, free_port  # bench/ is on sys.path when run as a script
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def start(uvicorn_workers: int, engine_workers: int, extra: list[str]
-          ) -> tuple[subprocess.Popen[bytes], str]:
-    port = free_port()
-    env = {**os.environ, "LINKAGE_WORKERS": str(engine_workers)}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1", "--port",
-         str(port), "--workers", str(uvicorn_workers), "--log-level", "warning",
-         "--no-access-log", *extra],
-        cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(url + "/health", timeout=1).status_code == 200:
-                return proc, url
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.1)
-    proc.kill()
-    raise RuntimeError("the service did not start")
-
-
-def stop(proc: subprocess.Popen[bytes]) -> None:
-    proc.terminate()
-    try:
-        proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        proc.kill()
+from harness import Table, served_process  # bench/ is on sys.path when run as a script
 
 
 async def load(url: str, path: str, body: Any, requests: int, clients: int
@@ -110,8 +76,8 @@ def main() -> None:
                   f"{args.uvicorn_args}".strip())
     for config in args.configs:
         uv, eng = (int(x) for x in config.split("x"))
-        proc, url = start(uv, eng, args.uvicorn_args.split())
-        try:
+        extra = ["--workers", str(uv), "--no-access-log", *args.uvicorn_args.split()]
+        with served_process(extra, env={"LINKAGE_WORKERS": str(eng)}, timeout=120) as url:
             four_bar = httpx.get(url + "/v1/presets/four-bar", params={"theta": 0.5}).json()
             chain = httpx.get(url + "/v1/presets/kl-chain", params={"n": 100}).json()
             cases = [("four-bar rigidity", {"linkage": four_bar}, args.requests),
@@ -127,8 +93,6 @@ def main() -> None:
                         f"{n} requests, {failed} failed",
                         rps=n / wall, p50_ms=1e3 * percentile(lat, 50),
                         p99_ms=1e3 * percentile(lat, 99))
-        finally:
-            stop(proc)
     table.save(args.json)
 
 

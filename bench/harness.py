@@ -3,13 +3,17 @@
 * :func:`best_of` -- best wall-clock time of ``repeat`` runs (``time.perf_counter``);
 * :class:`Table` -- rows printed as they come and written as JSON;
 * :func:`served` -- the real service in a uvicorn server on a free loopback port, so that a
-  benchmark "through the API" pays HTTP and JSON cost exactly like a client.
+  benchmark "through the API" pays HTTP and JSON cost exactly like a client;
+  :func:`served_process` -- the same in a uvicorn process of its own.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -61,7 +65,6 @@ def free_port() -> int:
 def served(app: Any | None = None, timeout: float = 60.0) -> Iterator[str]:
     """Run the service (``service.main.create_app()`` unless ``app`` is given) in uvicorn on a
     free loopback port in a background thread; yields the base URL and stops the server after."""
-    import httpx
     import uvicorn
 
     if app is None:
@@ -73,18 +76,51 @@ def served(app: Any | None = None, timeout: float = 60.0) -> Iterator[str]:
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            if httpx.get(url + "/health", timeout=1.0).status_code == 200:
-                break
-        except httpx.HTTPError:
-            pass
-        if time.monotonic() > deadline:
-            raise RuntimeError("the service did not start")
-        time.sleep(0.05)
+    wait_until_healthy(url, timeout, thread.is_alive)
     try:
         yield url
     finally:
         server.should_exit = True
         thread.join(timeout)
+
+
+@contextmanager
+def served_process(uvicorn_args: list[str] | tuple[str, ...] = (),
+                   env: dict[str, str] | None = None, timeout: float = 60.0) -> Iterator[str]:
+    """The service as deployed: ``uvicorn service.main:app`` in a process of its own on a free
+    loopback port (no client work shares its interpreter, as it does with :func:`served`), with
+    more uvicorn options and environment (e.g. ``LINKAGE_WORKERS``); yields the base URL."""
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
+         "--port", str(port), "--log-level", "warning", *uvicorn_args],
+        cwd=Path(__file__).resolve().parents[1], env={**os.environ, **(env or {})},
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_until_healthy(url, timeout, lambda: proc.poll() is None)
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def wait_until_healthy(url: str, timeout: float, alive: Callable[[], bool]) -> None:
+    """Poll ``url/health`` until it answers 200; RuntimeError after ``timeout`` seconds or once
+    the server is no longer ``alive``."""
+    import httpx
+
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            if httpx.get(url + "/health", timeout=1.0).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        if time.monotonic() > deadline or not alive():
+            raise RuntimeError("the service did not start")
+        time.sleep(0.05)

@@ -31,6 +31,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -242,6 +243,28 @@ def closed_form_space(
         return _closed_form(linkage, ch, tol, step_max, max_points, samples)
 
 
+class _Extrema(NamedTuple):
+    mask: np.ndarray
+    prev_nu: np.ndarray
+    next_nu: np.ndarray
+    prev_ok: np.ndarray
+    next_ok: np.ndarray
+
+
+def _discrete_extrema(nu: np.ndarray, prefix: np.ndarray, axis: int) -> _Extrema:
+    """Samples (along the periodic ``axis`` of the angle grid) where ``nu`` is a discrete
+    minimum of a positive run or a maximum of a negative run, with the neighbours' values and
+    whether they are defined (``prefix``); at the end of a prefix run only one neighbour exists,
+    so one-sided extrema count too."""
+    prev_nu, next_nu = np.roll(nu, 1, axis=axis), np.roll(nu, -1, axis=axis)
+    prev_ok, next_ok = np.roll(prefix, 1, axis=axis), np.roll(prefix, -1, axis=axis)
+    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
+    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
+    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
+    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    return _Extrema(pos_min | neg_max, prev_nu, next_nu, prev_ok, next_ok)
+
+
 @dataclass(frozen=True)
 class _Sampled:
     """Every sheet of a dyad chain on the detection grid (shared by the closed form and the
@@ -311,14 +334,9 @@ def _closed_form(
         return decline(sm.problem)
 
     # -- every discrete extremum of nu_j that does not change sign: refine on its bracket --
-    prev_nu, next_nu = np.roll(nu, 1, axis=1), np.roll(nu, -1, axis=1)
-    prev_ok, next_ok = np.roll(prefix, 1, axis=1), np.roll(prefix, -1, axis=1)
-    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
-    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
-    # at the end of a prefix run only one neighbour exists: one-sided extrema count too
-    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
-    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
-    cand = prefix & (pos_min | neg_max)
+    ext = _discrete_extrema(nu, prefix, axis=1)
+    prev_ok, next_ok = ext.prev_ok, ext.next_ok
+    cand = prefix & ext.mask
     si, ii, jj = np.nonzero(cand)
     if len(si):
         sgn = np.where(nu[si, ii, jj] > 0, 1.0, -1.0)
@@ -580,15 +598,10 @@ def _candidates(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> C
     c_flat: list[np.ndarray] = []
 
     # -- extrema of nu_j (the same detection as closed_form_space) within tau of zero --
-    prev_nu, next_nu = np.roll(nu, 1, axis=1), np.roll(nu, -1, axis=1)
-    prev_ok, next_ok = np.roll(prefix, 1, axis=1), np.roll(prefix, -1, axis=1)
-    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
-    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
-    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
-    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    ext = _discrete_extrema(nu, prefix, axis=1)
+    prev_nu, next_nu, prev_ok, next_ok = ext.prev_nu, ext.next_nu, ext.prev_ok, ext.next_ok
     # exact zeros on the grid are extrema of |nu| for this purpose (a double zero hit exactly)
-    zero = nu == 0
-    cand = prefix & (pos_min | neg_max | zero)
+    cand = prefix & (ext.mask | (nu == 0))
     # Only an extremum that can come within tau is refined: near its minimum a smooth nu
     # differs from a neighbouring sample by at least its depth below the nearest one (about a
     # quarter of that is the bound for a parabola; 16 times it leaves a wide margin). A sheet
@@ -791,13 +804,9 @@ def _circle_candidates(
     if np.any(prefix & (d2 <= (1e-6 * scale) ** 2)):
         raise _Decline("centres coincide twice (on the circle of a dyad's vertex)")
     out: list[np.ndarray] = []
-    prev_nu, next_nu = np.roll(nu, 1, axis=0), np.roll(nu, -1, axis=0)
-    prev_ok, next_ok = np.roll(prefix, 1, axis=0), np.roll(prefix, -1, axis=0)
-    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
-    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
-    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
-    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
-    ii, jj = np.nonzero(prefix & (pos_min | neg_max | (nu == 0)))
+    ext = _discrete_extrema(nu, prefix, axis=0)
+    prev_ok, next_ok = ext.prev_ok, ext.next_ok
+    ii, jj = np.nonzero(prefix & (ext.mask | (nu == 0)))
     if len(ii):
         sgn = np.where(nu[ii, jj] >= 0, 1.0, -1.0)
         lo = grid[ii] - np.where(prev_ok[ii, jj], dps, 0.0)

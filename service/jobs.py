@@ -67,8 +67,8 @@ def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsRes
 def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
-    # the response carries no near misses: where the closed form certifies that there is no
-    # critical point, the critical-point search is skipped
+    # the response carries no near misses: where the closed form certifies, or the rotor-chain
+    # rules prove, that there is no critical point, the critical-point search is skipped
     res = explore(at, tol, mappers.space_options_in(body.options), near_misses=False)
     points = sum(len(c.points) for c in res.components)
     if points > settings.max_points:

@@ -19,7 +19,7 @@ import engine.trace as tr
 from engine.assembly import iter_seeds, seeds
 from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
 from engine.constraints import Constraints
-from engine.lu import Factor, parity
+from engine.lu import Factor
 from engine.presets import build_preset
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
@@ -40,27 +40,6 @@ def direct_factor(cons: Constraints, u: np.ndarray, row: np.ndarray) -> Factor:
         return Factor(np.vstack([row, cons.jacobian(u, sparse=False)]))
     jac = cons.jacobian(u, sparse=True)
     return Factor(sp.vstack([sp.csr_matrix(row.reshape(1, -1)), jac]).tocsc())
-
-
-def slow_parity(perm: np.ndarray) -> int:
-    seen = np.zeros(len(perm), dtype=bool)
-    cycles = 0
-    for start in range(len(perm)):
-        if not seen[start]:
-            cycles += 1
-            j = start
-            while not seen[j]:
-                seen[j] = True
-                j = perm[j]
-    return -1 if (len(perm) - cycles) % 2 else 1
-
-
-def test_parity_matches_cycle_count() -> None:
-    rng = np.random.default_rng(5)
-    for n in [0, 1, 2, 3, 7, 64, 65, 257]:
-        for _ in range(20):
-            perm = rng.permutation(n)
-            assert parity(perm) == slow_parity(perm)
 
 
 @pytest.mark.parametrize(("name", "params"), CATALOGUE)
