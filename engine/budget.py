@@ -13,28 +13,44 @@ service answers before its own time limit instead of being killed there.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 #: Reasons for an incomplete search, as reported in ``search["reason"]``.
 REASON_TIME = "time"
 REASON_BUDGET = "budget"
 
 
+#: ``progress(fraction, message)``: how far a search has come (0..1), from the engine itself.
+ProgressSink = Callable[[float, str], None]
+
+
 @dataclass(frozen=True)
 class Deadline:
-    """A point in ``time.monotonic()`` time; ``at = inf`` never expires."""
+    """A point in ``time.monotonic()`` time (``at = inf`` never expires), optionally with a
+    ``stop`` flag (e.g. a cancelled job: the search ends as if its time were up) and a
+    ``progress`` sink that searches report to."""
 
     at: float = float("inf")
+    stop: Callable[[], bool] | None = field(default=None, compare=False)
+    progress: ProgressSink | None = field(default=None, compare=False)
 
     @classmethod
-    def after(cls, seconds: float | None) -> Deadline:
+    def after(cls, seconds: float | None, *, stop: Callable[[], bool] | None = None,
+              progress: ProgressSink | None = None) -> Deadline:
         """A deadline ``seconds`` from now (``None``: never)."""
-        if seconds is None:
-            return cls()
-        return cls(time.monotonic() + max(0.0, float(seconds)))
+        at = float("inf") if seconds is None else time.monotonic() + max(0.0, float(seconds))
+        return cls(at, stop, progress)
 
     def expired(self) -> bool:
+        if self.stop is not None and self.stop():
+            return True
         return self.at != float("inf") and time.monotonic() >= self.at
+
+    def report(self, fraction: float, message: str) -> None:
+        """Pass progress on (clipped to 0..1); a no-op without a sink."""
+        if self.progress is not None:
+            self.progress(min(1.0, max(0.0, float(fraction))), message)
 
     def remaining(self) -> float:
         """Seconds left (``inf`` without a deadline, never negative)."""
@@ -47,7 +63,7 @@ class Deadline:
         sub-search gets part of the time so that the caller can still finish its own work."""
         if self.at == float("inf"):
             return self
-        return Deadline(time.monotonic() + share * self.remaining())
+        return Deadline(time.monotonic() + share * self.remaining(), self.stop, self.progress)
 
 
 NEVER = Deadline()
