@@ -2,38 +2,64 @@
 
 Fabrication tolerance of a design: how far (Euclidean norm over the adjustable bars) its lengths
 sit from the critical value set, where the topology of the configuration space can change.
+A configuration with a bar shorter than :func:`min_critical_length` is degenerate (the service
+refuses such bars as input), not critical: it is never a critical value here.
 
-Method: over critical configurations ``(u, sigma)`` minimise ``sum_{a adjustable}
-(l_a(u) - L_a)^2`` subject to ``J(u)^T sigma = 0``, ``|sigma|^2 = 1`` and ``l_b(u) = L_b`` for
-the other bars (SLSQP with analytic derivatives). Starts: every critical configuration the
-exploration reaches (critical points, the critical configurations of the near misses, and
-seeded multistart refinements of the augmented system from random points projected onto the
-constraints). Each run is a local minimum; the answer is the best over all starts. It is the
-global minimum when some start lies in the basin of the nearest sheet of the critical value
-set; the starts sample every sheet that the critical-point search meets (for the four-bar, all
-eight collinearity planes, which the tests check against the exact distances).
+Two methods, and each result says which one answered and what it guarantees:
+
+- ``"closed-form"`` (guarantee ``"exact"``): one-loop planar dyad chains (the four-bar family,
+  any pin geometry), whose critical value set is a union of hyperplane pieces derived in
+  :mod:`engine.dyad_margin`; the margin is the exact distance to the nearest piece.
+- ``"multistart"`` (guarantee: the best local minimum over the starts that converged): over
+  critical configurations ``(u, sigma)`` minimise ``sum_{a adjustable} (l_a(u) - L_a)^2``
+  subject to ``J(u)^T sigma = 0``, ``|sigma|^2 = 1``, ``l_b(u) = L_b`` for the other bars and
+  ``l_a(u) >= min_critical_length`` (SLSQP with analytic derivatives). Starts: every critical
+  configuration the exploration reaches (critical points and the critical configurations of
+  the near misses) and seeded random points refined on the augmented system. It is the global
+  minimum when some start lies in the basin of the nearest sheet of the critical value set.
+  With a :class:`engine.budget.Deadline` the starts stop when it expires and the best so far is
+  returned with ``search["complete"] = False`` and ``search["reason"] = "time"``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
 
-from engine.assembly import projected_random_starts
+from engine.assembly import iter_projected_random_starts
+from engine.budget import NEVER, REASON_TIME, Deadline
 from engine.configuration_space import SpaceOptions, find_critical_points
 from engine.constraints import Constraints
-from engine.critical import refine_critical
+from engine.critical import dense_stress_hessian, refine_critical
+from engine.dyad_margin import exact_margin
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
 from engine.tolerances import Tolerances
+
+#: Shortest bar of a critical configuration, in units of ``residual_atol``: a bar shorter than
+#: this is degenerate (a zero-length bar has a self-stress of its own at every configuration),
+#: not a critical value of the linkage.
+MIN_CRITICAL_LENGTH_ATOL = 1e3
+
+#: Methods of :func:`robustness`: ``"auto"`` takes the closed form where it applies.
+METHODS = ("auto", "closed-form", "multistart")
+
+
+def min_critical_length(tol: Tolerances) -> float:
+    """Shortest bar a reported critical configuration may have (``1e3 * residual_atol``)."""
+    return MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
 
 
 @dataclass(frozen=True)
 class Margin:
     """``margin`` (length units), the ``nearest`` critical lengths (E,), and the critical
-    configuration ``critical_u`` (M,) there; ``starts``/``converged`` count the local runs."""
+    configuration ``critical_u`` (M,) there; ``starts``/``converged`` count the local runs.
+
+    ``method`` is ``"closed-form"`` or ``"multistart"``; ``guarantee`` says what the margin is
+    (``"exact"``, or the best local minimum over the converged starts); ``search`` reports
+    ``complete`` and ``reason`` (``"time"`` when a deadline stopped the starts, else None)."""
 
     margin: float
     nearest: np.ndarray
@@ -42,6 +68,9 @@ class Margin:
     converged: int
     success: bool
     message: str
+    method: str = "multistart"
+    guarantee: str = ""
+    search: dict[str, object] = field(default_factory=dict)
 
 
 def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarray:
@@ -63,40 +92,63 @@ def _local(
     m, e = cons.n_free, cons.n_constraints
     target = cons.linkage.lengths[cons.bars]
     scale = float(np.median(target))
+    shortest = min_critical_length(tol)
+
+    # SLSQP asks for the objective, the constraints and their Jacobians at the same point:
+    # lengths and J are computed once per point
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = u.tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = (np.sqrt(np.maximum(cons.squared_lengths(u), 1e-300)),
+                         cons.jacobian(u, sparse=False))
+        return memo[key]
 
     def lengths(u: np.ndarray) -> np.ndarray:
-        return np.sqrt(np.maximum(cons.squared_lengths(u), 1e-300))
+        return at(u)[0]
 
     def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
         u = x[:m]
-        ln = lengths(u)
+        ln, jac = at(u)
         diff = (ln - target)[adj]
-        jac = cons.jacobian(u, sparse=False)
         grad_u = ((diff / ln[adj])[:, None] * jac[adj]).sum(axis=0)  # d l / du = J / (2 l)
         return float(diff @ diff), np.concatenate([grad_u, np.zeros(e)])
 
     def eq(x: np.ndarray) -> np.ndarray:
         u, s = x[:m], x[m:]
-        jac = cons.jacobian(u, sparse=False)
-        return np.concatenate([(lengths(u) - target)[~adj], jac.T @ s / (2 * scale), [s @ s - 1]])
+        ln, jac = at(u)
+        return np.concatenate([(ln - target)[~adj], jac.T @ s / (2 * scale), [s @ s - 1]])
 
     def eq_jac(x: np.ndarray) -> np.ndarray:
         u, s = x[:m], x[m:]
-        jac = cons.jacobian(u, sparse=False)
-        ln = lengths(u)
+        ln, jac = at(u)
         fixed_rows = np.hstack([jac[~adj] / (2 * ln[~adj])[:, None], np.zeros(((~adj).sum(), e))])
-        stress_rows = np.hstack([cons.stress_hessian(s, sparse=False), jac.T]) / (2 * scale)
+        stress_rows = np.hstack([dense_stress_hessian(cons, s), jac.T]) / (2 * scale)
         norm_row = np.concatenate([np.zeros(m), 2 * s])[None, :]
         return np.vstack([fixed_rows, stress_rows, norm_row])
 
+    # adjustable bars stay longer than the shortest critical bar (the others keep their length)
+    def ineq(x: np.ndarray) -> np.ndarray:
+        return (lengths(x[:m]) - shortest)[adj] / scale
+
+    def ineq_jac(x: np.ndarray) -> np.ndarray:
+        ln, jac = at(x[:m])
+        rows = jac[adj] / (2 * ln[adj])[:, None] / scale
+        return np.hstack([rows, np.zeros((int(adj.sum()), e))])
+
     res = minimize(
         objective, np.concatenate([u0, s0]), jac=True, method="SLSQP",
-        constraints=[{"type": "eq", "fun": eq, "jac": eq_jac}],
-        options={"maxiter": 300, "ftol": 1e-16},
+        constraints=[{"type": "eq", "fun": eq, "jac": eq_jac},
+                     {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
+        options={"maxiter": 150, "ftol": 1e-14 * scale**2},
     )
     if np.max(np.abs(eq(res.x))) > 1e3 * tol.residual_atol:
         return None
     u = res.x[:m]
+    if np.min(lengths(u)) < shortest:
+        return None  # a degenerate configuration, not a critical one
     return float(np.sqrt(max(res.fun, 0.0))), lengths(u), u
 
 
@@ -106,27 +158,101 @@ def robustness(
     tolerances: Tolerances | None = None,
     options: SpaceOptions | None = None,
     extra_starts: int = 24,
+    *,
+    method: str = "auto",
+    deadline: Deadline | None = None,
 ) -> Margin:
     """Smallest Euclidean change of the adjustable lengths that reaches a critical value.
+
+    Parameters
+    ----------
+    linkage : Linkage
+        One degree of freedom, something fixed.
+    adjustable : list of bar ids, optional
+        Bars whose lengths may change (default: every bar with a free end).
+    tolerances : Tolerances, optional
+    options : SpaceOptions, optional
+        Of the critical-point search that seeds the multistart; ``closed_form=False`` always
+        runs the multistart.
+    extra_starts : int
+        Random starts of the multistart besides the critical configurations found.
+    method : {"auto", "closed-form", "multistart"}
+        ``"auto"`` takes the closed form where it applies (one-loop planar dyad chains), else
+        the multistart; ``"closed-form"`` raises :class:`InvalidRequest` where it does not apply.
+    deadline : Deadline, optional
+        When it expires the multistart stops and returns the best margin so far, with
+        ``search["complete"] = False`` and ``search["reason"] = "time"``.
 
     Examples
     --------
     >>> from engine.presets import build_preset
     >>> r = robustness(build_preset("four-bar", {"L2": 1.2}), ["L2"])
-    >>> round(r.margin, 6)  # the nearest critical value is L2 = a + L1 - L3 = 1
-    0.2
+    >>> round(r.margin, 6), r.method, r.guarantee  # nearest critical value: L2 = a + L1 - L3 = 1
+    (0.2, 'closed-form', 'exact')
     """
+    if method not in METHODS:
+        raise InvalidRequest(f"unknown method {method!r}: one of {', '.join(METHODS)}",
+                             loc=("method",))
     tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
     cons = Constraints(linkage)
     adj = _adjustable_mask(linkage, adjustable)
-    space = find_critical_points(linkage, tol, options or SpaceOptions())  # no segments needed
-    starts = [cp.u for cp in space.critical_points] + [m.critical_u for m in space.near_misses]
-    rng = np.random.default_rng(1234)
-    for u0 in projected_random_starts(linkage, tol, extra_starts, rng):
-        starts.append(refine_critical(cons, u0, tol).u)
+    if method != "multistart" and opt.closed_form:
+        adj_all = np.zeros(linkage.n_bars, dtype=bool)
+        adj_all[cons.bars[adj]] = True
+        exact = exact_margin(linkage, adj_all, min_critical_length(tol), 1e3 * tol.residual_atol)
+        if exact is not None:
+            found = bool(np.isfinite(exact.margin))
+            return Margin(
+                exact.margin, exact.nearest, exact.critical_u, 0, 0, found,
+                f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
+                if found else "no critical value is reachable by the adjustable bars",
+                method="closed-form", guarantee="exact",
+                search={"complete": True, "reason": None, "planes": exact.planes},
+            )
+    if method == "closed-form":
+        raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "
+                             "(a rotor and one dyad, no sliders)", loc=("method",))
+    return _multistart(linkage, cons, adj, tol, opt, extra_starts, deadline or NEVER)
+
+
+def _multistart(
+    linkage: Linkage, cons: Constraints, adj: np.ndarray, tol: Tolerances, opt: SpaceOptions,
+    extra_starts: int, deadline: Deadline,
+) -> Margin:
+    """The multistart of the module docstring, stopped by ``deadline``."""
+    starts: list[np.ndarray] = []
+    cp_complete: object = None
+    stopped = deadline.expired()
+    if not stopped:
+        space = find_critical_points(linkage, tol, opt)  # no segments needed
+        cp_complete = space.search.get("complete")
+        starts += [cp.u for cp in space.critical_points]
+        starts += [m.critical_u for m in space.near_misses]
+    rng = np.random.default_rng(1234 + opt.seed)
+    planned = len(starts) + 2 * extra_starts
+    if not (stopped or deadline.expired()):
+        for u0 in iter_projected_random_starts(linkage, tol, extra_starts, rng):
+            starts.append(refine_critical(cons, u0, tol).u)
+            if deadline.expired():
+                break
+    # Random points off the constraints too: at the given lengths the nearest critical
+    # configuration is often a degenerate one (a bar shrunk to a point), whose basin the
+    # refined starts share; the local search from a free point moves the lengths as it goes
+    # and reaches the critical configurations that exist only at other lengths.
+    scale = float(np.median(linkage.lengths[cons.bars]))
+    free = ~np.asarray(linkage.fixed, dtype=bool)
+    for _ in range(extra_starts):
+        pos = np.array(linkage.positions, dtype=float)
+        pos[free] += scale * rng.normal(size=int(free.sum()))
+        starts.append(linkage.coordinates(pos))
     best: tuple[float, np.ndarray, np.ndarray] | None = None
-    converged = 0
+    converged = run = 0
     for u0 in starts:
+        if deadline.expired():
+            break
+        run += 1
+        deadline.report(run / max(planned, 1), "robustness: local searches")
         jac = cons.jacobian(u0, sparse=False)
         s0 = np.linalg.svd(jac)[0][:, -1]
         found = _local(cons, adj, u0, s0, tol)
@@ -135,9 +261,19 @@ def robustness(
         converged += 1
         if best is None or found[0] < best[0]:
             best = found
+    complete = run == len(starts) and not deadline.expired() and not stopped
+    search: dict[str, object] = {
+        "complete": complete, "reason": None if complete else REASON_TIME,
+        "starts_planned": planned, "starts_run": run,
+        "critical_points_complete": cp_complete,
+    }
+    guarantee = f"best local minimum over {converged} converged of {run} starts"
     nearest = np.array(linkage.lengths, dtype=float)
     if best is None:
-        return Margin(np.inf, nearest, linkage.coordinates(), len(starts), 0, False,
-                      "no local search converged to a critical configuration")
+        return Margin(np.inf, nearest, linkage.coordinates(), run, 0, False,
+                      "no local search converged to a non-degenerate critical configuration",
+                      method="multistart", guarantee=guarantee, search=search)
     nearest[cons.bars] = best[1]
-    return Margin(best[0], nearest, best[2], len(starts), converged, True, "best over starts")
+    message = "best over starts" if complete else "best over the starts run before the deadline"
+    return Margin(best[0], nearest, best[2], run, converged, True, message,
+                  method="multistart", guarantee=guarantee, search=search)
