@@ -72,8 +72,7 @@ def project_on_plane(
     """
     act = normal != 0
     if not act.any():
-        return x0.copy() if rhs == 0.0 else None
-    x0 = np.maximum(x0, lower)
+        return np.maximum(x0, lower) if rhs == 0.0 else None
 
     def x_of(lam: float) -> np.ndarray:
         return np.maximum(lower, x0 - lam * normal)
