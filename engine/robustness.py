@@ -24,6 +24,7 @@ Two methods, and each result says which one answered and what it guarantees:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from scipy.optimize import minimize
@@ -68,7 +69,7 @@ class Margin:
     converged: int
     success: bool
     message: str
-    method: str = "multistart"
+    method: Literal["closed-form", "multistart"] = "multistart"
     guarantee: str = ""
     search: dict[str, object] = field(default_factory=dict)
 

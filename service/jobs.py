@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from engine.budget import Deadline
 from engine.configuration_space import explore, find_critical_points
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
@@ -89,11 +90,14 @@ def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
     return mappers.splitting_out(at, splits, len(crit), tol, crit)
 
 
-def robustness_margin(body: RobustnessRequest, settings: Settings) -> RobustnessResponse:
+def robustness_margin(
+    body: RobustnessRequest, settings: Settings, deadline: Deadline | None = None
+) -> RobustnessResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, _ = on_constraints(linkage, tol)
     adjustable = None if body.adjustable is None else list(body.adjustable)
-    res = robustness(at, adjustable, tol, mappers.space_options_in(body.options))
+    res = robustness(at, adjustable, tol, mappers.space_options_in(body.options),
+                     method=body.method or "auto", deadline=deadline)
     return mappers.robustness_out(at, res, tol)
 
 

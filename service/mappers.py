@@ -356,6 +356,9 @@ def robustness_out(
         converged=res.converged,
         success=res.success,
         message=res.message,
+        method=res.method,
+        guarantee=res.guarantee,
+        search=space.RobustnessSearch.model_validate(_search_out(res.search)),
         tolerances=tolerances_out(tol),
     )
 

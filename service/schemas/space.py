@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field
 
@@ -189,6 +189,25 @@ class RobustnessRequest(Strict):
     )
     tolerances: Tolerances | None = None
     options: SpaceOptions | None = None
+    method: Literal["auto", "closed-form", "multistart"] | None = Field(
+        None, description="auto (default): the exact closed form for one-loop planar dyad chains "
+        "(four-bars), else the multistart; closed-form: 422 where it does not apply; "
+        "multistart: always the multistart"
+    )
+
+
+class RobustnessSearch(BaseModel):
+    complete: bool = Field(description="every planned start ran (always true for the closed "
+                           "form)")
+    reason: Literal["time", "budget"] | None = Field(
+        description="why the search is incomplete (time: the deadline stopped the starts)"
+    )
+    starts_planned: int | None = Field(None, description="multistart: starts planned")
+    starts_run: int | None = Field(None, description="multistart: starts run")
+    critical_points_complete: bool | None = Field(
+        None, description="multistart: the critical-point search that seeds it was complete"
+    )
+    planes: int | None = Field(None, description="closed form: critical hyperplanes tried")
 
 
 class RobustnessResponse(BaseModel):
@@ -202,6 +221,12 @@ class RobustnessResponse(BaseModel):
     converged: int = Field(description="local searches that reached a critical configuration")
     success: bool
     message: str
+    method: Literal["closed-form", "multistart"] = Field(description="the method that answered")
+    guarantee: str = Field(
+        description="what the margin is: exact (closed form), or the best local minimum over "
+        "the converged starts (multistart)"
+    )
+    search: RobustnessSearch
     tolerances: TolerancesUsed
 
 

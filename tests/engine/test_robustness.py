@@ -9,7 +9,6 @@ import itertools
 
 import numpy as np
 import pytest
-
 from scipy.optimize import minimize
 
 from engine.budget import Deadline
@@ -116,7 +115,8 @@ def grashof_margin(a: float, lengths: np.ndarray, adjustable: list[int], shortes
         x0 = lengths[adj]
         res = minimize(lambda x, x0=x0: float((x - x0) @ (x - x0)), np.maximum(x0, shortest),
                        method="SLSQP", bounds=[(shortest, None)] * len(adj),
-                       constraints=[{"type": "eq", "fun": lambda x, n=n: n[adj] @ x - rhs}],
+                       constraints=[{"type": "eq",
+                                     "fun": lambda x, n=n, rhs=rhs: n[adj] @ x - rhs}],
                        options={"ftol": 1e-15, "maxiter": 100})
         if res.success and abs(n[adj] @ res.x - rhs) < 1e-9:
             best = min(best, float(np.linalg.norm(res.x - x0)))
