@@ -150,8 +150,54 @@ def test_robustness_endpoint(client):
     assert abs(body["nearest"]["L2"] - 1.0) < 1e-7 and body["nearest"]["L1"] == 1.0
     ys = [p[1] for p in body["critical_configuration"].values()]
     assert max(abs(y) for y in ys) < 1e-6
+    assert body["method"] == "closed-form" and body["guarantee"] == "exact"
+    assert body["search"]["complete"] is True and body["search"]["reason"] is None
     r = client.post("/v1/analysis/robustness", json={"linkage": lk, "adjustable": ["x"]})
     assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "adjustable", 0]
+
+
+SLIDER_CRANK = {
+    "vertices": [
+        {"id": "O", "position": [0.0, 0.0], "fixed": True},
+        {"id": "B", "position": [0.7 * np.cos(0.9), 0.7 * np.sin(0.9)]},
+        {"id": "P", "position": [0.7 * np.cos(0.9) + np.sqrt(1.6**2 - (0.7 * np.sin(0.9)) ** 2),
+                                 0.0], "fixed": [False, True]},
+    ],
+    "bars": [{"id": "crank", "ends": ["O", "B"], "length": 0.7},
+             {"id": "rod", "ends": ["B", "P"], "length": 1.6}],
+}
+
+
+def test_robustness_of_a_slider_crank_is_its_branch_point(client):
+    """crank = rod is the branch point: (1.6 - 0.7) / sqrt(2) with both bars, 0.9 with the
+    rod; never the zero-length crank (a bar the service refuses as input)."""
+    body = post(client, "/v1/analysis/robustness", {"linkage": SLIDER_CRANK})
+    assert body["success"] and abs(body["margin"] - 0.9 / np.sqrt(2)) < 1e-7
+    assert body["method"] == "multistart"
+    assert body["guarantee"].startswith("best local minimum over")
+    assert body["search"]["complete"] is True and body["search"]["starts_run"] > 0
+    assert abs(body["nearest"]["crank"] - body["nearest"]["rod"]) < 1e-7
+    conf = body["critical_configuration"]
+    assert np.linalg.norm(np.subtract(conf["B"], conf["O"])) > 0.5
+    body = post(client, "/v1/analysis/robustness",
+                {"linkage": SLIDER_CRANK, "adjustable": ["rod"], "method": "multistart"})
+    assert abs(body["margin"] - 0.9) < 1e-7 and abs(body["nearest"]["rod"] - 0.7) < 1e-7
+    r = client.post("/v1/analysis/robustness",
+                    json={"linkage": SLIDER_CRANK, "method": "closed-form"})
+    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "method"]
+    r = client.post("/v1/analysis/robustness", json={"linkage": SLIDER_CRANK, "method": "x"})
+    assert r.status_code == 422 and r.json()["errors"][0]["loc"][:2] == ["body", "method"]
+    assert client.get("/health").status_code == 200
+
+
+def test_robustness_multistart_on_a_four_bar_agrees_with_the_closed_form(client):
+    lk = preset(client, "four-bar", L2=1.2)
+    exact = post(client, "/v1/analysis/robustness", {"linkage": lk})
+    general = post(client, "/v1/analysis/robustness",
+                   {"linkage": lk, "method": "multistart", "options": FAST})
+    assert general["method"] == "multistart" and exact["method"] == "closed-form"
+    assert abs(general["margin"] - exact["margin"]) < 1e-7  # 0.2 / sqrt(3)
+    assert abs(exact["margin"] - 0.2 / np.sqrt(3)) < 1e-9
 
 
 def test_critical_values_endpoint(client):
