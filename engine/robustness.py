@@ -12,11 +12,16 @@ Two methods, and each result says which one answered and what it guarantees:
   :mod:`engine.dyad_margin`; the margin is the exact distance to the nearest piece.
 - ``"multistart"`` (guarantee: the best local minimum over the starts that converged): over
   critical configurations ``(u, sigma)`` minimise ``sum_{a adjustable} (l_a(u) - L_a)^2``
-  subject to ``J(u)^T sigma = 0``, ``|sigma|^2 = 1``, ``l_b(u) = L_b`` for the other bars and
-  ``l_a(u) >= min_critical_length`` (SLSQP with analytic derivatives). Starts: every critical
-  configuration the exploration reaches (critical points and the critical configurations of
-  the near misses) and seeded random points refined on the augmented system. It is the global
-  minimum when some start lies in the basin of the nearest sheet of the critical value set.
+  subject to ``J(u)^T sigma = 0``, ``sum_i (sigma_i l_i)^2 = s^2`` (the stress normalised by
+  the forces it exerts, ``s`` the median length: a stress on a vanishing bar cannot satisfy
+  it), ``l_b(u) = L_b`` for the other bars and ``l_a(u) >= min_critical_length`` (SLSQP with
+  analytic derivatives, after a least-squares step onto the constraints). Starts: every
+  critical configuration the exploration reaches (critical points and the critical
+  configurations of the near misses), seeded random points refined on the augmented system,
+  and seeded random points off the constraints (the local search moves the lengths, so these
+  reach critical configurations that exist only at other lengths, e.g. the slider-crank's
+  branch point). It is the global minimum when some start lies in the basin of the nearest
+  sheet of the critical value set.
   With a :class:`engine.budget.Deadline` the starts stop when it expires and the best so far is
   returned with ``search["complete"] = False`` and ``search["reason"] = "time"``.
 """
@@ -27,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import least_squares, minimize
 
 from engine.assembly import iter_projected_random_starts
 from engine.budget import NEVER, REASON_TIME, Deadline
@@ -43,6 +48,10 @@ from engine.tolerances import Tolerances
 #: this is degenerate (a zero-length bar has a self-stress of its own at every configuration),
 #: not a critical value of the linkage.
 MIN_CRITICAL_LENGTH_ATOL = 1e3
+
+#: A local search whose start, moved onto the critical set, has a bar shorter than this
+#: (relative to the median length) is abandoned: it is in a degenerate configuration's basin.
+DEGENERATE_START_REL = 1e-3
 
 #: Methods of :func:`robustness`: ``"auto"`` takes the closed form where it applies.
 METHODS = ("auto", "closed-form", "multistart")
@@ -117,17 +126,23 @@ def _local(
         grad_u = ((diff / ln[adj])[:, None] * jac[adj]).sum(axis=0)  # d l / du = J / (2 l)
         return float(diff @ diff), np.concatenate([grad_u, np.zeros(e)])
 
+    # The stress is normalised by the forces it exerts, sum_i (sigma_i l_i)^2 = scale^2, not by
+    # |sigma| = 1: a unit stress on a bar of length zero would balance trivially (its row of J
+    # vanishes), which made every zero-length bar a spurious critical configuration; with
+    # the forces normalised a vanishing bar would need an unbounded stress, so degenerate
+    # configurations are no solutions at all.
     def eq(x: np.ndarray) -> np.ndarray:
         u, s = x[:m], x[m:]
         ln, jac = at(u)
-        return np.concatenate([(ln - target)[~adj], jac.T @ s / (2 * scale), [s @ s - 1]])
+        force = float((s * ln) @ (s * ln)) / scale**2
+        return np.concatenate([(ln - target)[~adj], jac.T @ s / (2 * scale), [force - 1]])
 
     def eq_jac(x: np.ndarray) -> np.ndarray:
         u, s = x[:m], x[m:]
         ln, jac = at(u)
         fixed_rows = np.hstack([jac[~adj] / (2 * ln[~adj])[:, None], np.zeros(((~adj).sum(), e))])
         stress_rows = np.hstack([dense_stress_hessian(cons, s), jac.T]) / (2 * scale)
-        norm_row = np.concatenate([np.zeros(m), 2 * s])[None, :]
+        norm_row = np.concatenate([(s * s) @ jac, 2 * s * ln * ln])[None, :] / scale**2
         return np.vstack([fixed_rows, stress_rows, norm_row])
 
     # adjustable bars stay longer than the shortest critical bar (the others keep their length)
@@ -139,13 +154,28 @@ def _local(
         rows = jac[adj] / (2 * ln[adj])[:, None] / scale
         return np.hstack([rows, np.zeros((int(adj.sum()), e))])
 
-    res = minimize(
-        objective, np.concatenate([u0, s0]), jac=True, method="SLSQP",
-        constraints=[{"type": "eq", "fun": eq, "jac": eq_jac},
-                     {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
-        options={"maxiter": 150, "ftol": 1e-14 * scale**2},
-    )
-    if np.max(np.abs(eq(res.x))) > 1e3 * tol.residual_atol:
+    # Onto the critical set first (least squares, the adjustable lengths free): cheap, and a
+    # start that lands on a degenerate configuration (a bar shrunk to nearly nothing) is in
+    # that configuration's basin, where SLSQP spends its whole iteration budget for nothing.
+    s0 = s0 * scale / max(float(np.linalg.norm(s0 * lengths(u0))), 1e-300)
+    # a run that diverges (the stress growing without bound) overflows; it is rejected below
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            pre = least_squares(eq, np.concatenate([u0, s0]), jac=eq_jac, method="trf",
+                                xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=15)
+        except ValueError:  # not finite at the start
+            return None
+        if not np.all(np.isfinite(pre.x)) or (
+                np.min(lengths(pre.x[:m])) < DEGENERATE_START_REL * scale):
+            return None
+        res = minimize(
+            objective, pre.x, jac=True, method="SLSQP",
+            constraints=[{"type": "eq", "fun": eq, "jac": eq_jac},
+                         {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
+            options={"maxiter": 150, "ftol": 1e-14 * scale**2},
+        )
+    if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)) or (
+            np.max(np.abs(eq(res.x))) > 1e3 * tol.residual_atol):
         return None
     u = res.x[:m]
     if np.min(lengths(u)) < shortest:
