@@ -174,9 +174,9 @@ def _local(
                          {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
             options={"maxiter": 150, "ftol": 1e-14 * scale**2},
         )
-    if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)) or (
-            np.max(np.abs(eq(res.x))) > 1e3 * tol.residual_atol):
-        return None
+        if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)) or not (
+                np.max(np.abs(eq(res.x))) <= 1e3 * tol.residual_atol):
+            return None
     u = res.x[:m]
     if np.min(lengths(u)) < shortest:
         return None  # a degenerate configuration, not a critical one
