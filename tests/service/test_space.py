@@ -216,3 +216,18 @@ def test_critical_values_endpoint(client):
         "linkage": lk, "axes": [{"bar": "L2", "min": 0.3, "max": 2.2},
                                 {"bar": "L2", "min": 0.3, "max": 2.2}]})
     assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "axes", 1, "bar"]
+
+
+def test_robustness_job_stopped_by_its_deadline_answers_incomplete():
+    """The job's deadline keyword reaches the engine: an expired deadline gives a valid
+    response marked incomplete (reason "time"), not an error."""
+    from engine.budget import Deadline
+    from service import jobs
+    from service.config import Settings
+    from service.schemas.space import RobustnessRequest
+
+    body = RobustnessRequest.model_validate({"linkage": SLIDER_CRANK})
+    out = jobs.robustness_margin(body, Settings(), deadline=Deadline.after(0.0))
+    assert out.search.complete is False and out.search.reason == "time"
+    assert out.margin is None and out.success is False and out.method == "multistart"
+    assert out.model_dump(mode="json")["search"]["reason"] == "time"
