@@ -293,3 +293,23 @@ def test_a_deadline_mid_search_keeps_the_best_so_far():
         assert res.margin >= (1.6 - 0.7) / np.sqrt(2) - 1e-7
         assert_critical(slider_crank(), res.nearest, res.critical_u,
                         min_critical_length(Tolerances()))
+
+
+def test_closed_form_whatever_the_order_of_ends_and_with_a_ground_bar():
+    """The same four-bar written with every bar's ends reversed, vertices in another order and
+    the ground drawn as a bar between the pins (inactive): the same exact margin."""
+    lk = four_bar(1.3, 0.6, 1.4, 0.9, turn=0.4)
+    pos = {v: lk.positions[k] for k, v in enumerate(["p1", "p2", "A", "B"])}
+    other = build_linkage(2, [VertexSpec("B", tuple(pos["B"])), VertexSpec("A", tuple(pos["A"])),
+                              VertexSpec("p2", tuple(pos["p2"]), True),
+                              VertexSpec("p1", tuple(pos["p1"]), True)],
+                          [BarSpec("g", ("p2", "p1")), BarSpec("L3", ("B", "p2"), 0.9),
+                           BarSpec("L2", ("B", "A"), 1.4), BarSpec("L1", ("A", "p1"), 0.6)])
+    for adjustable in (None, ["L1"], ["L2", "L3"]):
+        a = robustness(lk, adjustable)
+        b = robustness(other, adjustable)
+        assert b.method == "closed-form"
+        assert b.margin == pytest.approx(a.margin, abs=1e-12)
+        assert_critical(other, b.nearest, b.critical_u, min_critical_length(Tolerances()))
+    with pytest.raises(InvalidRequest):
+        robustness(other, ["g"])  # the ground is the pins' distance
