@@ -53,6 +53,9 @@ MIN_CRITICAL_LENGTH_ATOL = 1e3
 #: (relative to the median length) is abandoned: it is in a degenerate configuration's basin.
 DEGENERATE_START_REL = 1e-3
 
+#: A local search whose objective has not changed over this many iterations is ended.
+STALL_ITERATIONS = 10
+
 #: Methods of :func:`robustness`: ``"auto"`` takes the closed form where it applies.
 METHODS = ("auto", "closed-form", "multistart")
 
@@ -97,7 +100,8 @@ def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarr
 
 
 def _local(
-    cons: Constraints, adj: np.ndarray, u0: np.ndarray, s0: np.ndarray, tol: Tolerances
+    cons: Constraints, adj: np.ndarray, u0: np.ndarray, s0: np.ndarray, tol: Tolerances,
+    deadline: Deadline = NEVER,
 ) -> tuple[float, np.ndarray, np.ndarray] | None:
     m, e = cons.n_free, cons.n_constraints
     target = cons.linkage.lengths[cons.bars]
@@ -168,8 +172,18 @@ def _local(
         if not np.all(np.isfinite(pre.x)) or (
                 np.min(lengths(pre.x[:m])) < DEGENERATE_START_REL * scale):
             return None
+        history: list[float] = []
+
+        def stop(xk: np.ndarray) -> None:
+            # the deadline ends a run too (its iterate is checked like any other); so does a
+            # run whose objective has stopped changing (SLSQP can cycle there to its limit)
+            history.append(objective(xk)[0])
+            if deadline.expired() or (len(history) > STALL_ITERATIONS and np.ptp(
+                    history[-STALL_ITERATIONS:]) <= 1e-15 * scale**2):
+                raise StopIteration
+
         res = minimize(
-            objective, pre.x, jac=True, method="SLSQP",
+            objective, pre.x, jac=True, method="SLSQP", callback=stop,
             constraints=[{"type": "eq", "fun": eq, "jac": eq_jac},
                          {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
             options={"maxiter": 150, "ftol": 1e-14 * scale**2},
@@ -286,7 +300,7 @@ def _multistart(
         deadline.report(run / max(planned, 1), "robustness: local searches")
         jac = cons.jacobian(u0, sparse=False)
         s0 = np.linalg.svd(jac)[0][:, -1]
-        found = _local(cons, adj, u0, s0, tol)
+        found = _local(cons, adj, u0, s0, tol, deadline)
         if found is None:
             continue
         converged += 1
