@@ -250,6 +250,52 @@ def test_slider_crank_margin_is_the_branch_point_crank_equals_rod(adjustable, ex
     assert_critical(lk, res.nearest, res.critical_u, min_critical_length(tol))
 
 
+def offset_slider_crank(crank: float, rod: float, offset: float, theta: float = 0.9) -> Linkage:
+    """Crank from pin ``O`` at the origin, rod to ``P`` sliding along the line ``y = offset``."""
+    b = crank * np.array([np.cos(theta), np.sin(theta)])
+    px = b[0] + np.sqrt(rod**2 - (b[1] - offset) ** 2)
+    return build_linkage(2, [VertexSpec("O", (0.0, 0.0), True), VertexSpec("B", tuple(b)),
+                             VertexSpec("P", (px, offset), (False, True))],
+                         [BarSpec("crank", ("O", "B"), crank), BarSpec("rod", ("B", "P"), rod)])
+
+
+def offset_slider_margin(crank: float, rod: float, offset: float, adjustable: list[int]) -> float:
+    """J^T sigma = 0 needs B_x = P_x (the rod's force has no x part) and then B_x = 0 (the
+    crank's): slider right above or below the pin, so crank - rod = +-offset or
+    crank + rod = |offset|. Distance to the nearest of these lines moving the adjustable
+    lengths, by brute force on a fine grid of each line (independent of any solver)."""
+    x0 = np.array([crank, rod])
+    best = np.inf
+    t = np.linspace(1e-6, 5.0, 500_001)
+    for line in ((1.0, -offset), (1.0, offset)):  # crank = rod + c
+        pts = np.column_stack([t + line[1], t])
+        pts = pts[pts[:, 0] > 0]
+        fixed = [k for k in (0, 1) if k not in adjustable]
+        if fixed:
+            k = fixed[0]
+            pts = pts[np.abs(pts[:, k] - x0[k]) < 1e-5]
+            if not len(pts):
+                continue
+            pts[:, k] = x0[k]
+        best = min(best, float(np.min(np.linalg.norm(pts - x0, axis=1))))
+    # crank + rod = |offset| lies farther than |offset| from lengths both above |offset|
+    assert crank > abs(offset) and rod > abs(offset)
+    return best
+
+
+@pytest.mark.parametrize("offset", [0.3, -0.3])
+@pytest.mark.parametrize("adjustable", [None, ["rod"], ["crank"]],
+                         ids=lambda a: "+".join(a or ["both"]))
+def test_offset_slider_crank_margin(offset, adjustable):
+    lk = offset_slider_crank(0.7, 1.6, offset)
+    index = [0, 1] if adjustable is None else [["crank", "rod"].index(b) for b in adjustable]
+    expected = offset_slider_margin(0.7, 1.6, offset, index)
+    res = robustness(lk, adjustable)
+    assert res.success and res.method == "multistart"
+    assert res.margin == pytest.approx(expected, abs=2e-5)  # the reference's grid step
+    assert_critical(lk, res.nearest, res.critical_u, min_critical_length(Tolerances()))
+
+
 def test_closed_form_declines_a_slider_crank():
     with pytest.raises(InvalidRequest) as info:
         robustness(slider_crank(), method="closed-form")
