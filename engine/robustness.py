@@ -220,7 +220,8 @@ def robustness(
         Of the critical-point search that seeds the multistart; ``closed_form=False`` always
         runs the multistart.
     extra_starts : int
-        Random starts of the multistart besides the critical configurations found.
+        Random starts of each kind (projected and refined on the augmented system; free points
+        off the constraints) besides the critical configurations found.
     method : {"auto", "closed-form", "multistart"}
         ``"auto"`` takes the closed form where it applies (one-loop planar dyad chains), else
         the multistart; ``"closed-form"`` raises :class:`InvalidRequest` where it does not apply.
@@ -268,18 +269,20 @@ def _multistart(
     """The multistart of the module docstring, stopped by ``deadline``."""
     starts: list[np.ndarray] = []
     cp_complete: object = None
-    stopped = deadline.expired()
-    if not stopped:
+    cut = deadline.expired()  # some planned start was never made or never run
+    if not cut:
         space = find_critical_points(linkage, tol, opt)  # no segments needed
         cp_complete = space.search.get("complete")
         starts += [cp.u for cp in space.critical_points]
         starts += [m.critical_u for m in space.near_misses]
     rng = np.random.default_rng(1234 + opt.seed)
     planned = len(starts) + 2 * extra_starts
-    if not (stopped or deadline.expired()):
+    cut = cut or deadline.expired()
+    if not cut:
         for u0 in iter_projected_random_starts(linkage, tol, extra_starts, rng):
             starts.append(refine_critical(cons, u0, tol).u)
             if deadline.expired():
+                cut = True
                 break
     # Random points off the constraints too: at the given lengths the nearest critical
     # configuration is often a degenerate one (a bar shrunk to a point), whose basin the
@@ -295,6 +298,7 @@ def _multistart(
     converged = run = 0
     for u0 in starts:
         if deadline.expired():
+            cut = True
             break
         run += 1
         deadline.report(run / max(planned, 1), "robustness: local searches")
@@ -306,7 +310,8 @@ def _multistart(
         converged += 1
         if best is None or found[0] < best[0]:
             best = found
-    complete = run == len(starts) and not deadline.expired() and not stopped
+    # the deadline may also have ended the last run part-way (conservatively: incomplete)
+    complete = not (cut or deadline.expired())
     search: dict[str, object] = {
         "complete": complete, "reason": None if complete else REASON_TIME,
         "starts_planned": planned, "starts_run": run,
