@@ -406,9 +406,11 @@ def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool)
     return TangentForm(direction, fac.logdet / np.log(10) + np.log10(norm_y), orientation)
 
 
-#: Fill-in of the sparse LU of the shifted augmented matrix, in multiples of its nonzeros: a
-#: bound of the memory estimate (chains and planar grids stay well below it).
-LU_FILL_BOUND = 30
+#: Memory of the sparse LU of the shifted augmented matrix, in float64 per nonzero of that
+#: matrix: SuperLU reserves its work arrays from a fill estimate before it factors (a
+#: 20,000-rotor chain needed between 1 and 1.5 times an estimate made with 30 under a
+#: data-segment limit, though its resident size stayed below).
+LU_FILL_BOUND = 120
 
 
 def first_order_memory(n_free: int, n_constraints: int, nnz: int, sparse: bool) -> int:
