@@ -76,7 +76,7 @@ for _preset in PRESETS.values():
     )
 
 
-@router.get("/{name}", response_model=Linkage, responses=_problems)  # type: ignore[arg-type]
+@router.get("/{name}", response_model=Linkage, responses=_problems)
 def get_preset(name: str, request: Request, settings: SettingsDep) -> Linkage:
     """Build preset ``name``; any parameter listed by ``/v1/presets`` may be given as a query
     parameter (e.g. ``/v1/presets/four-bar?L2=1.1``). Each preset also has a route of its own
