@@ -10,9 +10,9 @@ first-order answer is a dense (k, M) array of about ``2 free^2`` numbers: 8,000 
 (a 0.74 MB body) mean 128 million numbers, 49,998 (50,000 vertices, the size limit) five
 billion.
 
-Each size is posted to ``/v1/analysis/rigidity`` and ``/v1/analysis/second-order`` of a real
-``uvicorn service.main:app`` process (one engine worker, ``LINKAGE_WORKERS=1``, plus any
-``--env``), one request at a time. Recorded per request: the status and problem type, the
+Each size is posted to ``/v1/analysis/rigidity`` and ``/v1/analysis/second-order``, each
+request to a fresh ``uvicorn service.main:app`` process (one engine worker,
+``LINKAGE_WORKERS=1``, plus any ``--env``). Recorded per request: the status and problem type, the
 wall-clock time, and the peak resident size of the engine worker(s) while it ran: every
 descendant of the server process (the forkserver and its workers) is sampled every 20 ms
 (``VmRSS`` from ``/proc``), and the largest sample is reported with the worker's own
@@ -126,26 +126,22 @@ def main() -> None:
     env = {"LINKAGE_WORKERS": "1", **dict(e.split("=", 1) for e in args.env)}
     settings = " ".join(f"{k}={v}" for k, v in env.items())
     table = Table(f"floppy chains through the service ({settings})")
-    with served_process(env=env) as url:
-        server = _server_pid(url)
-        with httpx.Client(base_url=url, timeout=600) as client:
-            for free in args.free:
-                body = json.dumps({"linkage": floppy_chain(free)}).encode()
-                for route in ("/v1/analysis/rigidity", "/v1/analysis/second-order"):
-                    # the worker's own high-water mark starts afresh only in a fresh worker:
-                    # sampled VmRSS is the measure, VmHWM a cross-check where it is lower
-                    with peak_rss(server) as peak:
-                        t0 = time.perf_counter()
-                        r = client.post(route, content=body,
-                                        headers={"content-type": "application/json"})
-                        took = time.perf_counter() - t0
-                    kind = (r.json().get("type", "") if r.headers.get("content-type", "")
-                            .startswith("application/problem+json") else "")
-                    health = client.get("/health").status_code
-                    table.record(f"{route} free={free}", took,
-                                 f"{r.status_code} {kind}".strip(),
-                                 body_mb=len(body) / 1e6, peak_worker_mb=peak["kb"] / 1024,
-                                 health=health)
+    for free in args.free:
+        body = json.dumps({"linkage": floppy_chain(free)}).encode()
+        for route in ("/v1/analysis/rigidity", "/v1/analysis/second-order"):
+            # a fresh server each time: the worker's high-water mark is this request's alone
+            with served_process(env=env) as url, httpx.Client(base_url=url, timeout=600) as client:
+                with peak_rss(_server_pid(url)) as peak:
+                    t0 = time.perf_counter()
+                    r = client.post(route, content=body,
+                                    headers={"content-type": "application/json"})
+                    took = time.perf_counter() - t0
+                kind = (r.json().get("type", "") if r.headers.get("content-type", "")
+                        .startswith("application/problem+json") else "")
+                health = client.get("/health").status_code
+            table.record(f"{route} free={free}", took, f"{r.status_code} {kind}".strip(),
+                         body_mb=len(body) / 1e6, peak_worker_mb=peak["kb"] / 1024,
+                         health=health)
     table.save(args.json)
 
 
