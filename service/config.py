@@ -61,6 +61,20 @@ def default_worker_memory_mb(workers: int) -> int:
     return max(MIN_WORKER_MEMORY_MB, int(machine_memory_mb() * WORKER_MEMORY_SHARE) // workers)
 
 
+#: Smallest ``LINKAGE_WORKER_MEMORY_MB`` accepted: a warm worker's data segment is about 230 MB.
+MIN_WORKER_MEMORY_SETTING_MB = 256
+
+
+def _worker_memory_from_env() -> int | None:
+    value = _env_int("LINKAGE_WORKER_MEMORY_MB", 0) or None
+    if value is not None and value < MIN_WORKER_MEMORY_SETTING_MB:
+        raise ValueError(
+            f"LINKAGE_WORKER_MEMORY_MB must be at least {MIN_WORKER_MEMORY_SETTING_MB} (a warm "
+            f"engine worker uses about 230 MB), got {value}"
+        )
+    return value
+
+
 @dataclass(frozen=True)
 class Settings:
     """Service settings, from the environment (see the README):
@@ -93,7 +107,7 @@ class Settings:
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
-            worker_memory_mb=_env_int("LINKAGE_WORKER_MEMORY_MB", 0) or None,
+            worker_memory_mb=_worker_memory_from_env(),
         )
 
     def replace(self, **changes: object) -> Settings:

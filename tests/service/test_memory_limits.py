@@ -176,6 +176,7 @@ def test_worker_memory_setting(monkeypatch):
     assert 512 <= derived.worker_memory <= max(512, machine_memory_mb() * 3 // 8)
     monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", "1500")
     assert Settings.from_env().worker_memory == 1500
-    monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", "0")
-    with pytest.raises(ValueError, match="LINKAGE_WORKER_MEMORY_MB"):
-        Settings.from_env()
+    for bad in ("0", "100", "lots"):
+        monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", bad)
+        with pytest.raises(ValueError, match="LINKAGE_WORKER_MEMORY_MB|invalid literal"):
+            Settings.from_env()
