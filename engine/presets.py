@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import InvalidParameter, UnknownPreset
+from engine.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
 from engine.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
 
 Params = dict[str, float]
@@ -296,10 +296,43 @@ def resolve_parameters(name: str, overrides: Mapping[str, float] | None = None) 
     return params
 
 
+#: A generated linkage must satisfy its own lengths to this, relative to its longest bar.
+PRESET_ASSEMBLY_RTOL = 1e-8
+
+
+def _check_generated(linkage: Linkage) -> None:
+    """What :func:`build_linkage` does not check of a generated linkage: it lies on its own
+    configuration space (every bar as long as its target)."""
+    scale = float(np.max(linkage.lengths)) if linkage.n_bars else 0.0
+    off = np.abs(linkage.bar_lengths() - linkage.lengths)
+    if linkage.n_bars and not float(np.max(off)) <= PRESET_ASSEMBLY_RTOL * scale:
+        k = int(np.argmax(off))
+        raise InvalidLinkage(
+            f"bar {linkage.bar_ids[k]!r} is {float(off[k]):.3g} off its length "
+            f"{float(linkage.lengths[k]):.6g} (float64 cannot hold the geometry)"
+        )
+
+
+def _blame(name: str, params: Params, overrides: Mapping[str, float] | None,
+           reason: str) -> InvalidParameter:
+    """The error for parameters that produce no valid linkage, naming the given ones."""
+    given = [k for k in (overrides or {}) if params[k] != PRESETS[name].parameters[k]]
+    which = ", ".join(f"{k} = {params[k]:g}" for k in given) or "the default parameters"
+    return InvalidParameter(
+        f"{name} with {which} gives no valid linkage: {reason}",
+        loc=(given[0],) if len(given) == 1 else (),
+    )
+
+
 def build_preset(
     name: str, overrides: Mapping[str, float] | None = None, limits: Limits | None = None
 ) -> Linkage:
     """Build preset ``name`` with parameter ``overrides``.
+
+    Whatever the preset, the linkage it generates is checked like a client's (finite
+    coordinates within range, positive bar lengths, sizes within ``limits``) and against its
+    own lengths; parameters that fail (e.g. lengths whose squares overflow float64) raise
+    :class:`InvalidParameter` naming the parameters that were given.
 
     Examples
     --------
@@ -308,5 +341,13 @@ def build_preset(
     (('L1', 'L2', 'L3'), 1.1)
     """
     params = resolve_parameters(name, overrides)
-    vertices, bars = PRESETS[name].build(params)
-    return build_linkage(2, vertices, bars, limits)
+    try:
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            vertices, bars = PRESETS[name].build(params)
+            linkage = build_linkage(2, vertices, bars, limits)
+            _check_generated(linkage)
+    except ArithmeticError:  # overflow (Python floats) or FloatingPointError (numpy)
+        raise _blame(name, params, overrides, "its coordinates overflow float64") from None
+    except (InvalidLinkage, LimitExceeded) as err:
+        raise _blame(name, params, overrides, err.message) from None
+    return linkage

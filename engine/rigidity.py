@@ -16,8 +16,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from engine.constraints import Constraints
-from engine.errors import NumericalFailure
-from engine.linkage import Linkage
+from engine.errors import LimitExceeded, NumericalFailure
+from engine.linkage import RESULT_BYTES_PER_VALUE, Linkage, check_memory
 from engine.lu import Factor
 from engine.tolerances import Tolerances
 from engine.vectors import normalise_sign
@@ -29,6 +29,12 @@ DENSE_FALLBACK_MAX_FREE = 4000
 #: about 10 ms there; they break even near M = 150 on Kane-Lubensky chains. The dense method is
 #: kept for small linkages because it reports every singular value.
 FIRST_ORDER_DENSE_MAX_FREE = 200
+#: Default method, continued: the sparse search slows down with the null space it has to
+#: hold (about quadratically), the dense SVD does not. Up to ``DENSE_FALLBACK_MAX_FREE`` the
+#: dense SVD is the default when ``|M - E_a|`` exceeds this share of ``M``. Measured on pinned
+#: chains with M = 2000 (one core): 124 zero modes, sparse 2.8 s and dense 15 s; 499 zero
+#: modes, sparse 25 s and dense 9 s (M = 1000, 499: 4.6 s and 0.27 s).
+FIRST_ORDER_DENSE_NULLITY_SHARE = 1 / 6
 
 
 @dataclass(frozen=True)
@@ -400,6 +406,97 @@ def tangent_form(jac: np.ndarray | sp.csr_matrix, w: np.ndarray, critical: bool)
     return TangentForm(direction, fac.logdet / np.log(10) + np.log10(norm_y), orientation)
 
 
+#: Memory of the sparse LU of the shifted augmented matrix, in float64 per nonzero of that
+#: matrix: SuperLU reserves its work arrays from a fill estimate before it factors (a
+#: 20,000-rotor chain needed between 1 and 1.5 times an estimate made with 30 under a
+#: data-segment limit, though its resident size stayed below).
+LU_FILL_BOUND = 120
+
+
+def first_order_memory(n_free: int, n_constraints: int, nnz: int, sparse: bool) -> int:
+    """Estimated peak bytes of :func:`first_order` on ``J`` (E_a, M) with ``nnz`` nonzeros by
+    the dense (``sparse=False``) or sparse method, before anything is allocated.
+
+    The null spaces are at least ``k = M - E_a`` (zero modes) and ``s = E_a - M``
+    (self-stresses) large whatever the rank, and they are dense: the answer holds ``k M + s E_a``
+    numbers (a floppy chain of 8,000 free vertices: 128 million), each costing
+    ``RESULT_BYTES_PER_VALUE`` by the time it is answered. Dense: the full SVD of ``J``
+    (``U`` (E_a, E_a), ``V^T`` (M, M)) with LAPACK's workspace. Sparse: the Lanczos basis
+    (n, ncv) and ARPACK's (ncv, ncv) work array for ``n = E_a + M`` and
+    ``ncv = 2 (|M - E_a| + 8) + 1``, the null-space blocks (n, |M - E_a| + 8) and the LU
+    factor of the augmented matrix.
+
+    Examples
+    --------
+    >>> first_order_memory(16_000, 8_001, 64_004, sparse=True) > 2**34  # floppy: > 16 GiB
+    True
+    """
+    m, ea = n_free, n_constraints
+    answer = RESULT_BYTES_PER_VALUE * (max(0, m - ea) * m + max(0, ea - m) * ea)
+    if not sparse:
+        return 8 * (2 * ea * m + ea * ea + m * m + 4 * min(ea, m) ** 2) + answer
+    n = ea + m
+    block = abs(m - ea) + 8
+    ncv = min(n, max(2 * block + 1, 20))
+    return 8 * (2 * n * ncv + ncv * ncv + 4 * n * block + LU_FILL_BOUND * 2 * nnz) + answer
+
+
+def _choose_method(m: int, ea: int, use_sparse: bool) -> tuple[bool, str]:
+    """The method for ``J`` (E_a, M): the sparse search cannot hold null spaces larger than
+    ``SPARSE_MAX_NULLITY``, so when ``|M - E_a|`` alone exceeds that the dense SVD is used
+    where it is allowed, and the linkage is refused otherwise (before any work)."""
+    if not use_sparse:
+        return False, "dense-svd"
+    if abs(m - ea) <= SPARSE_MAX_NULLITY:
+        return True, "sparse-eigsh"
+    if m <= DENSE_FALLBACK_MAX_FREE:
+        return False, "dense-svd (sparse fallback)"
+    what = "zero modes" if m > ea else "self-stresses"
+    raise LimitExceeded(
+        f"at least {abs(m - ea)} independent {what} (M = {m} free coordinates, E = {ea} "
+        f"bars): more than the sparse search handles ({SPARSE_MAX_NULLITY}), on more "
+        f"free coordinates than the dense SVD takes ({DENSE_FALLBACK_MAX_FREE}); the answer "
+        f"alone would hold {abs(m - ea) * max(m, ea):,} numbers. Brace the linkage or "
+        "analyse a smaller part of it",
+        loc=(),
+    )
+
+
+@dataclass(frozen=True)
+class FirstOrderPlan:
+    """The method :func:`first_order` will use on a linkage, and its estimated peak memory."""
+
+    sparse: bool
+    method: str
+    memory: int
+    what: str  # the method and sizes, for messages
+
+
+def plan_first_order(linkage: Linkage, sparse: bool | None = None) -> FirstOrderPlan:
+    """Choose the method of :func:`first_order` from the sizes alone (no matrix is built) and
+    estimate its memory; raises :class:`LimitExceeded` where no method can answer.
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> plan_first_order(build_preset("kl-chain", {"n": 200})).method
+    'sparse-eigsh'
+    """
+    m, ea = linkage.n_free, int(np.count_nonzero(linkage.active))
+    if sparse is None:
+        floppy = abs(m - ea) > FIRST_ORDER_DENSE_NULLITY_SHARE * m
+        use_sparse = m > FIRST_ORDER_DENSE_MAX_FREE and not (
+            floppy and m <= DENSE_FALLBACK_MAX_FREE)
+    else:
+        use_sparse = sparse
+    use_sparse, method = _choose_method(m, ea, use_sparse and ea > 0 and m > 2)
+    nnz = 2 * linkage.dimension * ea  # J's nonzeros, at most
+    return FirstOrderPlan(
+        use_sparse, method, first_order_memory(m, ea, nnz, use_sparse),
+        f"the first-order analysis ({method}, M = {m} free coordinates, E = {ea} bars)",
+    )
+
+
 def first_order(
     linkage: Linkage,
     tolerances: Tolerances | None = None,
@@ -414,7 +511,16 @@ def first_order(
     ----------
     sparse : bool, optional
         Force the sparse (True) or dense (False) method; default: sparse above
-        ``FIRST_ORDER_DENSE_MAX_FREE`` free coordinates.
+        ``FIRST_ORDER_DENSE_MAX_FREE`` free coordinates unless the null spaces are large
+        (``FIRST_ORDER_DENSE_NULLITY_SHARE``) and the dense SVD is allowed.
+
+    Raises
+    ------
+    LimitExceeded
+        When ``|M - E_a|`` is beyond what either method handles (:func:`plan_first_order`).
+    MemoryLimitExceeded
+        When the method's estimated peak memory (:func:`first_order_memory`) exceeds what this
+        process may allocate; both before any work.
 
     Examples
     --------
@@ -426,10 +532,10 @@ def first_order(
     tol = tolerances or Tolerances()
     cons = Constraints(linkage)
     u = linkage.coordinates()
-    use_sparse = cons.n_free > FIRST_ORDER_DENSE_MAX_FREE if sparse is None else sparse
-    use_sparse = use_sparse and cons.n_constraints > 0 and cons.n_free > 2
+    plan = plan_first_order(linkage, sparse)
+    check_memory(plan.memory, plan.what)
+    use_sparse, method = plan.sparse, plan.method
     jac = cons.jacobian(u, sparse=use_sparse)
-    method = "sparse-eigsh" if use_sparse else "dense-svd"
     if use_sparse:
         try:
             rank, svals, right, left = _sparse_null_spaces(jac, tol.rank_rtol)
@@ -440,6 +546,8 @@ def first_order(
                     f"({cons.n_free} > {DENSE_FALLBACK_MAX_FREE} free coordinates)"
                 ) from err
             use_sparse, method = False, "dense-svd (sparse fallback)"
+            plan = plan_first_order(linkage, sparse=False)
+            check_memory(plan.memory, plan.what)
             jac = cons.jacobian(u, sparse=False)
     if not use_sparse:
         rank, svals, right, left = _dense_null_spaces(np.asarray(jac), tol.rank_rtol)

@@ -18,9 +18,9 @@ from typing import Literal
 
 import numpy as np
 
-from engine.constraints import Constraints, project
-from engine.linkage import Linkage
-from engine.rigidity import RigidityResult, first_order
+from engine.constraints import DENSE_MAX_FREE, Constraints, project
+from engine.linkage import Linkage, check_memory
+from engine.rigidity import RigidityResult, first_order, plan_first_order
 from engine.tolerances import Tolerances
 from engine.vectors import normalise_sign
 
@@ -103,6 +103,19 @@ def branch_coefficients(eigenvalues: np.ndarray) -> np.ndarray:
     return np.array(out).reshape(-1, k)
 
 
+def second_order_memory(linkage: Linkage, sparse: bool | None = None) -> tuple[int, str]:
+    """Estimated peak bytes of :func:`second_order` (and what they are for), before any work:
+    the first-order analysis (whose answer holds the same zero modes), then for
+    ``k >= M - E_a + 1`` zero modes at a critical point ``H_sigma Z^T`` (M, k) and the
+    ``Q``-eigenbasis (k, M) twice, plus ``H_sigma`` (M, M) where it is dense."""
+    plan = plan_first_order(linkage, sparse)
+    m, ea = linkage.n_free, int(np.count_nonzero(linkage.active))
+    k = max(0, m - ea) + 1
+    dense_hessian = 8 * m * m if (m <= DENSE_MAX_FREE if sparse is None else not sparse) else 0
+    extra = 8 * (3 * k * m + 2 * k * k) + dense_hessian
+    return plan.memory + extra, plan.what.replace("first-order", "second-order")
+
+
 def second_order(
     linkage: Linkage, tolerances: Tolerances | None = None, sparse: bool | None = None
 ) -> SecondOrderResult:
@@ -118,6 +131,7 @@ def second_order(
     'rigid'
     """
     tol = tolerances or Tolerances()
+    check_memory(*second_order_memory(linkage, sparse))
     rig = first_order(linkage, tol, sparse=sparse)
     empty = np.zeros((0, rig.n_free))
 

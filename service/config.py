@@ -35,6 +35,46 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+#: Share of the machine's memory that the engine workers may hold together by default.
+WORKER_MEMORY_SHARE = 0.75
+#: Smallest default per-worker memory limit (a warm worker's data segment is about 230 MB).
+MIN_WORKER_MEMORY_MB = 512
+
+
+def machine_memory_mb() -> int:
+    """The machine's memory in MB, or the container's (cgroup v2 ``memory.max``) if lower."""
+    total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            raw = f.read().strip()
+        if raw.isdigit():
+            total = min(total, int(raw))
+    except OSError:
+        pass
+    return int(total // 2**20)
+
+
+def default_worker_memory_mb(workers: int) -> int:
+    """``WORKER_MEMORY_SHARE`` of the machine's memory shared among ``workers`` (at least
+    ``MIN_WORKER_MEMORY_MB``): all workers at their limit together still leave a quarter of
+    the machine to the service and everything else."""
+    return max(MIN_WORKER_MEMORY_MB, int(machine_memory_mb() * WORKER_MEMORY_SHARE) // workers)
+
+
+#: Smallest ``LINKAGE_WORKER_MEMORY_MB`` accepted: a warm worker's data segment is about 230 MB.
+MIN_WORKER_MEMORY_SETTING_MB = 256
+
+
+def _worker_memory_from_env() -> int | None:
+    value = _env_int("LINKAGE_WORKER_MEMORY_MB", 0) or None
+    if value is not None and value < MIN_WORKER_MEMORY_SETTING_MB:
+        raise ValueError(
+            f"LINKAGE_WORKER_MEMORY_MB must be at least {MIN_WORKER_MEMORY_SETTING_MB} (a warm "
+            f"engine worker uses about 230 MB), got {value}"
+        )
+    return value
+
+
 @dataclass(frozen=True)
 class Settings:
     """Service settings, from the environment (see the README):
@@ -43,7 +83,9 @@ class Settings:
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
     bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
-    (engine requests admitted at once, running or waiting, 64).
+    (engine requests admitted at once, running or waiting, 64) and
+    ``LINKAGE_WORKER_MEMORY_MB`` (memory each engine worker may allocate, its ``RLIMIT_DATA``;
+    default: three quarters of the machine's memory divided among the workers).
     """
 
     max_vertices: int = 50_000
@@ -53,6 +95,7 @@ class Settings:
     time_limit_s: float = 30.0
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
+    worker_memory_mb: int | None = None  # None: default_worker_memory_mb(workers)
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -64,11 +107,19 @@ class Settings:
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
+            worker_memory_mb=_worker_memory_from_env(),
         )
 
     def replace(self, **changes: object) -> Settings:
         """A copy with some settings changed (e.g. in tests)."""
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+    @property
+    def worker_memory(self) -> int:
+        """Each engine worker's memory limit in MB (``LINKAGE_WORKER_MEMORY_MB``)."""
+        if self.worker_memory_mb is not None:
+            return self.worker_memory_mb
+        return default_worker_memory_mb(self.workers)
 
     @property
     def limits(self) -> Limits:

@@ -22,6 +22,7 @@ from engine.errors import (
     NumericalFailure,
     UnknownPreset,
 )
+from engine.linkage import MemoryLimitExceeded
 from service.schemas.common import Problem
 from service.workers import ServiceFault
 
@@ -29,7 +30,9 @@ PROBLEM_JSON = "application/problem+json"
 log = logging.getLogger("service")
 
 # Engine error class -> (status, problem type, title, location prefix in the request)
+# (the first class that matches wins: subclasses before their bases)
 _ENGINE: dict[type[EngineError], tuple[int, str, str, tuple[str, ...]]] = {
+    MemoryLimitExceeded: (422, "memory-limit", "Memory limit exceeded", ("body", "linkage")),
     InvalidLinkage: (422, "invalid-linkage", "Invalid linkage", ("body", "linkage")),
     LimitExceeded: (422, "limit-exceeded", "Linkage too large", ("body", "linkage")),
     NoNearbySolution: (
@@ -92,9 +95,19 @@ async def _engine(request: Request, exc: Exception) -> JSONResponse:
         (422, "invalid-input", "Invalid input", ("body",)),
     )
     loc = [*prefix, *exc.loc]
-    return problem(status, kind, title, f"{_loc_str(loc)}: {exc.message}", [
-        {"loc": loc, "msg": exc.message}
-    ])
+    detail = f"{_loc_str(loc)}: {exc.message}"
+    if isinstance(exc, MemoryLimitExceeded):
+        detail += " (an engine worker's limit is LINKAGE_WORKER_MEMORY_MB)"
+    return problem(status, kind, title, detail, [{"loc": loc, "msg": exc.message}])
+
+
+async def _out_of_memory(request: Request, exc: Exception) -> JSONResponse:
+    # in the service's own process (work that runs in a worker is mapped by the pool): the
+    # machine is short of memory right now, which may pass
+    log.error("out of memory on %s %s: %s", request.method, request.url.path, exc)
+    return problem(503, "out-of-memory", "Out of memory",
+                   "the service ran out of memory answering this request; retry shortly",
+                   headers={"retry-after": "5"})
 
 
 async def _numerical(request: Request, exc: Exception) -> JSONResponse:
@@ -132,5 +145,6 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(EngineError, _engine)
     app.add_exception_handler(NumericalFailure, _numerical)
     app.add_exception_handler(ServiceFault, _fault)
+    app.add_exception_handler(MemoryError, _out_of_memory)
     app.add_exception_handler(StarletteHTTPException, _http)
     app.add_exception_handler(Exception, _unhandled)

@@ -24,7 +24,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     requests in flight have been answered."""
     resolved = settings or get_settings()
     metrics = Metrics()
-    pool = EnginePool(resolved.workers, resolved.max_queue, on_event=metrics.engine_event)
+    pool = EnginePool(resolved.workers, resolved.max_queue, on_event=metrics.engine_event,
+                      memory_mb=resolved.worker_memory)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

@@ -10,9 +10,16 @@ Small first- and second-order requests are bounded by their size (dense SVD of a
 ``LIGHT_MAX_VERTICES`` vertices) and run in the service's thread pool instead, so they stay
 fast while every worker is busy.
 
+Each worker may allocate at most ``LINKAGE_WORKER_MEMORY_MB`` (its ``RLIMIT_DATA``, set when
+it starts), so one request can never take the machine's memory: the engine estimates the cost
+of its method before allocating and refuses what does not fit (422), and an allocation beyond
+the limit that the estimate missed fails with a ``MemoryError`` in the worker instead of
+waking the kernel's out-of-memory killer.
+
 Outcomes that are not the engine's answer become :class:`ServiceFault`s, which the service
-turns into problem+json: 504 when the time limit stopped the work, 503 when the worker died
-(killed, out of memory) or when too many engine requests are already admitted.
+turns into problem+json: 504 when the time limit stopped the work, 422 when the work ran out of
+the worker's memory, 503 when the worker died (killed) or when too many engine requests are
+already admitted.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import asyncio
 import logging
 import multiprocessing
 import os
+import resource
 import threading
 from collections.abc import Callable
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -68,6 +76,14 @@ class WorkerFailed(ServiceFault):
     title = "Worker failed"
 
 
+class MemoryLimit(ServiceFault):
+    """The work needed more memory than a worker may allocate: asking again will not help."""
+
+    status = 422
+    kind = "memory-limit"
+    title = "Memory limit exceeded"
+
+
 class Busy(ServiceFault):
     status = 503
     kind = "busy"
@@ -78,13 +94,22 @@ def _warm() -> int:
     return os.getpid()
 
 
+def _limit_memory(limit_bytes: int | None) -> None:
+    """Worker initializer: cap the memory this worker may allocate (its data segment, which
+    holds the heap and every anonymous mapping, numpy's arrays included)."""
+    if limit_bytes is not None:
+        resource.setrlimit(resource.RLIMIT_DATA, (limit_bytes, limit_bytes))
+
+
 class EnginePool:
     """Worker processes for one application, started on first use (or by :meth:`start`)."""
 
     def __init__(self, workers: int, max_queue: int,
-                 on_event: Callable[[str], None] | None = None) -> None:
+                 on_event: Callable[[str], None] | None = None,
+                 memory_mb: int | None = None) -> None:
         self.workers = workers
         self.max_queue = max_queue
+        self.memory_mb = memory_mb
         self.admitted = 0
         self._pool: pebble.ProcessPool | None = None
         self._lock = threading.Lock()
@@ -97,7 +122,9 @@ class EnginePool:
                     os.environ.setdefault(name, "1")
                 ctx = multiprocessing.get_context("forkserver")
                 ctx.set_forkserver_preload(["service.jobs"])
-                self._pool = pebble.ProcessPool(max_workers=self.workers, context=ctx)
+                limit = None if self.memory_mb is None else self.memory_mb * 2**20
+                self._pool = pebble.ProcessPool(max_workers=self.workers, context=ctx,
+                                                initializer=_limit_memory, initargs=(limit,))
             return self._pool
 
     def start(self) -> None:
@@ -147,6 +174,15 @@ class EnginePool:
                     f"the analysis ran longer than LINKAGE_TIME_LIMIT_S = {time_limit:g} s and "
                     "was stopped; ask for less (e.g. fewer components, a coarser resolution, a "
                     "smaller linkage) or raise the limit"
+                ) from None
+            except MemoryError as err:
+                self._on_event("memory_limit")
+                log.warning("engine worker out of memory running %s: %s",
+                            getattr(fn, "__name__", fn), err)
+                raise MemoryLimit(
+                    f"the analysis needed more memory than an engine worker may allocate "
+                    f"(LINKAGE_WORKER_MEMORY_MB = {self.memory_mb}) and was stopped; ask for "
+                    "less (a smaller or less floppy linkage) or raise the limit"
                 ) from None
             except pebble.ProcessExpired as err:
                 self._on_event("worker_failed")

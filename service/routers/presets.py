@@ -1,19 +1,24 @@
-from typing import Annotated
+"""Preset linkages: the catalogue, one route per preset with its parameters as documented query
+parameters (generated from the engine's catalogue, so a preset added there is routed and
+documented here without a change), and ``/v1/presets/{name}`` for any name."""
 
-from fastapi import APIRouter, Depends, Request
+import inspect
+from collections.abc import Callable
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Query, Request
 
 from engine.errors import InvalidParameter
-from engine.presets import build_preset
+from engine.presets import PRESETS, Preset, build_preset
 from service import mappers
 from service.config import Settings, get_settings
-from service.errors import PROBLEM_JSON
-from service.schemas.common import Linkage, Problem
+from service.errors import problem_responses
+from service.schemas.common import Linkage
 from service.schemas.presets import PresetInfo
 
 router = APIRouter(prefix="/v1/presets", tags=["presets"])
-_problems = {
-    status: {"model": Problem, "content": {PROBLEM_JSON: {}}} for status in (404, 422)
-}
+_problems = problem_responses(404, 422)
+SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 
 @router.get("", response_model=list[PresetInfo])
@@ -22,12 +27,9 @@ def list_presets() -> list[PresetInfo]:
     return mappers.presets_out()
 
 
-@router.get("/{name}", response_model=Linkage, responses=_problems)  # type: ignore[arg-type]
-def get_preset(
-    name: str, request: Request, settings: Annotated[Settings, Depends(get_settings)]
-) -> Linkage:
-    """Build preset ``name``; any parameter listed by ``/v1/presets`` may be given as a query
-    parameter (e.g. ``/v1/presets/four-bar?L2=1.1``)."""
+def _build(name: str, request: Request, settings: Settings) -> Linkage:
+    """The preset with every query parameter as an override: the engine names unknown ones,
+    values out of range and values that give no valid linkage."""
     overrides: dict[str, float] = {}
     for key, raw in request.query_params.items():
         try:
@@ -35,3 +37,48 @@ def get_preset(
         except ValueError:
             raise InvalidParameter(f"not a number: {raw!r}", loc=(key,)) from None
     return mappers.linkage_out(build_preset(name, overrides, settings.limits))
+
+
+def _preset_route(preset: Preset) -> Callable[..., Linkage]:
+    """``GET /v1/presets/<name>`` with the preset's parameters declared as optional query
+    parameters (so that they are documented in OpenAPI and reached by its fuzzer)."""
+
+    def get_this_preset(request: Request, settings: SettingsDep, **_: Any) -> Linkage:
+        return _build(preset.name, request, settings)
+
+    kinds = {k: "an integer" if k in preset.integers else "a number" for k in preset.parameters}
+    declared = [
+        inspect.Parameter(
+            f"p{i}", inspect.Parameter.KEYWORD_ONLY, annotation=float,
+            default=Query(None, alias=key,
+                          description=f"{kinds[key]}, default {preset.parameters[key]:g}"),
+        )
+        for i, key in enumerate(preset.parameters)
+    ]
+    get_this_preset.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+        [inspect.Parameter("request", inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                           annotation=Request),
+         inspect.Parameter("settings", inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                           annotation=SettingsDep),
+         *declared])
+    get_this_preset.__doc__ = (
+        f"Build the {preset.name} preset: {preset.description} Parameters not given keep "
+        "their defaults; parameters that give no valid linkage (no assembly, overflowing or "
+        "degenerate geometry, sizes beyond the limits) are a 422 naming them.")
+    return get_this_preset
+
+
+for _preset in PRESETS.values():
+    router.add_api_route(
+        f"/{_preset.name}", _preset_route(_preset), methods=["GET"], response_model=Linkage,
+        responses=_problems, name=f"get_preset_{_preset.name.replace('-', '_')}",
+        operation_id=f"get_preset_{_preset.name.replace('-', '_')}",
+    )
+
+
+@router.get("/{name}", response_model=Linkage, responses=_problems)
+def get_preset(name: str, request: Request, settings: SettingsDep) -> Linkage:
+    """Build preset ``name``; any parameter listed by ``/v1/presets`` may be given as a query
+    parameter (e.g. ``/v1/presets/four-bar?L2=1.1``). Each preset also has a route of its own
+    above, which documents its parameters."""
+    return _build(name, request, settings)

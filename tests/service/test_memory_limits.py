@@ -1,0 +1,182 @@
+"""Memory-bounded engine workers (issue 11, item 4): the cost of a first- or second-order
+analysis is known before it is spent, a worker cannot allocate beyond
+``LINKAGE_WORKER_MEMORY_MB``, and neither kind of refusal is a 500 or stops the service.
+
+Each test builds its own application with one real worker process (as
+tests/service/test_hardening.py does) and talks to it in-process over the ASGI transport.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+
+from bench.bench_memory import floppy_chain
+from service.config import Settings, default_worker_memory_mb, machine_memory_mb
+from service.main import create_app
+from service.workers import EnginePool, MemoryLimit
+from tests.service.test_hardening import assert_problem, client_for
+
+# A warm worker's data segment is about 230 MB: this leaves it a few hundred MB to work with.
+SMALL_WORKER_MB = 640
+
+
+def worker_peak_mb(pid: int) -> float:
+    """High-water resident size (``VmHWM``) of a process, in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError("no VmHWM")
+
+
+@pytest.fixture(scope="module")
+def four_bar() -> dict[str, Any]:
+    from engine.presets import build_preset
+    from service.mappers import linkage_out
+
+    return linkage_out(build_preset("four-bar")).model_dump(mode="json")
+
+
+def run(app: Any, requests: list[tuple[str, dict[str, Any]]]) -> list[httpx.Response]:
+    async def scenario() -> list[httpx.Response]:
+        async with client_for(app) as c:
+            return [await c.post(url, json=body) for url, body in requests]
+
+    return asyncio.run(scenario())
+
+
+@pytest.mark.parametrize("route", ["/v1/analysis/rigidity", "/v1/analysis/second-order"])
+def test_a_memory_bounded_worker_refuses_the_floppy_50000_vertex_chain(route, four_bar):
+    app = create_app(Settings(workers=1, time_limit_s=60, worker_memory_mb=SMALL_WORKER_MB))
+    chain = floppy_chain(49_998)  # 50,000 vertices: the size limit
+    try:
+        refused, after, again = run(app, [
+            (route, {"linkage": chain}),
+            ("/v1/analysis/critical-points", {"linkage": four_bar}),  # in the worker
+            (route, {"linkage": chain}),
+        ])
+        (pid,) = app.state.engine_pool.worker_pids()
+        peak = worker_peak_mb(pid)
+    finally:
+        app.state.engine_pool.close()
+    body = assert_problem(refused, 422, "limit-exceeded")
+    assert "49997 independent zero modes" in body["detail"]
+    assert "(2000)" in body["detail"] and "(4000)" in body["detail"]  # the limits it meets
+    assert body["errors"][0]["loc"] == ["body", "linkage"]
+    assert after.status_code == 200, after.text
+    assert len(after.json()["critical_points"]) == 3
+    assert again.status_code == 422  # the same answer, not a crash the second time
+    assert peak < SMALL_WORKER_MB
+
+
+def test_the_floppy_8000_vertex_chain_answers_without_holding_gigabytes(four_bar):
+    # default memory limit: the refusal comes from the estimate, not from hitting the limit
+    app = create_app(Settings(workers=1, time_limit_s=60))
+    try:
+        rig, sec, after = run(app, [
+            ("/v1/analysis/rigidity", {"linkage": floppy_chain(8000)}),
+            ("/v1/analysis/second-order", {"linkage": floppy_chain(8000)}),
+            ("/v1/analysis/critical-points", {"linkage": four_bar}),
+        ])
+        (pid,) = app.state.engine_pool.worker_pids()
+        peak = worker_peak_mb(pid)
+    finally:
+        app.state.engine_pool.close()
+    for r in (rig, sec):
+        body = assert_problem(r, 422, "limit-exceeded")
+        assert "7999 independent zero modes" in body["detail"]
+    assert after.status_code == 200, after.text
+    assert peak < 400, f"the worker held {peak:.0f} MB"  # it held 2.1 GB for 30 s before
+
+
+@pytest.mark.parametrize("route", ["/v1/analysis/rigidity", "/v1/analysis/second-order"])
+def test_an_analysis_beyond_the_worker_memory_is_refused_before_it_starts(route, four_bar):
+    # 2,000 free vertices: the dense SVD can answer (M = 4000), but the answer alone holds
+    # 8 million numbers, more than a 640 MB worker can hold
+    app = create_app(Settings(workers=1, time_limit_s=60, worker_memory_mb=SMALL_WORKER_MB))
+    try:
+        refused, after = run(app, [
+            (route, {"linkage": floppy_chain(2000)}),
+            ("/v1/analysis/critical-points", {"linkage": four_bar}),
+        ])
+        (pid,) = app.state.engine_pool.worker_pids()
+        peak = worker_peak_mb(pid)
+    finally:
+        app.state.engine_pool.close()
+    body = assert_problem(refused, 422, "memory-limit")
+    assert "LINKAGE_WORKER_MEMORY_MB" in body["detail"]
+    assert "dense-svd, M = 4000 free coordinates, E = 2001 bars" in body["detail"]
+    assert after.status_code == 200, after.text
+    assert peak < SMALL_WORKER_MB
+
+
+def test_a_floppy_chain_within_the_limits_is_answered(four_bar):
+    """300 free vertices: 299 zero modes, answered by the dense SVD (the default for such
+    large null spaces) within a small worker."""
+    app = create_app(Settings(workers=1, time_limit_s=60, worker_memory_mb=SMALL_WORKER_MB))
+    try:
+        (r,) = run(app, [("/v1/analysis/rigidity", {"linkage": floppy_chain(300)})])
+    finally:
+        app.state.engine_pool.close()
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["dof"] == 299 and len(body["zero_modes"]) == 299
+    assert body["method"] == "dense-svd"
+
+
+def _allocate(n_bytes: int) -> int:
+    return int(np.ones(n_bytes // 8).size)
+
+
+def test_a_memory_error_in_a_worker_is_a_422_and_the_worker_keeps_serving():
+    pool = EnginePool(1, 4, memory_mb=SMALL_WORKER_MB)
+    try:
+        pool.start()
+        (before,) = pool.worker_pids()
+        with pytest.raises(MemoryLimit) as err:
+            asyncio.run(pool.run(30, _allocate, 2 * SMALL_WORKER_MB * 2**20))
+        assert err.value.status == 422 and err.value.kind == "memory-limit"
+        assert f"LINKAGE_WORKER_MEMORY_MB = {SMALL_WORKER_MB}" in err.value.detail
+        assert asyncio.run(pool.run(30, _allocate, 8 * 2**20)) == 2**20
+        assert pool.worker_pids() == [before]  # the same worker, not a replacement
+    finally:
+        pool.close()
+
+
+def test_a_memory_error_in_the_service_process_is_a_503(four_bar, monkeypatch):
+    from service import jobs
+
+    def out_of_memory(*args: Any) -> Any:
+        raise MemoryError("simulated")
+
+    # a small linkage is analysed in the service's thread pool, not in a worker
+    monkeypatch.setattr(jobs, "rigidity", out_of_memory)
+    app = create_app(Settings(workers=1))
+    try:
+        failed, after = run(app, [("/v1/analysis/rigidity", {"linkage": four_bar}),
+                                  ("/v1/analysis/second-order", {"linkage": four_bar})])
+    finally:
+        app.state.engine_pool.close()
+    assert_problem(failed, 503, "out-of-memory")
+    assert failed.headers["retry-after"]
+    assert after.status_code == 200, after.text
+
+
+def test_worker_memory_setting(monkeypatch):
+    monkeypatch.setenv("LINKAGE_WORKERS", "2")
+    monkeypatch.delenv("LINKAGE_WORKER_MEMORY_MB", raising=False)
+    derived = Settings.from_env()
+    assert derived.worker_memory_mb is None
+    assert derived.worker_memory == default_worker_memory_mb(2)
+    assert 512 <= derived.worker_memory <= max(512, machine_memory_mb() * 3 // 8)
+    monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", "1500")
+    assert Settings.from_env().worker_memory == 1500
+    for bad in ("0", "100", "lots"):
+        monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", bad)
+        with pytest.raises(ValueError, match="LINKAGE_WORKER_MEMORY_MB|invalid literal"):
+            Settings.from_env()
