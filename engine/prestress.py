@@ -36,6 +36,7 @@ from engine.constraints import Constraints
 from engine.linkage import Linkage
 from engine.rigidity import RigidityResult
 from engine.tolerances import Tolerances
+from engine.vectors import normalise_sign
 
 #: Largest number of non-trivial flexes for which the SDP is set up (the PSD block is k x k;
 #: an interior-point step costs about k^6 / 8 flops through the k(k+1)/2 svec coordinates).
@@ -68,7 +69,7 @@ class PrestressResult:
     stress : (E,) float64 or None
         The combined self-stress ``W^T omega`` over all bars when stable (0 on inert bars).
     min_eigenvalue : float or None
-        Smallest eigenvalue of the combined ``Q`` (positive when stable).
+        Smallest eigenvalue of the combined ``Q`` (positive when stable; None without flexes).
     dual : (k, k) float64 or None
         The dual certificate ``X`` (PSD, trace 1) in the basis ``flexes`` when not stable.
     dual_residual : float or None
@@ -397,14 +398,15 @@ def prestress(linkage: Linkage, rig: RigidityResult, tolerances: Tolerances | No
     (True, True)
     """
     tol = tolerances or Tolerances()
-    flexes = rig.zero_modes  # (k, M)
+    # the reporting sign convention is applied here, before Q_k and X are written in this basis
+    flexes = normalise_sign(rig.zero_modes)  # (k, M)
     stresses = rig.self_stresses  # (s, E)
     k, s = flexes.shape[0], stresses.shape[0]
     base = {"coefficients": None, "stress": None, "min_eigenvalue": None, "dual": None,
             "dual_residual": None, "flexes": flexes, "second_order_flex": None,
             "second_order_acceleration": None}
     if k == 0:
-        base.update(stress=np.zeros(linkage.n_bars), min_eigenvalue=float("inf"))
+        base.update(stress=np.zeros(linkage.n_bars))
         return PrestressResult(
             True, True, "first-order rigid: no non-trivial flex, so every self-stress (even 0) "
             "certifies prestress stability", method="first-order", **base)  # type: ignore[arg-type]
