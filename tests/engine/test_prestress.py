@@ -329,3 +329,19 @@ def test_stable_combination_on_random_forms():
     combined = np.einsum("s,sij->ij", d.omega, q)
     assert np.linalg.eigvalsh(combined)[0] > 0
     np.testing.assert_allclose(np.linalg.norm(d.omega), 1.0)
+
+
+def test_connelly_whiteley_second_order_rigid_but_not_prestress_stable():
+    """Connelly and Whiteley (1996), the example PyRigi lists as ``SecondOrderRigid``: a 3D
+    framework (vertices 1 and 5, 3 and 6 coincide) with two stresses and two flexes, proved
+    second-order rigid but not prestress stable. Decided exactly here (two flexes)."""
+    pts = [(0, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0), (1, 1, 0), (0, 1, 0), (1, 0, 0)]
+    edges = [(0, 1), (0, 2), (0, 3), (0, 5), (0, 6), (1, 2), (1, 4), (1, 6), (2, 3), (2, 4),
+             (3, 4), (3, 5), (4, 5), (4, 6), (5, 6)]
+    lk = build_linkage(3, [VertexSpec(f"v{i}", list(p)) for i, p in enumerate(pts)],
+                       [BarSpec(f"e{i}", (f"v{a}", f"v{b}")) for i, (a, b) in enumerate(edges)])
+    rig = first_order(lk)
+    assert (rig.self_stresses.shape[0], rig.dof) == (2, 2)
+    pre = prestress(lk, rig)
+    assert (pre.prestress_stable, pre.second_order_rigid) == (False, True), pre.reason
+    check_certificate(lk, pre)
