@@ -414,22 +414,19 @@ def prestress(linkage: Linkage, rig: RigidityResult, tolerances: Tolerances | No
     flexes = normalise_sign(rig.zero_modes)  # (k, M)
     stresses = rig.self_stresses  # (s, E)
     k, s = flexes.shape[0], stresses.shape[0]
-    base = {"coefficients": None, "stress": None, "min_eigenvalue": None, "dual": None,
-            "dual_residual": None, "flexes": flexes, "second_order_flex": None,
-            "second_order_acceleration": None}
     if k == 0:
-        base.update(stress=np.zeros(linkage.n_bars))
-        return PrestressResult(
+        dec = _Decision(
             True, True, "first-order rigid: no non-trivial flex, so every self-stress (even 0) "
-            "certifies prestress stability", method="first-order", **base)  # type: ignore[arg-type]
+            "certifies prestress stability", np.zeros(s), None, None, None, None, "first-order",
+        )
+        return _from_decision(linkage, stresses, flexes, dec)
     if s == 0:
-        acc = _acceleration(linkage, flexes[0])
-        base.update(dual=np.diag(np.eye(k)[0]), dual_residual=0.0,
-                    second_order_flex=flexes[0], second_order_acceleration=acc)
-        return PrestressResult(
+        dec = _Decision(
             False, False, f"no self-stress: the bars are independent and the {k} flexes extend "
-            "to real motions (the framework flexes here)", method="first-order",
-            **base)  # type: ignore[arg-type]
+            "to real motions (the framework flexes here)", None, None,
+            np.diag(np.eye(k)[0]), 0.0, np.eye(k)[0], "first-order",
+        )
+        return _from_decision(linkage, stresses, flexes, dec)
     if k > 1 and s > 1 and (k > MAX_FLEXES or s > MAX_STRESSES):
         # refuse before forming the Q_k (E k^2 s work); the closed forms stay cheap
         dec = _Decision(

@@ -21,8 +21,8 @@ from engine.critical_values import Slice
 from engine.design import Check, DesignResult
 from engine.linkage import Limits, build_linkage
 from engine.linkage import Linkage as EngineLinkage
-from engine.prestress import PrestressResult
 from engine.presets import PRESETS
+from engine.prestress import PrestressResult
 from engine.rigidity import RigidityResult
 from engine.rigidity import TangentForm as EngineTangentForm
 from engine.robustness import Margin

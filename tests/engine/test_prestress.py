@@ -16,8 +16,8 @@ import pytest
 import scipy.linalg as sla
 
 from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.prestress import decide, prestress
 from engine.presets import build_preset
+from engine.prestress import decide, prestress
 from engine.rigidity import first_order
 from engine.second_order import second_order
 from engine.tolerances import Tolerances
