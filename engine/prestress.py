@@ -171,10 +171,17 @@ def _smat(vec: np.ndarray, k: int) -> np.ndarray:
 
 def _solve_lmi(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, str, bool]:
     """``max t`` s.t. ``sum omega_k q_k - t I >= 0``, ``|omega| <= 1``. Returns ``omega``,
-    the dual ``X`` (trace 1), the solver status and whether it is usable."""
-    s, k, _ = q.shape
+    the dual ``X`` (trace 1), the solver status and whether it is usable.
+
+    Only the span of the forms matters: with ``svec(q) = U S W^T`` (thin SVD, rank r), the
+    best ``omega`` lies in the span of ``U`` and ``|omega| = |U^T omega|``, so the SDP is solved
+    on the r forms ``S W^T`` (at most ``k(k+1)/2`` of them, however many stresses there are)."""
+    _, k, _ = q.shape
     n_tri = k * (k + 1) // 2
-    svq = _svec(q)  # (s, n_tri)
+    u_mat, sing, wt = np.linalg.svd(_svec(q), full_matrices=False)
+    rank = max(1, int(np.sum(sing > 1e-12 * sing[0]))) if sing.size and sing[0] > 0 else 1
+    svq = sing[:rank, None] * wt[:rank]  # (r, n_tri)
+    s = rank
     # x = (omega, t); the slacks are (1, omega) in the SOC and svec(sum omega Q - t I) in PSD
     a_soc = sp.hstack([sp.vstack([sp.csr_matrix((1, s)), -sp.identity(s)]),
                        sp.csr_matrix((s + 1, 1))])
@@ -196,7 +203,7 @@ def _solve_lmi(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, str, bool]:
     usable = status.endswith("Solved") or status.endswith("AlmostSolved")
     x = np.asarray(sol.x)
     z = np.asarray(sol.z)
-    return x[:s], _smat(z[s + 1:], k), status, usable
+    return u_mat[:, :rank] @ x[:s], _smat(z[s + 1:], k), status, usable
 
 
 def _binary_common_zero(q: np.ndarray, thr: np.ndarray) -> tuple[bool, np.ndarray | None]:
@@ -337,6 +344,10 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
                      None, "sdp")
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}es"
+
+
 def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
     """One flex or one stress: prestress stability and second-order rigidity coincide."""
     s, k, _ = q.shape
@@ -348,14 +359,14 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
         if norm > 0 and norm > tol.q_rtol * float(np.abs(vals / norm) @ scales):
             return _Decision(
                 True, True,
-                f"prestress stable: one non-trivial flex and {s} self-stress(es); the combined "
+                f"prestress stable: one non-trivial flex and {_count(s, 'self-stress')}; the combined "
                 f"stress has energy {norm:.3g} on it, hence second-order rigid",
                 vals / norm, norm, None, None, None, "closed-form",
             )
         return _Decision(
             False, False,
             f"not prestress stable and not second-order rigid: the only non-trivial flex has "
-            f"zero energy under all {s} self-stress(es), so it extends to second order "
+            f"zero energy under {_count(s, 'self-stress')}, so it extends to second order "
             "(higher-order analysis decides rigidity)",
             None, None, np.ones((1, 1)), float(np.max(np.abs(vals) / scales)),
             np.ones(1), "closed-form",
