@@ -359,8 +359,8 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
         if norm > 0 and norm > tol.q_rtol * float(np.abs(vals / norm) @ scales):
             return _Decision(
                 True, True,
-                f"prestress stable: one non-trivial flex and {_count(s, 'self-stress')}; the combined "
-                f"stress has energy {norm:.3g} on it, hence second-order rigid",
+                f"prestress stable: one non-trivial flex and {_count(s, 'self-stress')}; the "
+                f"combined stress has energy {norm:.3g} on it, hence second-order rigid",
                 vals / norm, norm, None, None, None, "closed-form",
             )
         return _Decision(
@@ -433,9 +433,9 @@ def prestress(linkage: Linkage, rig: RigidityResult, tolerances: Tolerances | No
         return _from_decision(linkage, stresses, flexes, dec)
     if s == 0:
         dec = _Decision(
-            False, False, f"no self-stress: the bars are independent and the {k} flexes extend "
-            "to real motions (the framework flexes here)", None, None,
-            np.diag(np.eye(k)[0]), 0.0, np.eye(k)[0], "first-order",
+            False, False, "no self-stress: the bars are independent and every flex "
+            f"({_count(k, 'flex')}) extends to a real motion (the framework flexes here)",
+            None, None, np.diag(np.eye(k)[0]), 0.0, np.eye(k)[0], "first-order",
         )
         return _from_decision(linkage, stresses, flexes, dec)
     if k > 1 and s > 1 and (k > MAX_FLEXES or s > MAX_STRESSES):
