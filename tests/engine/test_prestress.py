@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from engine.linkage import BarSpec, VertexSpec, build_linkage
 from engine.presets import build_preset
@@ -345,3 +347,34 @@ def test_connelly_whiteley_second_order_rigid_but_not_prestress_stable():
     pre = prestress(lk, rig)
     assert (pre.prestress_stable, pre.second_order_rigid) == (False, True), pre.reason
     check_certificate(lk, pre)
+
+
+# -- properties ------------------------------------------------------------------------------
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(2, 6), st.integers(2, 5), st.integers(0, 2**31 - 1), st.booleans())
+def test_decide_returns_a_certificate_that_checks(k, s, seed, feasible):
+    """Random forms: planted definite combination (must be found) or trace-zero forms (no
+    definite combination can exist: <Q_k, I/k> = 0). Either way the certificate checks."""
+    rng = np.random.default_rng(seed)
+    q = rng.standard_normal((s, k, k))
+    q = q + q.transpose(0, 2, 1)
+    if feasible:
+        q[0] = 3.0 * k * np.eye(k) - 0.1 * q[1:].sum(axis=0)
+    else:
+        q -= np.einsum("sii->s", q)[:, None, None] * np.eye(k) / k
+    scales = 4.0 * np.abs(q).sum(axis=(1, 2))
+    d = decide(q, scales, Tolerances())
+    assert d.success
+    assert d.stable is feasible
+    if feasible:
+        combined = np.einsum("s,sij->ij", d.omega, q)
+        assert np.linalg.eigvalsh(combined)[0] > 1e-6 * np.abs(d.omega) @ scales
+        assert d.rigid is True
+    else:
+        assert np.linalg.eigvalsh(d.dual)[0] >= -1e-12 and abs(np.trace(d.dual) - 1) < 1e-9
+        assert np.all(np.abs(np.einsum("sij,ij->s", q, d.dual)) <= 1e-6 * scales)
+        if d.rigid is False:
+            c = d.witness
+            assert np.all(np.abs(np.einsum("i,sij,j->s", c, q, c)) <= 1e-6 * scales)

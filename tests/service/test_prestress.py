@@ -100,3 +100,16 @@ def test_regular_point_is_flexible_not_stable(client):
     assert body["kind"] == "regular"
     assert body["prestress_stable"] is False and body["second_order_rigid"] is False
     assert body["second_order_flex"] is not None
+
+
+@pytest.mark.parametrize(("query", "field"), [
+    ("cn-symmetric-four-regular?n=9", "n"),
+    ("rotor-chain-3d?h=-1", "h"),
+    ("bricard-line?w=1", "w"),
+])
+def test_bad_catalogue_parameters_are_422_naming_the_field(client, query, field):
+    r = client.get(f"/v1/presets/{query}")
+    assert r.status_code == 422
+    assert r.headers["content-type"].startswith("application/problem+json")
+    assert field in r.text
+    assert client.get("/health").status_code == 200
