@@ -34,6 +34,7 @@ import scipy.sparse.linalg as spla
 from scipy.optimize import least_squares
 
 from engine.constraints import Constraints
+from engine.errors import LimitExceeded
 from engine.linkage import Linkage
 from engine.rigidity import RigidityResult
 from engine.tolerances import Tolerances
@@ -284,7 +285,9 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
     if k == 1 or s == 1:
         return _closed_form(q, scales, tol)
     if k > MAX_FLEXES or s > MAX_STRESSES:
-        raise ValueError(f"the SDP is limited to {MAX_FLEXES} flexes and {MAX_STRESSES} stresses")
+        raise LimitExceeded(
+            f"the SDP is limited to {MAX_FLEXES} flexes and {MAX_STRESSES} stresses", loc=()
+        )
     norm = float(np.max(scales))
     omega, dual, status, usable = _solve_lmi(q / norm)
     if not usable:
@@ -328,7 +331,8 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
         witness = _search_common_zero(q, scales, tol, vec[:, -1])
         found = witness is not None
         rigid_reason = (
-            f"not prestress stable (dual certificate of rank {int(np.sum(lam > 1e-6 * lam[-1]))});"
+            f"not prestress stable (dual certificate of rank "
+            f"{int(np.sum(lam > tol.rank_rtol * lam[-1]))});"
             f" second-order rigidity undecided: no flex with zero energy under all {s} "
             f"self-stresses was found on the {k} flexes, and none is proved not to exist"
         )
@@ -461,8 +465,15 @@ def _acceleration(linkage: Linkage, flex: np.ndarray) -> np.ndarray:
     u = linkage.coordinates()
     if linkage.n_free <= DENSE_ACCELERATION_MAX_FREE:
         return np.linalg.lstsq(np.asarray(cons.jacobian(u, sparse=False)), rhs, rcond=None)[0]
+    # p'' = J^T y with J J^T y = rhs: the minimal-norm solution, one sparse LU of the (E, E)
+    # banded-like J J^T. A shift of eps-size keeps it invertible at a critical point, where
+    # rhs is orthogonal to the self-stresses (the witness has zero energy) and J^T removes the
+    # stress components of y.
     jac = sp.csr_matrix(cons.jacobian(u, sparse=True))
-    return np.asarray(spla.lsqr(jac, rhs, atol=1e-14, btol=1e-14, iter_lim=20 * jac.shape[1])[0])
+    gram = (jac @ jac.T).tocsc()
+    shift = 1e-13 * float(abs(gram).max()) if gram.nnz else 1.0
+    y = spla.spsolve(gram + shift * sp.identity(gram.shape[0], format="csc"), rhs)
+    return np.asarray(jac.T @ y)
 
 
 def _from_decision(
