@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.catalogue import CATALOGUE
 from engine.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
 from engine.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
 
@@ -192,6 +193,7 @@ class Preset:
     parameters: Mapping[str, float]
     integers: frozenset[str]
     build: Callable[[Params], Specs]
+    dimension: int = 2
 
 
 _LENGTHS = {"a", "L1", "L2", "L3", "r", "l", "r1", "r2", "r3", "D"}
@@ -262,6 +264,11 @@ PRESETS: dict[str, Preset] = {
         ),
     )
 }
+# 3D and rigidity-theory frameworks (engine/catalogue.py)
+PRESETS.update(
+    {e.name: Preset(e.name, e.description, e.parameters, e.integers, e.build, e.dimension)
+     for e in CATALOGUE}
+)
 
 
 def resolve_parameters(name: str, overrides: Mapping[str, float] | None = None) -> Params:
@@ -344,7 +351,7 @@ def build_preset(
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             vertices, bars = PRESETS[name].build(params)
-            linkage = build_linkage(2, vertices, bars, limits)
+            linkage = build_linkage(PRESETS[name].dimension, vertices, bars, limits)
             _check_generated(linkage)
     except ArithmeticError:  # overflow (Python floats) or FloatingPointError (numpy)
         raise _blame(name, params, overrides, "its coordinates overflow float64") from None

@@ -9,6 +9,9 @@ Appendix A's carries one. We use the main text's.
   ``c^T Q c = 0``;
 - several self-stresses, singular ``Q`` or a non-isolated critical set: ``degenerate`` with a
   ``reason``.
+
+Whatever the kind, ``prestress`` (:mod:`engine.prestress`) decides prestress stability and
+second-order rigidity for any number of stresses and flexes, with certificates.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 
 from engine.constraints import DENSE_MAX_FREE, Constraints, project
 from engine.linkage import Linkage, check_memory
+from engine.prestress import PrestressResult, prestress
 from engine.rigidity import RigidityResult, first_order, plan_first_order
 from engine.tolerances import Tolerances
 from engine.vectors import normalise_sign
@@ -51,6 +55,8 @@ class SecondOrderResult:
         The same directions as coefficients ``c`` on ``zero_modes``.
     rigidity : RigidityResult
         The first-order analysis it builds on.
+    prestress : PrestressResult
+        Prestress stability and second-order rigidity with their certificates.
     """
 
     kind: Kind
@@ -62,6 +68,7 @@ class SecondOrderResult:
     tangents: np.ndarray
     tangent_coefficients: np.ndarray
     rigidity: RigidityResult
+    prestress: PrestressResult
 
 
 def _stays_critical(
@@ -133,6 +140,7 @@ def second_order(
     tol = tolerances or Tolerances()
     check_memory(*second_order_memory(linkage, sparse))
     rig = first_order(linkage, tol, sparse=sparse)
+    pre = prestress(linkage, rig, tol)
     empty = np.zeros((0, rig.n_free))
 
     def result(kind: Kind, reason: str | None = None, **kw: object) -> SecondOrderResult:
@@ -145,7 +153,9 @@ def second_order(
             "tangent_coefficients": np.zeros((0, rig.dof)),
         }
         base.update(kw)
-        return SecondOrderResult(kind=kind, reason=reason, rigidity=rig, **base)  # type: ignore[arg-type]
+        return SecondOrderResult(
+            kind=kind, reason=reason, rigidity=rig, prestress=pre, **base  # type: ignore[arg-type]
+        )
 
     if not rig.critical:
         return result("regular")
@@ -154,7 +164,8 @@ def second_order(
         return result(
             "degenerate",
             f"{n_stress} self-stresses: the second-order condition is a system of "
-            f"{n_stress} quadratic equations, not classified",
+            f"{n_stress} quadratic equations, not classified by kind (see prestress_stable and "
+            "second_order_rigid)",
         )
     if rig.dof == 0:
         return result("degenerate", "critical with no nontrivial zero mode")

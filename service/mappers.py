@@ -22,6 +22,7 @@ from engine.design import Check, DesignResult
 from engine.linkage import Limits, build_linkage
 from engine.linkage import Linkage as EngineLinkage
 from engine.presets import PRESETS
+from engine.prestress import PrestressResult
 from engine.rigidity import RigidityResult
 from engine.rigidity import TangentForm as EngineTangentForm
 from engine.robustness import Margin
@@ -35,8 +36,11 @@ from service.gcpause import gc_paused
 from service.schemas import common as c
 from service.schemas import space
 from service.schemas.analysis import (
+    DualCertificate,
     RigidityResponse,
+    SecondOrderFlex,
     SecondOrderResponse,
+    StressCertificate,
     TangentForm,
 )
 from service.schemas.presets import PresetInfo
@@ -185,14 +189,54 @@ def second_order_out(
         q_eigenvalues=None if res.q_eigenvalues is None else res.q_eigenvalues.tolist(),
         tangents=[vertex_vectors(linkage, t) for t in res.tangents],
         tangent_coefficients=res.tangent_coefficients.tolist(),
+        prestress_stable=res.prestress.prestress_stable,
+        second_order_rigid=res.prestress.second_order_rigid,
+        stability_reason=res.prestress.reason,
+        certificate=_certificate_out(linkage, res.prestress),
+        second_order_flex=_second_order_flex_out(linkage, res.prestress),
         tolerances=tolerances_out(res.rigidity.tolerances),
         **_projection_fields(linkage, proj),  # type: ignore[arg-type]
     )
 
 
+def _raw_vertex_vectors(linkage: EngineLinkage, v: np.ndarray) -> c.VertexVectors:
+    """As :func:`vertex_vectors` without renormalising: certificates are written in this exact
+    basis and scale (a sign flip would change the dual matrix or the sign of the energy)."""
+    return dict(zip(linkage.vertex_ids, linkage.vertex_vectors(v).tolist(), strict=True))
+
+
+def _certificate_out(
+    linkage: EngineLinkage, pre: PrestressResult
+) -> StressCertificate | DualCertificate | None:
+    if pre.prestress_stable and pre.stress is not None:
+        return StressCertificate(
+            stress=dict(zip(linkage.bar_ids, pre.stress.tolist(), strict=True)),
+            min_eigenvalue=pre.min_eigenvalue,
+        )
+    if pre.prestress_stable is False and pre.dual is not None:
+        return DualCertificate(
+            dual=pre.dual.tolist(),
+            flexes=[_raw_vertex_vectors(linkage, f) for f in pre.flexes],
+            dual_residual=float(pre.dual_residual or 0.0),
+        )
+    return None
+
+
+def _second_order_flex_out(linkage: EngineLinkage, pre: PrestressResult) -> SecondOrderFlex | None:
+    if pre.second_order_flex is None or pre.second_order_acceleration is None:
+        return None
+    return SecondOrderFlex(
+        velocity=_raw_vertex_vectors(linkage, pre.second_order_flex),
+        acceleration=_raw_vertex_vectors(linkage, pre.second_order_acceleration),
+    )
+
+
 def presets_out() -> list[PresetInfo]:
     return [
-        PresetInfo(name=p.name, description=p.description, parameters=dict(p.parameters))
+        PresetInfo(
+            name=p.name, description=p.description, parameters=dict(p.parameters),
+            dimension=p.dimension,
+        )
         for p in PRESETS.values()
     ]
 

@@ -50,6 +50,40 @@ class RigidityResponse(Projection):
     tolerances: TolerancesUsed
 
 
+class StressCertificate(BaseModel):
+    stress: BarValues = Field(
+        description="the combined self-stress omega (unit 2-norm, 0 on inert bars, sign as "
+        "computed): its energy sum_a omega_a Hess(l_a^2) is positive definite on the flexes"
+    )
+    min_eigenvalue: float | None = Field(
+        description="smallest eigenvalue of that energy on the orthonormal flexes (null when "
+        "there is no non-trivial flex)"
+    )
+
+
+class DualCertificate(BaseModel):
+    dual: list[list[float]] = Field(
+        description="X, positive semidefinite with trace 1, in the basis `flexes`, with "
+        "<Q_k, X> = 0 for every self-stress: no stress combination is definite"
+    )
+    flexes: list[VertexVectors] = Field(
+        description="orthonormal basis of the non-trivial flexes in which X is written"
+    )
+    dual_residual: float = Field(
+        description="max over a basis of unit self-stresses w_k of |<Q_k, X>| / (4 |w_k|_1)"
+    )
+
+
+class SecondOrderFlex(BaseModel):
+    velocity: VertexVectors = Field(
+        description="p', a unit non-trivial flex with zero energy under every self-stress"
+    )
+    acceleration: VertexVectors = Field(
+        description="p'' with J p'' = -(p'^T Hess(l_a^2) p')_a (minimal norm): (p', p'') is a "
+        "second-order flex"
+    )
+
+
 class SecondOrderResponse(Projection):
     kind: Literal["regular", "branch", "rigid", "degenerate"]
     reason: str | None = Field(description="why the point is degenerate")
@@ -70,4 +104,22 @@ class SecondOrderResponse(Projection):
     tangent_coefficients: list[list[float]] = Field(
         description="the tangents as coefficients on zero_modes"
     )
+    prestress_stable: bool | None = Field(
+        description="a combination of self-stresses has positive definite energy on the "
+        "non-trivial flexes (null: undecided, see stability_reason)"
+    )
+    second_order_rigid: bool | None = Field(
+        description="no non-trivial flex extends to a second-order flex (Connelly-Whiteley); "
+        "null: undecided"
+    )
+    stability_reason: str = Field(
+        description="what the certificates prove and which case is undecided"
+    )
+    certificate: StressCertificate | DualCertificate | None = Field(
+        description="{stress} when prestress stable, {dual, flexes} when not, null when undecided"
+    )
+    second_order_flex: SecondOrderFlex | None = Field(
+        description="a witnessing second-order flex when not second-order rigid"
+    )
     tolerances: TolerancesUsed
+

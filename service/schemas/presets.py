@@ -9,6 +9,7 @@ class PresetInfo(BaseModel):
     name: str
     description: str
     parameters: dict[str, float]
+    dimension: int = 2
 
 
 class Health(BaseModel):

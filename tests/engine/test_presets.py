@@ -34,7 +34,13 @@ def test_preset_lies_on_its_configuration_space(name, params):
 
 
 def test_every_preset_is_listed_with_defaults():
-    assert set(PRESETS) == {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"}
+    assert set(PRESETS) == {
+        "four-bar", "three-rotor", "kl-chain", "gated-kl-chain",
+        # engine/catalogue.py
+        "tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
+        "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
+        "rotor-chain-3d",
+    }
     for preset in PRESETS.values():
         assert preset.description and preset.parameters
 
@@ -75,3 +81,45 @@ def test_bad_parameters(name, params, error, loc):
     with pytest.raises(error) as info:
         build_preset(name, params)
     assert info.value.loc == loc
+
+
+CATALOGUE_NAMES = [
+    "tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
+    "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
+    "rotor-chain-3d",
+]
+
+
+@pytest.mark.parametrize("name", CATALOGUE_NAMES)
+def test_catalogue_frameworks_are_built_on_their_lengths(name):
+    lk = build_preset(name)
+    assert lk.dimension == PRESETS[name].dimension
+    np.testing.assert_allclose(lk.bar_lengths(), lk.lengths, atol=1e-12)
+
+
+def test_catalogue_geometry():
+    """The defining symmetries and incidences, checked on the built positions."""
+    pos = {n: build_preset(n).positions for n in ("bricard-line", "bricard-plane", "k33-conic")}
+    half_turn = np.diag([-1.0, -1.0, 1.0])
+    line = pos["bricard-line"]
+    for i in (0, 2, 4):
+        np.testing.assert_allclose(line[i + 1], half_turn @ line[i])
+    plane = pos["bricard-plane"]
+    assert plane[0][0] == plane[1][0] == 0.0
+    for i in (2, 4):
+        np.testing.assert_allclose(plane[i + 1], np.diag([-1.0, 1.0, 1.0]) @ plane[i])
+    x, y = pos["k33-conic"].T
+    np.testing.assert_allclose((x / 2.0) ** 2 + y**2, 1.0)
+    chain = build_preset("rotor-chain-3d", {"n": 4})
+    assert first_order(chain).dof == 1 and chain.anything_fixed
+
+
+@pytest.mark.parametrize(("name", "params", "loc"), [
+    ("cn-symmetric-four-regular", {"n": 9}, ("n",)),
+    ("rotor-chain-3d", {"h": -1.0}, ("h",)),
+    ("rotor-chain-3d", {"l": 40.0}, ()),
+])
+def test_catalogue_bad_parameters(name, params, loc):
+    with pytest.raises(InvalidParameter) as err:
+        build_preset(name, params)
+    assert err.value.loc == loc

@@ -7,7 +7,12 @@ def test_list_presets(client):
     r = client.get("/v1/presets")
     assert r.status_code == 200
     body = {p["name"]: p for p in r.json()}
-    assert set(body) == {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"}
+    assert {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"} <= set(body)
+    catalogue = {"tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
+                 "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
+                 "rotor-chain-3d"}
+    assert set(body) == {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"} | catalogue
+    assert body["tetrahedron"]["dimension"] == 3 and body["four-bar"]["dimension"] == 2
     assert {"a", "L1", "L2", "L3"} <= set(body["four-bar"]["parameters"])
     assert {"a", "r1", "r2", "r3", "L1", "L2", "phi"} <= set(body["three-rotor"]["parameters"])
     assert {"n", "a", "r", "l"} <= set(body["kl-chain"]["parameters"])
