@@ -21,7 +21,18 @@ from service.gcpause import gc_paused
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
-Ident = Annotated[str, Field(min_length=1, max_length=100)]
+# Ids appear in answers, logs and figures: printable characters only. Excluded: the C0 and C1
+# control characters and DEL, and the invisible format characters that can reorder or hide
+# text (soft hyphen, zero-width spaces and joiners, bidirectional marks, embeddings and
+# overrides, line and paragraph separators, word joiners and invisible operators, BOM). The
+# pattern uses escapes that Python, Rust (pydantic-core) and ECMAScript regexes all read.
+IDENT_PATTERN = (r"^[^\x00-\x1f\x7f-\x9f\u00ad\u200b-\u200f\u2028-\u202e\u2060-\u206f"
+                 r"\ufeff]+$")
+Ident = Annotated[str, Field(
+    min_length=1, max_length=100, pattern=IDENT_PATTERN,
+    description="1 to 100 printable characters: no control characters (U+0000-U+001F, "
+    "U+007F-U+009F) and no invisible format characters (U+00AD, U+200B-U+200F, "
+    "U+2028-U+202E, U+2060-U+206F, U+FEFF)")]
 # Hard caps that keep parsing bounded; the configured limits (settings) are checked by the engine.
 MAX_ITEMS = 1_000_000
 
