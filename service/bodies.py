@@ -59,7 +59,8 @@ def parse_request(model: type[BaseModel], body: bytes,
                 return "limit", ((key,), f"{len(items)} {key} exceed the limit of {limit}")
     try:
         with gc_paused():
-            return "ok", model.model_validate(data)
+            # as FastAPI validates bodies (from_attributes: the same messages)
+            return "ok", model.model_validate(data, from_attributes=True)
     except ValidationError as err:
         return "invalid", [{"type": e["type"], "loc": ("body", *e["loc"]), "msg": e["msg"]}
                            for e in err.errors(include_url=False)]
