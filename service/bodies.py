@@ -111,8 +111,10 @@ class JsonBodyRoute(APIRoute):
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()
-        field = self.body_field
-        model = getattr(field.field_info, "annotation", None) if field is not None else None
+        params = self.dependant.body_params
+        if len(params) != 1 or getattr(params[0].field_info, "embed", False):
+            return handler  # not one model as the whole body: FastAPI's own path only
+        model = getattr(params[0].field_info, "annotation", None)
         if not (isinstance(model, type) and issubclass(model, BaseModel)):
             return handler
 
