@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -30,9 +31,41 @@ def _env_float(name: str, default: float) -> float:
     return value
 
 
+def cgroup_cpu_limit(root: str = "/sys/fs/cgroup") -> float | None:
+    """CPUs allowed by the cgroup CPU quota (a container's ``--cpus``), or None without one.
+
+    cgroup v2: ``cpu.max`` holds ``"<quota> <period>"`` or ``"max <period>"``; cgroup v1:
+    ``cpu/cpu.cfs_quota_us`` (-1 for none) and ``cpu/cpu.cfs_period_us``."""
+    candidates = (
+        (os.path.join(root, "cpu.max"), None),
+        (os.path.join(root, "cpu", "cpu.cfs_quota_us"),
+         os.path.join(root, "cpu", "cpu.cfs_period_us")),
+    )
+    for quota_path, period_path in candidates:
+        try:
+            with open(quota_path) as f:
+                fields = f.read().split()
+            if period_path is not None:
+                with open(period_path) as f:
+                    fields += f.read().split()
+            quota, period = fields[0], fields[1]
+        except (OSError, IndexError):
+            continue
+        if quota in ("max", "-1") or float(period) <= 0:
+            return None
+        return float(quota) / float(period)
+    return None
+
+
 def default_workers() -> int:
-    """One engine worker per core (at least one)."""
-    return max(1, os.cpu_count() or 1)
+    """One engine worker per usable core (at least one): the cores this process may run on,
+    or fewer when a cgroup CPU quota (e.g. ``docker run --cpus 2``) allows fewer."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = max(1, cores or 1)
+    quota = cgroup_cpu_limit()
+    if quota is not None:
+        cores = min(cores, max(1, math.ceil(quota)))
+    return cores
 
 
 #: Share of the machine's memory that the engine workers may hold together by default.
@@ -83,9 +116,12 @@ class Settings:
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
     bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
-    (engine requests admitted at once, running or waiting, 64) and
+    (engine requests admitted at once, running or waiting, 64),
     ``LINKAGE_WORKER_MEMORY_MB`` (memory each engine worker may allocate, its ``RLIMIT_DATA``;
-    default: three quarters of the machine's memory divided among the workers).
+    default: three quarters of the machine's memory divided among the workers),
+    ``LINKAGE_HEADER_TIMEOUT_S``
+    (a request's head must arrive within this time, 5 s) and ``LINKAGE_BODY_TIMEOUT_S`` (its
+    body within this time, 10 s).
     """
 
     max_vertices: int = 50_000
@@ -96,6 +132,8 @@ class Settings:
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
     worker_memory_mb: int | None = None  # None: default_worker_memory_mb(workers)
+    header_timeout_s: float = 5.0
+    body_timeout_s: float = 10.0
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -108,6 +146,8 @@ class Settings:
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
             worker_memory_mb=_worker_memory_from_env(),
+            header_timeout_s=_env_float("LINKAGE_HEADER_TIMEOUT_S", cls.header_timeout_s),
+            body_timeout_s=_env_float("LINKAGE_BODY_TIMEOUT_S", cls.body_timeout_s),
         )
 
     def replace(self, **changes: object) -> Settings:

@@ -3,6 +3,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request, Response
 
 from service import jobs
+from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
@@ -20,8 +21,8 @@ from service.schemas.space import (
 )
 from service.workers import engine_call
 
-router = APIRouter(prefix="/v1/analysis", tags=["analysis"])
-_problems = problem_responses(400, 413, 422, 503, 504)
+router = APIRouter(prefix="/v1/analysis", tags=["analysis"], route_class=JsonBodyRoute)
+_problems = problem_responses(400, 408, 413, 415, 422, 503, 504)
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 

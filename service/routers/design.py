@@ -3,15 +3,16 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request, Response
 
 from service import jobs
+from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
 from service.schemas.space import DesignRequest, DesignResponse
 from service.workers import engine_call
 
-router = APIRouter(prefix="/v1/design", tags=["design"])
+router = APIRouter(prefix="/v1/design", tags=["design"], route_class=JsonBodyRoute)
 
 
-_problems = problem_responses(400, 413, 422, 503, 504)
+_problems = problem_responses(400, 408, 413, 415, 422, 503, 504)
 
 
 @router.post("/splitting", response_model=DesignResponse, responses=_problems)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+from array import array
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -21,7 +23,18 @@ from service.gcpause import gc_paused
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
-Ident = Annotated[str, Field(min_length=1, max_length=100)]
+# Ids appear in answers, logs and figures: printable characters only. Excluded: the C0 and C1
+# control characters and DEL, and the invisible format characters that can reorder or hide
+# text (soft hyphen, zero-width spaces and joiners, bidirectional marks, embeddings and
+# overrides, line and paragraph separators, word joiners and invisible operators, BOM). The
+# pattern uses escapes that Python, Rust (pydantic-core) and ECMAScript regexes all read.
+IDENT_PATTERN = (r"^[^\x00-\x1f\x7f-\x9f\u00ad\u200b-\u200f\u2028-\u202e\u2060-\u206f"
+                 r"\ufeff]+$")
+Ident = Annotated[str, Field(
+    min_length=1, max_length=100, pattern=IDENT_PATTERN,
+    description="1 to 100 printable characters: no control characters (U+0000-U+001F, "
+    "U+007F-U+009F) and no invisible format characters (U+00AD, U+200B-U+200F, "
+    "U+2028-U+202E, U+2060-U+206F, U+FEFF)")]
 # Hard caps that keep parsing bounded; the configured limits (settings) are checked by the engine.
 MAX_ITEMS = 1_000_000
 
@@ -76,24 +89,58 @@ def _restore(cls: type[BaseModel], values: dict[str, Any], fields_set: set[str])
     return obj
 
 
+_SEP = "\x00"  # never inside an id (IDENT_PATTERN): joins ids into one string for pickling
+
+
+def _pack_strings(items: list[str]) -> str | list[str]:
+    """One string instead of many (pickled as one object), unless an item holds the separator
+    (a model built without validation)."""
+    joined = _SEP.join(items)
+    return joined if joined.count(_SEP) == len(items) - 1 else items
+
+
+def _unpack_strings(packed: str | list[str], n: int) -> list[str]:
+    if isinstance(packed, list):
+        return packed
+    return packed.split(_SEP) if n else []
+
+
+def _unpack_vectors(sizes: bytes, flat: array[float]) -> list[list[float]]:
+    values = flat.tolist()
+    if sizes and sizes.count(sizes[0]) == len(sizes):  # one dimension throughout: the usual case
+        d = sizes[0]
+        return [values[k:k + d] for k in range(0, len(values), d)]
+    out, k = [], 0
+    for size in sizes:
+        out.append(values[k:k + size])
+        k += size
+    return out
+
+
 def _restore_linkage(
     state: dict[str, Any],
     fields_set: set[str],
-    vertices: tuple[list[str], list[list[float]], list[Any], list[bool]],
-    bars: tuple[list[str], list[list[str]], list[float | None], list[bool]],
+    vertices: tuple[int, str | list[str], bytes, array[float], list[Any], bytes],
+    bars: tuple[int, str | list[str], str | list[str], array[float], bytes],
 ) -> Linkage:
     """Inverse of :meth:`Linkage.__reduce__`."""
     v_set, v_fixed_set = {"id", "position"}, {"id", "position", "fixed"}
     b_set, b_length_set = {"id", "ends"}, {"id", "ends", "length"}
+    nv, v_ids, sizes, flat, fixed, v_given = vertices
+    nb, b_ids, b_ends, lengths, b_given = bars
     with gc_paused():
+        ends = _unpack_strings(b_ends, 2 * nb)
         state["vertices"] = [
             _restore(Vertex, {"id": i, "position": p, "fixed": f},
                      set(v_fixed_set if s else v_set))
-            for i, p, f, s in zip(*vertices, strict=True)
+            for i, p, f, s in zip(_unpack_strings(v_ids, nv), _unpack_vectors(sizes, flat),
+                                  fixed, v_given, strict=True)
         ]
         state["bars"] = [
-            _restore(Bar, {"id": i, "ends": e, "length": ln}, set(b_length_set if s else b_set))
-            for i, e, ln, s in zip(*bars, strict=True)
+            _restore(Bar, {"id": i, "ends": [a, b], "length": None if ln != ln else ln},
+                     set(b_length_set if s else b_set))  # ln != ln: NaN, no length given
+            for i, a, b, ln, s in zip(_unpack_strings(b_ids, nb), ends[0::2], ends[1::2],
+                                      lengths.tolist(), b_given, strict=True)
         ]
     return _restore(Linkage, state, fields_set)
 
@@ -111,14 +158,25 @@ class Linkage(Strict):
             return handler(data)
 
     def __reduce__(self) -> tuple[Any, ...]:
-        # Requests travel to the engine's worker processes by pickle. Pickled model by model,
-        # a 10,000-rotor chain (40,000 models) takes about 0.7 s to pickle and unpickle; as
-        # columns of plain values it takes a fraction of that. Both ends hold validated models.
+        # Requests travel to and from the engine's worker processes by pickle. Pickled model by
+        # model, a 10,000-rotor chain (40,000 models) takes about 0.7 s to pickle and unpickle;
+        # even as columns of plain values, pickling is one C call that holds the GIL for tens
+        # of milliseconds per 10^4 vertices (the event loop waits). So the columns are packed:
+        # ids joined into one string, coordinates and lengths in one float array each. Both
+        # ends hold validated models.
         vs, bs = self.vertices, self.bars
-        vertices = ([v.id for v in vs], [v.position for v in vs], [v.fixed for v in vs],
-                    ["fixed" in v.__pydantic_fields_set__ for v in vs])
-        bars = ([b.id for b in bs], [b.ends for b in bs], [b.length for b in bs],
-                ["length" in b.__pydantic_fields_set__ for b in bs])
+        positions = [v.position for v in vs]
+        vertices = (
+            len(vs), _pack_strings([v.id for v in vs]), bytes(len(p) for p in positions),
+            array("d", [x for p in positions for x in p]), [v.fixed for v in vs],
+            bytes("fixed" in v.__pydantic_fields_set__ for v in vs),
+        )
+        bars = (
+            len(bs), _pack_strings([b.id for b in bs]),
+            _pack_strings([end for b in bs for end in b.ends]),
+            array("d", [math.nan if b.length is None else b.length for b in bs]),
+            bytes("length" in b.__pydantic_fields_set__ for b in bs),
+        )
         state = {k: v for k, v in self.__dict__.items() if k not in ("vertices", "bars")}
         return (_restore_linkage, (state, set(self.__pydantic_fields_set__), vertices, bars))
 

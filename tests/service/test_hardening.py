@@ -214,7 +214,8 @@ def test_metrics_count_requests_by_route_and_status(four_bar):
         app.state.engine_pool.close()
     assert metric(text, "linkage_requests_total", route="/v1/analysis/rigidity", status="200") == 3
     assert metric(text, "linkage_requests_total", route="/v1/analysis/rigidity", status="422") == 1
-    assert metric(text, "linkage_requests_total", route="unmatched", status="404") == 1
+    # issue 17: unmatched paths are labelled "other" (was "unmatched")
+    assert metric(text, "linkage_requests_total", route="other", status="404") == 1
     assert metric(text, "linkage_request_duration_seconds_count",
                   route="/v1/analysis/rigidity") == 4
     assert "# TYPE linkage_request_duration_seconds histogram" in text
