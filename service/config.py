@@ -30,6 +30,11 @@ def _env_float(name: str, default: float) -> float:
     return value
 
 
+def _env_list(name: str) -> tuple[str, ...]:
+    """A comma-separated setting; empty items dropped."""
+    return tuple(item.strip() for item in os.environ.get(name, "").split(",") if item.strip())
+
+
 def default_workers() -> int:
     """One engine worker per core (at least one)."""
     return max(1, os.cpu_count() or 1)
@@ -43,7 +48,9 @@ class Settings:
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
     bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
-    (engine requests admitted at once, running or waiting, 64).
+    (engine requests admitted at once, running or waiting, 64), ``LINKAGE_CORS_ORIGINS``
+    (comma-separated origins allowed to call the service from a browser, e.g.
+    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin).
     """
 
     max_vertices: int = 50_000
@@ -53,6 +60,7 @@ class Settings:
     time_limit_s: float = 30.0
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
+    cors_origins: tuple[str, ...] = ()
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -64,6 +72,7 @@ class Settings:
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
+            cors_origins=_env_list("LINKAGE_CORS_ORIGINS"),
         )
 
     def replace(self, **changes: object) -> Settings:
