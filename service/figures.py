@@ -7,8 +7,9 @@ worker pool under the time limit like every analysis (:func:`service.workers.Eng
 
 Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests can find them:
 ``bar-<k>``, ``pin-<k>``, ``vertex-<k>``, ``slider-<k>``, ``zero-mode-<j>``, ``tangent-<j>``
-(linkage); ``component-<k>``, ``critical-<kind>-<index>``, ``segment-<k>`` (configuration
-space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>``, ``current-lengths`` (critical values);
+(linkage); ``component-<k>-<piece>``, ``critical-<kind>-<index>``, ``segment-<k>`` (configuration
+space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
+(critical values);
 ``ray-<b>-<r>``, ``split-<b>-<i>-<j>`` (splitting: branch point ``b``, ray ``r``, joined rays
 ``i``, ``j``).
 
@@ -315,10 +316,8 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
     for k, comp in enumerate(ans.components):
         colour = colours[k % len(colours)]
         x, y = np.asarray(comp.angles[axes[0]]), np.asarray(comp.angles[axes[1]])
-        group = [ax.plot(px, py, color=colour, lw=1.8, zorder=2)[0]
-                 for px, py in _torus_pieces(x, y)]
-        for line in group:
-            line.set_gid(f"component-{k}")
+        for p, (px, py) in enumerate(_torus_pieces(x, y)):
+            ax.plot(px, py, color=colour, lw=1.8, zorder=2, gid=f"component-{k}-{p}")
         handles.append(Line2D([], [], color=colour, lw=2,
                               label=f"component {k} ({'closed' if comp.closed else 'open'})"))
         # The segments: the walk cut where it passes through critical points, each piece
@@ -418,7 +417,7 @@ def _draw_critical_values(body: space.CriticalValuesRequest,
         ax.plot(cv[:, 0], cv[:, 1], color="#111111", lw=1.6, gid=f"cv-curve-{k}")
     for k, r in enumerate(ans.regions):
         ax.annotate(str(r.components), spots[k], ha="center", va="center", fontsize=10,
-                    fontweight="bold", gid=f"region-{k}",
+                    fontweight="bold", gid=f"region-{k}-{r.components}",
                     bbox={"boxstyle": "circle,pad=0.25", "fc": "white", "ec": "#888888",
                           "lw": 0.6})
     bars = {b.id: b for b in body.linkage.bars}
