@@ -20,9 +20,11 @@ SVG needs no font to render the same everywhere.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -45,12 +47,6 @@ from service.schemas.common import AnalysisRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
 
 SVG = "image/svg+xml"
-_STYLE = {
-    "svg.fonttype": "path",  # self-contained: no font needed where the SVG is shown
-    "svg.hashsalt": "linkage-figures",  # stable ids: the same answer gives the same bytes
-    "font.size": 9.0,
-    "axes.titlesize": 10.0,
-}
 _KIND_MARKERS = {
     "branch": ("X", "#d62728", "branch point"),
     "rigid": ("o", "#111111", "rigid point"),
@@ -69,7 +65,7 @@ def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
         ans: object = jobs.second_order_analysis(req, settings)
     else:
         ans = jobs.rigidity(req, settings)
-    return _svg(_draw_linkage(body.linkage, ans, body.show))
+    return _svg(_draw_linkage, body.linkage, ans, body.show)
 
 
 def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> bytes:
@@ -93,13 +89,13 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> 
     req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances,
                              options=body.options)
     ans = jobs.configuration_space(req, settings)
-    return _svg(_draw_space(ans, axes, rotors))
+    return _svg(_draw_space, ans, axes, rotors)
 
 
 def critical_values_figure(body: space.CriticalValuesRequest, settings: Settings) -> bytes:
     """The slice: curves, regions shaded and labelled with their component counts."""
     ans = jobs.critical_values(body, settings)
-    return _svg(_draw_critical_values(body, ans))
+    return _svg(_draw_critical_values, body, ans)
 
 
 def splitting_figure(body: space.SplittingRequest, settings: Settings) -> bytes:
@@ -113,22 +109,31 @@ def splitting_figure(body: space.SplittingRequest, settings: Settings) -> bytes:
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
     ans = mappers.splitting_out(at, splits, len(crit), tol, crit)
     points = mappers.critical_points_out(at, search, proj, tol).critical_points
-    return _svg(_draw_splitting(body, ans, points))
+    return _svg(_draw_splitting, body, ans, points)
 
 
 # -- shared ------------------------------------------------------------------------------------
 
 
-def _svg(fig: Figure) -> bytes:
+def _style() -> contextlib.AbstractContextManager[None]:
+    return mpl.rc_context({
+        "svg.fonttype": "path",  # self-contained: no font needed where the SVG is shown
+        "svg.hashsalt": "linkage-figures",  # stable ids: the same answer gives the same bytes
+        "font.size": 9.0,
+        "axes.titlesize": 10.0,
+    })
+
+
+def _svg(draw: Callable[..., Figure], *args: Any) -> bytes:
+    """``draw(*args)`` as SVG, drawn and saved in the house style."""
     buf = io.BytesIO()
-    with mpl.rc_context(_STYLE):
-        fig.savefig(buf, format="svg", metadata={"Date": None}, facecolor="white")
+    with _style():
+        draw(*args).savefig(buf, format="svg", metadata={"Date": None}, facecolor="white")
     return buf.getvalue()
 
 
 def _figure(width: float, height: float) -> Figure:
-    with mpl.rc_context(_STYLE):
-        return Figure(figsize=(width, height), layout="constrained")
+    return Figure(figsize=(width, height), layout="constrained")
 
 
 def _fixed_axes(vertex: c.Vertex, dim: int) -> list[bool]:
@@ -191,9 +196,11 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
         ax.annotate(bar.id, mid, xytext=(3, 3), textcoords="offset points", color="#333333",
                     fontsize=8)
     if stress is not None:
-        handles += [Line2D([], [], color=_TENSION, lw=3, label="self-stress > 0 (tension)"),
-                    Line2D([], [], color=_COMPRESSION, lw=3,
-                           label="self-stress < 0 (compression)")]
+        # A self-stress is defined up to its overall sign: the colours tell the bars that
+        # pull from those that push, not which of the two is tension.
+        handles += [Line2D([], [], color=_TENSION, lw=3, label="self-stress σ > 0"),
+                    Line2D([], [], color=_COMPRESSION, lw=3, label="self-stress σ < 0 "
+                           "(opposite sign: one pulls, the other pushes)")]
     kinds = {"pin": 0, "slider": 0, "vertex": 0}
     for k, v in enumerate(linkage.vertices):
         mask = _fixed_axes(v, linkage.dimension)
@@ -241,15 +248,15 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
         notes.append("no self-stress: the configuration is not critical")
     if "tangents" in show and not getattr(ans, "tangents", []):
         notes.append("no branch tangents: not a branch point")
-    kind = getattr(ans, "kind", None)
-    title = "Linkage" + (f" ({kind} configuration)" if kind else "")
+    point_kind = getattr(ans, "kind", None)
+    title = "Linkage" + (f" ({point_kind} configuration)" if point_kind else "")
     if linkage.dimension == 3:
         title += ", x-y projection"
     ax.set_title(title + ("\n" + "; ".join(notes) if notes else ""))
     ax.margins(0.15)
-    ax.update_datalim(np.concatenate(tips))  # the arrows (quiver does not widen the view by itself)
+    ax.update_datalim(np.concatenate(tips))  # quiver's arrows do not widen the view
     ax.autoscale_view()
-    fig.legend(handles=handles, loc="outside lower center", ncols=3)  # type: ignore[arg-type]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3)
     return fig
 
 
@@ -359,7 +366,7 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
                  f"{m} critical point{'s' * (m != 1)}"
                  + ("" if ans.search.get("complete", True) else " (search incomplete)"))
     if handles:
-        fig.legend(handles=handles, loc="outside lower center", ncols=2)  # type: ignore[arg-type]
+        fig.legend(handles=handles, loc="outside lower center", ncols=2)
     return fig
 
 
@@ -436,7 +443,7 @@ def _draw_critical_values(body: space.CriticalValuesRequest,
     ax.set_ylim(*box[1])
     ax.set_title(f"Critical values: {len(curves)} curve{'s' * (len(curves) != 1)}, "
                  f"{len(ans.regions)} region{'s' * (len(ans.regions) != 1)}")
-    fig.legend(handles=handles, loc="outside lower center", ncols=3)  # type: ignore[arg-type]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3)
     return fig
 
 
