@@ -177,3 +177,34 @@ def test_figure_problems_name_the_field(client: Any) -> None:
     broken = {**linkage, "bars": [{"id": "L1", "ends": ["P1", "nowhere"]}]}
     r = client.post("/v1/figures/linkage", json={"linkage": broken})
     assert_problem(r, 422, ["body", "linkage", "bars", 0, "ends", 1])
+
+
+def test_a_3d_linkage_is_drawn_in_its_x_y_projection(client: Any) -> None:
+    linkage = {"dimension": 3, "vertices": [
+        {"id": "P", "position": [0, 0, 0], "fixed": True},
+        {"id": "Q", "position": [2, 0, 0], "fixed": True},
+        {"id": "A", "position": [1, 0, 1]}],
+        "bars": [{"id": "a", "ends": ["P", "A"]}, {"id": "b", "ends": ["Q", "A"]}]}
+    ids = svg_ids(client.post("/v1/figures/linkage",
+                              json={"linkage": linkage, "show": ["zero_modes"]}))
+    assert len(with_prefix(ids, "bar-")) == 2
+    assert len(with_prefix(ids, "zero-mode-")) == 1  # A turns about the axis PQ
+
+
+def test_figures_run_under_the_time_limit() -> None:
+    from service.config import Settings
+    from service.main import create_app
+    from tests.conftest import ApiClient
+
+    app = create_app(Settings.from_env().replace(time_limit_s=0.05, workers=1))
+    c = ApiClient(app)
+    try:
+        linkage = preset(c, "three-rotor")
+        r = c.post("/v1/figures/configuration-space", json={"linkage": linkage})
+        assert r.status_code == 504, r.text
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["type"] == "/problems/time-limit"
+        assert c.get("/health").status_code == 200
+    finally:
+        c.close()
+        app.state.engine_pool.close()
