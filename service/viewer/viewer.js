@@ -184,8 +184,16 @@ async function drawSlice(generation) {
     return { bar: id, min: len / factor, max: len * factor };
   });
   $("slice-caption").textContent = `${x} × ${y}: computing…`;
-  const blob = await call("v1/figures/critical-values",
-                          { linkage, axes }, "blob");
+  let blob;
+  try {
+    blob = await call("v1/figures/critical-values", { linkage, axes }, "blob");
+  } catch (err) {
+    if (generation === state.generation) {
+      $("slice-caption").textContent = `${x} × ${y}: no slice`;
+      el.textContent = err.message;
+    }
+    throw err;
+  }
   if (generation !== state.generation) return;
   const img = new Image();
   img.alt = `critical values in the lengths of ${x} and ${y}`;
