@@ -150,6 +150,12 @@ def test_viewer_draws_the_four_bar_and_redraws_when_a_length_moves(
     lengths = data(browser, "space", "lengths")
     assert lengths == "1.0000,1.0000,1.0000"
 
+    # the critical-value slice arrives as an SVG figure
+    wait_for(lambda: int(data(browser, "slice", "draws") or 0) >= 1, 60, "the slice figure")
+    img = browser.find_element(By.CSS_SELECTOR, "#slice img")
+    assert browser.execute_script("return arguments[0].naturalWidth;", img) > 100
+    shot(browser, "viewer-four-bar.png")
+
     # clicking the configuration space moves the linkage there
     canvas = browser.find_element(By.ID, "space")
     before = browser.find_element(By.ID, "linkage-caption").text
@@ -171,11 +177,6 @@ def test_viewer_draws_the_four_bar_and_redraws_when_a_length_moves(
     assert int(data(browser, "space", "draws") or 0) > draws
     # off the critical lengths the branch points are gone
     assert data(browser, "space", "criticalPoints") == "0"
-
-    # the critical-value slice arrives as an SVG figure
-    wait_for(lambda: int(data(browser, "slice", "draws") or 0) >= 1, 60, "the slice figure")
-    img = browser.find_element(By.CSS_SELECTOR, "#slice img")
-    assert browser.execute_script("return arguments[0].naturalWidth;", img) > 100
     shot(browser, "viewer.png")
 
     assert console_errors(browser) == []
