@@ -256,6 +256,9 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
     ax.margins(0.15)
     ax.update_datalim(np.concatenate(tips))  # quiver's arrows do not widen the view
     ax.autoscale_view()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    # as tall as the drawing needs at the figure's width (equal aspect), plus title and legend
+    fig.set_size_inches(6.4, float(np.clip(5.6 * (y1 - y0) / (x1 - x0), 1.8, 7.0)) + 1.6)
     fig.legend(handles=handles, loc="outside lower center", ncols=3)
     return fig
 
