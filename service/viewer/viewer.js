@@ -151,7 +151,7 @@ async function useLinkage(linkage) {
   const space = call("v1/analysis/configuration-space", { linkage }).then((answer) => {
     if (generation !== state.generation) return;
     state.space = answer;
-    state.at = answer.components.length ? { component: 0, index: 0 } : null;
+    state.at = nearestPoint(answer, linkage);
     $("animate").disabled = !state.at;
     drawSpace();
     drawLinkage();
@@ -225,6 +225,23 @@ function fit(ctx, points, pad = 30) {
   const cx = (x0 + x1) / 2;
   const cy = (y0 + y1) / 2;
   return (p) => [ctx.canvas.width / 2 + s * (p[0] - cx), ctx.canvas.height / 2 - s * (p[1] - cy)];
+}
+
+function nearestPoint(space, linkage) {
+  // Start where the linkage is: the point of the answer closest to the given positions.
+  let best = null;
+  space.components.forEach((comp, k) => {
+    const n = Object.values(comp.positions)[0].length;
+    for (let i = 0; i < n; i++) {
+      let d = 0;
+      for (const v of linkage.vertices) {
+        const p = comp.positions[v.id][i];
+        d += p.reduce((acc, x, j) => acc + (x - v.position[j]) ** 2, 0);
+      }
+      if (!best || d < best.d) best = { d, component: k, index: i };
+    }
+  });
+  return best && { component: best.component, index: best.index };
 }
 
 function drawLinkage() {
