@@ -55,6 +55,9 @@ def cgroup_cpu_limit(root: str = "/sys/fs/cgroup") -> float | None:
             return None
         return float(quota) / float(period)
     return None
+def _env_list(name: str) -> tuple[str, ...]:
+    """A comma-separated setting; empty items dropped."""
+    return tuple(item.strip() for item in os.environ.get(name, "").split(",") if item.strip())
 
 
 def default_workers() -> int:
@@ -121,7 +124,9 @@ class Settings:
     default: three quarters of the machine's memory divided among the workers),
     ``LINKAGE_HEADER_TIMEOUT_S``
     (a request's head must arrive within this time, 5 s) and ``LINKAGE_BODY_TIMEOUT_S`` (its
-    body within this time, 10 s).
+    body within this time, 10 s), ``LINKAGE_CORS_ORIGINS``
+    (comma-separated origins allowed to call the service from a browser, e.g.
+    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin).
     """
 
     max_vertices: int = 50_000
@@ -134,6 +139,7 @@ class Settings:
     worker_memory_mb: int | None = None  # None: default_worker_memory_mb(workers)
     header_timeout_s: float = 5.0
     body_timeout_s: float = 10.0
+    cors_origins: tuple[str, ...] = ()
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -148,6 +154,7 @@ class Settings:
             worker_memory_mb=_worker_memory_from_env(),
             header_timeout_s=_env_float("LINKAGE_HEADER_TIMEOUT_S", cls.header_timeout_s),
             body_timeout_s=_env_float("LINKAGE_BODY_TIMEOUT_S", cls.body_timeout_s),
+            cors_origins=_env_list("LINKAGE_CORS_ORIGINS"),
         )
 
     def replace(self, **changes: object) -> Settings:

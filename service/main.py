@@ -2,17 +2,22 @@
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from pathlib import Path
 
 from fastapi import FastAPI
+from fastapi.middleware.cors import CORSMiddleware
+from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 
 from engine import __version__
-from service import errors
+from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
 from service.middleware import RequestContext
-from service.routers import analysis, design, health, presets
+from service.routers import analysis, design, figures, health, presets
 from service.workers import EnginePool
+
+VIEWER = Path(__file__).parent / "viewer"
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -42,18 +47,28 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         "second-order analysis at a configuration, presets from the paper. Errors are "
         "application/problem+json (RFC 9457).",
         lifespan=lifespan,
+        docs_url=None,  # /docs and /redoc are served offline by service.docs
+        redoc_url=None,
     )
     app.state.engine_pool = pool
     app.state.metrics = metrics
     if settings is not None:
         app.dependency_overrides[get_settings] = lambda: settings
     errors.install(app)
+    docs.install(app)
     app.add_middleware(RequestContext, settings=(lambda: settings) if settings else get_settings,
                        metrics=metrics)
     app.include_router(health.router)
     app.include_router(presets.router)
     app.include_router(analysis.router)
     app.include_router(design.router)
+    app.include_router(figures.router)
+    # The web viewer: static files shipped in the package, calling the public endpoints only.
+    app.mount("/viewer", StaticFiles(directory=VIEWER, html=True), name="viewer")
+    if resolved.cors_origins:  # outermost, so that a preflight is answered before anything
+        app.add_middleware(CORSMiddleware, allow_origins=list(resolved.cors_origins),
+                           allow_methods=["GET", "POST", "DELETE"], allow_headers=["*"],
+                           expose_headers=["Location", "Retry-After", "X-Request-ID"])
     return app
 
 

@@ -51,6 +51,14 @@ def bodies(linkage: Json) -> dict[str, Json]:
                                          {"bar": "L3", "min": 0.5, "max": 1.5}],
             "options": {"resolution": 8, "seeds_per_axis": 2}},
         "/v1/analysis/robustness": {"linkage": linkage, "options": SMALL},
+        "/v1/figures/linkage": {"linkage": linkage, "show": ["zero_modes", "self_stress"]},
+        "/v1/figures/configuration-space": {"linkage": linkage, "options": SMALL},
+        "/v1/figures/critical-values": {
+            "linkage": linkage, "axes": [{"bar": "L2", "min": 0.5, "max": 1.5},
+                                         {"bar": "L3", "min": 0.5, "max": 1.5}],
+            "options": {"resolution": 8, "seeds_per_axis": 2}},
+        "/v1/figures/splitting": {"linkage": linkage, "perturbation": {"L2": 1e-3},
+                                  "options": SMALL},
     }
 
 

@@ -1,0 +1,33 @@
+"""Requests of the figure endpoints (answers are ``image/svg+xml``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from service.schemas.common import Ident, Linkage, Strict, Tolerances
+from service.schemas.space import SpaceOptions
+
+Show = Literal["zero_modes", "tangents", "self_stress"]
+
+
+class LinkageFigureRequest(Strict):
+    linkage: Linkage
+    show: list[Show] = Field(
+        default_factory=list, max_length=3,
+        description="what to draw on the linkage besides pins, sliders and bars: zero modes or "
+        "branch tangents as arrows, the self-stress as bar colours (at a critical configuration)",
+    )
+    tolerances: Tolerances | None = None
+
+
+class SpaceFigureRequest(Strict):
+    linkage: Linkage
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+    axes: list[Ident] | None = Field(
+        None, min_length=2, max_length=2,
+        description="two rotors (bars with one pinned end) whose angles are the axes (default: "
+        "the first two rotors)",
+    )

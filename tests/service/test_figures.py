@@ -1,0 +1,210 @@
+"""The figure endpoints: SVG that parses, with as many drawn things as the JSON answers hold."""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from collections import Counter
+from typing import Any
+
+import pytest
+
+SVG_NS = "{http://www.w3.org/2000/svg}"
+
+
+def svg_ids(response: Any) -> list[str]:
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"] == "image/svg+xml"
+    root = ET.fromstring(response.content)  # valid XML, an <svg> document
+    assert root.tag == f"{SVG_NS}svg"
+    ids = [el.get("id", "") for el in root.iter()]
+    named = [i for i in ids if i]
+    assert len(named) == len(set(named)), "SVG ids must be unique"
+    return ids
+
+
+def with_prefix(ids: list[str], prefix: str) -> list[str]:
+    return [i for i in ids if i.startswith(prefix)]
+
+
+def preset(client: Any, name: str, **params: float) -> dict[str, Any]:
+    r = client.get(f"/v1/presets/{name}", params=params)
+    assert r.status_code == 200, r.text
+    linkage: dict[str, Any] = r.json()
+    return linkage
+
+
+def assert_problem(response: Any, status: int, loc_prefix: list[Any]) -> None:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"].startswith("application/problem+json")
+    problem = response.json()
+    assert problem["status"] == status and problem["title"] and problem["detail"]
+    assert problem["errors"][0]["loc"][: len(loc_prefix)] == loc_prefix
+
+
+# -- linkage -------------------------------------------------------------------------------
+
+
+def test_linkage_figure_draws_pins_joints_bars_and_zero_modes(client: Any) -> None:
+    linkage = preset(client, "four-bar", L2=1.2)
+    ids = svg_ids(client.post("/v1/figures/linkage",
+                              json={"linkage": linkage, "show": ["zero_modes"]}))
+    assert len(with_prefix(ids, "bar-")) == len(linkage["bars"])
+    assert len(with_prefix(ids, "pin-")) == 2
+    assert len(with_prefix(ids, "vertex-")) == 2
+    rig = client.post("/v1/analysis/rigidity", json={"linkage": linkage}).json()
+    assert len(with_prefix(ids, "zero-mode-")) == len(rig["zero_modes"]) == 1
+    assert with_prefix(ids, "tangent-") == []
+
+
+def test_linkage_figure_at_a_branch_point_draws_tangents(client: Any) -> None:
+    # theta = pi puts the equilateral four-bar on a branch point (A, P1, B, P2 collinear)
+    linkage = preset(client, "four-bar", theta=math.pi)
+    ids = svg_ids(client.post("/v1/figures/linkage",
+                              json={"linkage": linkage, "show": ["tangents", "self_stress"]}))
+    second = client.post("/v1/analysis/second-order", json={"linkage": linkage}).json()
+    assert second["kind"] == "branch"
+    assert len(with_prefix(ids, "tangent-")) == len(second["tangents"]) == 2
+    assert len(with_prefix(ids, "bar-")) == 3
+
+
+def test_linkage_figure_draws_a_slider_with_its_axis(client: Any) -> None:
+    linkage = preset(client, "gated-kl-chain", n=4, gate=2)
+    sliders = [v for v in linkage["vertices"] if isinstance(v["fixed"], list)]
+    assert len(sliders) == 1
+    ids = svg_ids(client.post("/v1/figures/linkage", json={"linkage": linkage}))
+    assert len(with_prefix(ids, "slider-axis-")) == 1
+    assert len([i for i in ids if re.fullmatch(r"slider-\d+", i)]) == 1
+    assert len(with_prefix(ids, "bar-")) == len(linkage["bars"])
+
+
+# -- configuration space ---------------------------------------------------------------------
+
+
+def test_equilateral_four_bar_has_three_branch_points_marked(client: Any) -> None:
+    linkage = preset(client, "four-bar")
+    ids = svg_ids(client.post("/v1/figures/configuration-space", json={"linkage": linkage}))
+    answer = client.post("/v1/analysis/configuration-space", json={"linkage": linkage}).json()
+    assert len(with_prefix(ids, "critical-branch-")) == 3
+    assert len(with_prefix(ids, "critical-")) == len(answer["critical_points"]) == 3
+    components = {re.match(r"component-(\d+)-", i).group(1)  # type: ignore[union-attr]
+                  for i in with_prefix(ids, "component-")}
+    assert len(components) == len(answer["components"])
+    # each segment between critical points is labelled once on its piece of the curve
+    assert len(with_prefix(ids, "segment-")) == len(answer["segments"]) == 6
+
+
+@pytest.mark.parametrize("lengths", [{"L2": 1.2}, {"L1": 0.6, "L2": 1.4, "L3": 1.2}])
+def test_components_match_the_json_answer(client: Any, lengths: dict[str, float]) -> None:
+    linkage = preset(client, "four-bar", **lengths)
+    ids = svg_ids(client.post("/v1/figures/configuration-space",
+                              json={"linkage": linkage, "axes": ["L3", "L1"]}))
+    answer = client.post("/v1/analysis/configuration-space", json={"linkage": linkage}).json()
+    components = {i.split("-")[1] for i in with_prefix(ids, "component-")}
+    assert len(components) == len(answer["components"]) >= 1
+    assert with_prefix(ids, "critical-") == [] == answer["critical_points"]
+
+
+def test_configuration_space_figure_refuses_an_axis_that_is_no_rotor(client: Any) -> None:
+    linkage = preset(client, "four-bar")
+    r = client.post("/v1/figures/configuration-space",
+                    json={"linkage": linkage, "axes": ["L2", "L1"]})
+    assert_problem(r, 422, ["body", "axes", 0])
+    assert "rotor" in r.json()["detail"]
+    r = client.post("/v1/figures/configuration-space",
+                    json={"linkage": linkage, "axes": ["L1", "L1"]})
+    assert_problem(r, 422, ["body", "axes", 1])
+
+
+def test_configuration_space_figure_needs_two_rotors(client: Any) -> None:
+    linkage = {"vertices": [{"id": "P", "position": [0, 0], "fixed": True},
+                            {"id": "A", "position": [1, 0]}],
+               "bars": [{"id": "r", "ends": ["P", "A"]}]}
+    r = client.post("/v1/figures/configuration-space", json={"linkage": linkage})
+    assert_problem(r, 422, ["body", "linkage", "bars"])
+
+
+# -- critical values and splitting ---------------------------------------------------------
+
+
+def test_critical_values_figure_draws_every_curve_and_region(client: Any) -> None:
+    body = {"linkage": preset(client, "four-bar"),
+            "axes": [{"bar": "L2", "min": 0.4, "max": 2.5}, {"bar": "L3", "min": 0.4, "max": 2.5}]}
+    ids = svg_ids(client.post("/v1/figures/critical-values", json=body))
+    answer = client.post("/v1/analysis/critical-values", json=body).json()
+    assert len(with_prefix(ids, "cv-curve-")) == len(answer["curves"]) >= 2
+    drawn = Counter(int(i.rsplit("-", 1)[1]) for i in with_prefix(ids, "region-"))
+    assert drawn == Counter(r["components"] for r in answer["regions"])
+    assert "cv-regions" in ids
+    assert "current-lengths" in ids  # (1, 1) lies in the box
+
+
+def test_splitting_figure_joins_the_rays_the_answer_says(client: Any) -> None:
+    body = {"linkage": preset(client, "four-bar"), "perturbation": {"L2": 0.01}}
+    ids = svg_ids(client.post("/v1/figures/splitting", json=body))
+    answer = client.post("/v1/analysis/splitting", json=body).json()
+    assert len(answer["branch_points"]) == 3
+    assert len(with_prefix(ids, "ray-")) == 4 * len(answer["branch_points"])
+    for b in answer["branch_points"]:
+        # the figure finds the joined rays from where each drawn branch of the conic runs
+        drawn = sorted([int(i.split("-")[2]), int(i.split("-")[3])]
+                       for i in with_prefix(ids, f"split-{b['index']}-"))
+        assert drawn == sorted(b["connects"])
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", ["linkage", "configuration-space", "critical-values",
+                                  "splitting"])
+def test_figure_without_a_linkage_is_a_problem(client: Any, path: str) -> None:
+    r = client.post(f"/v1/figures/{path}", json={})
+    assert_problem(r, 422, ["body", "linkage"])
+    assert client.get("/health").status_code == 200
+
+
+def test_figure_problems_name_the_field(client: Any) -> None:
+    linkage = preset(client, "four-bar")
+    r = client.post("/v1/figures/linkage", json={"linkage": linkage, "show": ["colours"]})
+    assert_problem(r, 422, ["body", "show", 0])
+    r = client.post("/v1/figures/splitting",
+                    json={"linkage": linkage, "perturbation": {"L2": -5.0}})
+    assert_problem(r, 422, ["body", "perturbation", "L2"])
+    r = client.post("/v1/figures/critical-values",
+                    json={"linkage": linkage, "axes": [{"bar": "L2", "min": 0.5, "max": 1.5}]})
+    assert_problem(r, 422, ["body", "axes"])
+    broken = {**linkage, "bars": [{"id": "L1", "ends": ["P1", "nowhere"]}]}
+    r = client.post("/v1/figures/linkage", json={"linkage": broken})
+    assert_problem(r, 422, ["body", "linkage", "bars", 0, "ends", 1])
+
+
+def test_a_3d_linkage_is_drawn_in_its_x_y_projection(client: Any) -> None:
+    linkage = {"dimension": 3, "vertices": [
+        {"id": "P", "position": [0, 0, 0], "fixed": True},
+        {"id": "Q", "position": [2, 0, 0], "fixed": True},
+        {"id": "A", "position": [1, 0, 1]}],
+        "bars": [{"id": "a", "ends": ["P", "A"]}, {"id": "b", "ends": ["Q", "A"]}]}
+    ids = svg_ids(client.post("/v1/figures/linkage",
+                              json={"linkage": linkage, "show": ["zero_modes"]}))
+    assert len(with_prefix(ids, "bar-")) == 2
+    assert len(with_prefix(ids, "zero-mode-")) == 1  # A turns about the axis PQ
+
+
+def test_figures_run_under_the_time_limit() -> None:
+    from service.config import Settings
+    from service.main import create_app
+    from tests.conftest import ApiClient
+
+    app = create_app(Settings.from_env().replace(time_limit_s=0.05, workers=1))
+    c = ApiClient(app)
+    try:
+        linkage = preset(c, "three-rotor")
+        r = c.post("/v1/figures/configuration-space", json={"linkage": linkage})
+        assert r.status_code == 504, r.text
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["type"] == "/problems/time-limit"
+        assert c.get("/health").status_code == 200
+    finally:
+        c.close()
+        app.state.engine_pool.close()
