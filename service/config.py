@@ -43,7 +43,11 @@ class Settings:
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
     bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
-    (engine requests admitted at once, running or waiting, 64).
+    (engine requests admitted at once, running or waiting, 64). Jobs (``service.tasks``):
+    ``LINKAGE_DASK_SCHEDULER`` (``tcp://host:port`` of an existing Dask cluster; unset: an
+    embedded one with ``LINKAGE_DASK_WORKERS`` worker processes, one per core),
+    ``LINKAGE_JOB_TIME_LIMIT_S`` (per job, 3600 s), ``LINKAGE_JOB_TTL_S`` (how long finished
+    jobs and their results are kept, 3600 s) and ``LINKAGE_MAX_JOBS`` (queued or running, 64).
     """
 
     max_vertices: int = 50_000
@@ -53,6 +57,11 @@ class Settings:
     time_limit_s: float = 30.0
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
+    dask_scheduler: str | None = None
+    dask_workers: int = field(default_factory=default_workers)
+    job_time_limit_s: float = 3600.0
+    job_ttl_s: float = 3600.0
+    max_jobs: int = 64
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -64,6 +73,11 @@ class Settings:
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
+            dask_scheduler=os.environ.get("LINKAGE_DASK_SCHEDULER") or None,
+            dask_workers=_env_int("LINKAGE_DASK_WORKERS", default_workers()),
+            job_time_limit_s=_env_float("LINKAGE_JOB_TIME_LIMIT_S", cls.job_time_limit_s),
+            job_ttl_s=_env_float("LINKAGE_JOB_TTL_S", cls.job_ttl_s),
+            max_jobs=_env_int("LINKAGE_MAX_JOBS", cls.max_jobs),
         )
 
     def replace(self, **changes: object) -> Settings:

@@ -11,7 +11,8 @@ from service import errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
 from service.middleware import RequestContext
-from service.routers import analysis, design, health, presets
+from service.routers import analysis, design, health, jobs, presets
+from service.tasks import JobManager
 from service.workers import EnginePool
 
 
@@ -25,6 +26,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     resolved = settings or get_settings()
     metrics = Metrics()
     pool = EnginePool(resolved.workers, resolved.max_queue, on_event=metrics.engine_event)
+    job_manager = JobManager(resolved)  # its Dask cluster starts with the first job
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -32,6 +34,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         try:
             yield
         finally:
+            await run_in_threadpool(job_manager.close)
             await run_in_threadpool(pool.close)
 
     app = FastAPI(
@@ -44,6 +47,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.engine_pool = pool
     app.state.metrics = metrics
+    app.state.jobs = job_manager
     if settings is not None:
         app.dependency_overrides[get_settings] = lambda: settings
     errors.install(app)
@@ -53,6 +57,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(presets.router)
     app.include_router(analysis.router)
     app.include_router(design.router)
+    app.include_router(jobs.router)
     return app
 
 
