@@ -26,7 +26,7 @@ from engine.constraints import ProjectionResult
 from engine.critical import CriticalPoint
 from engine.critical_values import Slice
 from engine.design import Check, DesignResult
-from engine.errors import InvalidParameter, InvalidRequest
+from engine.errors import InvalidParameter, InvalidRequest, UnknownPreset
 from engine.linkage import Limits, build_linkage
 from engine.linkage import Linkage as EngineLinkage
 from engine.presets import PRESETS, build_preset
@@ -260,6 +260,8 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
             family = PresetFamily(body.preset.name, dict(body.preset.parameters), names)
     except InvalidParameter as err:  # of the preset: in the body, not in a query
         raise InvalidRequest(err.message, loc=("preset", "parameters", *err.loc)) from None
+    except UnknownPreset as err:  # in the body: a 422, not the 404 of a path
+        raise InvalidRequest(err.message, loc=("preset", "name")) from None
     except InvalidRequest as err:
         if err.loc and isinstance(err.loc[0], int):  # k-th swept name
             raise InvalidRequest(err.message, loc=(axes_loc, names[err.loc[0]])) from None

@@ -261,7 +261,7 @@ class JobManager:
 
     def workers(self) -> int:
         """Workers of the cluster now (at least one, for sizing chunks)."""
-        return max(1, len(self.client().scheduler_info(n_workers=-1).get("workers", {})))
+        return max(1, len(self.client().nthreads()))
 
     def close(self) -> None:
         """Cancel unfinished jobs, then close the client and the embedded cluster."""

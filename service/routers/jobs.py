@@ -31,7 +31,7 @@ def _accepted(manager: JobManager, job: tasks.Job) -> JSONResponse:
 
 
 @router.post("/jobs", status_code=202, response_model=JobOut,
-             responses=problem_responses(413, 422, 503))
+             responses=problem_responses(400, 413, 422, 503))
 def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
     """Run any analysis as a job: ``operation`` is its path (e.g.
     ``analysis/configuration-space``), ``body`` the request that path takes. Answers 202 with
@@ -88,7 +88,7 @@ def job_result(job_id: str, request: Request, manager: Manager) -> Response:
 
 
 @router.post("/sweeps", status_code=202, response_model=JobOut,
-             responses=problem_responses(413, 422, 503))
+             responses=problem_responses(400, 413, 422, 503))
 def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
     """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
     result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""

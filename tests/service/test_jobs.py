@@ -276,6 +276,31 @@ def test_analysis_job_answers_as_the_endpoint(api):
     assert r.status_code == 406
 
 
+def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
+    manager = api.app.state.jobs
+    kept = manager.settings
+    manager.settings = kept.replace(job_time_limit_s=1.0, job_ttl_s=1.0)
+    try:
+        r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(seed=2,
+                                                                                 count=60)})
+        assert r.status_code == 202
+        job = wait(api, r.headers["location"])
+        assert job["status"] == "failed" and job["error"]["title"] == "Time limit exceeded"
+        assert 0.0 < job["progress"]["fraction"] < 1.0
+        assert job["expires"] == pytest.approx(job["finished"] + 1.0)
+        time.sleep(1.2)
+        r = api.get(r.headers["location"])
+        assert r.status_code == 404 and "LINKAGE_JOB_TTL_S" in r.json()["detail"]
+    finally:
+        manager.settings = kept
+
+
+def test_operations_are_listed(api):
+    ops = {o["operation"]: o["request"] for o in api.get("/v1/jobs/operations").json()}
+    assert ops["analysis/configuration-space"] == "SpaceRequest"
+    assert ops["sweeps"] == "SweepRequest"
+
+
 def test_job_whose_worker_dies_fails_and_the_service_keeps_answering(api):
     """After the other tests of the shared cluster: it kills one of its workers (the worker's
     nanny starts a new one, which the end of this test waits for)."""
