@@ -36,7 +36,7 @@ from engine.configuration_space import (
     rotor_angles,
     winding,
 )
-from engine.errors import EngineError, InvalidParameter, InvalidRequest
+from engine.errors import EngineError, InvalidParameter, InvalidRequest, NumericalFailure
 from engine.linkage import Linkage, changeable_bar
 from engine.presets import build_preset, resolve_parameters
 from engine.robustness import robustness
@@ -184,15 +184,21 @@ def evaluate(
     options: SpaceOptions | None = None,
 ) -> PointResult:
     """Analyse the family's linkage at ``values`` (P,); an input error of this one point (e.g.
-    a sampled length below zero) becomes the row's ``error``, not an exception."""
-    tol = tolerances or Tolerances()
-    opt = options or SpaceOptions()
+    a sampled length below zero, a linkage that is not of one degree of freedom) or a numerical
+    failure becomes the row's ``error``, not an exception."""
     point = tuple(float(v) for v in values)
     try:
-        linkage = family.at(np.asarray(values, dtype=float))
+        return _evaluate(family, np.asarray(values, dtype=float), point, set(compute),
+                         tolerances or Tolerances(), options or SpaceOptions())
     except EngineError as err:
         return PointResult(point, error=err.message)
-    want = set(compute)
+    except NumericalFailure as err:
+        return PointResult(point, error=f"no trustworthy answer: {err}")
+
+
+def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want: set[str],
+              tol: Tolerances, opt: SpaceOptions) -> PointResult:
+    linkage = family.at(values)
     if linkage is None:  # empty configuration space
         return PointResult(
             point,

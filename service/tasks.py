@@ -339,7 +339,10 @@ class JobManager:
 
     def _on_done(self, job: Job, k: int, future: Future) -> None:
         """A task ended: keep its part; the job is done when every part is in."""
-        if future.cancelled():
+        if future.cancelled():  # by us (the job has ended already), or by a lost cluster
+            self._stop(self._client, job, "failed", error={
+                "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
+                "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
             return
         try:
             part = future.result()

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from engine.budget import Deadline
+from engine.linkage import BarSpec, VertexSpec, build_linkage
 from engine.presets import build_preset
 from engine.sweep import (
     BarFamily,
@@ -100,3 +101,14 @@ def test_a_bad_point_is_a_row_error_not_an_exception():
     assert rows[0].error is not None and rows[0].components is None
     assert rows[1].components == 1
     assert summarize(rows).errors == 1
+
+
+def test_a_linkage_of_two_degrees_of_freedom_gives_row_errors():
+    """A free two-bar arm on a pin moves with two degrees of freedom: no configuration-space
+    exploration applies, and every row says why instead of the sweep failing."""
+    arm = build_linkage(2, [VertexSpec("P", (0.0, 0.0), True), VertexSpec("A", (1.0, 0.0)),
+                            VertexSpec("B", (2.0, 0.0))],
+                        [BarSpec("L1", ("P", "A")), BarSpec("L2", ("A", "B"))])
+    rows = run_points(BarFamily(arm, ("L2",)), np.array([[1.0], [1.5]]))
+    assert [r.components for r in rows] == [None, None]
+    assert all(r.error and "degree" in r.error for r in rows), rows
