@@ -254,7 +254,7 @@ class JobManager:
                 scheduler_kwargs={"allowed_failures": 0},
             )
             return Client(self._cluster, set_as_default=False)
-        except (OSError, TimeoutError) as err:
+        except Exception as err:  # unreachable, refused, or a cluster that cannot start
             where = address or "the embedded cluster"
             raise ClusterUnavailable(f"cannot reach the Dask scheduler at {where}: {err}",
                                      retry_after=5) from None

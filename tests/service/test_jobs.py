@@ -210,6 +210,17 @@ def test_external_cluster_gives_the_same_result(external_scheduler, embedded_gat
     assert result == embedded_gated
 
 
+def test_unreachable_scheduler_answers_503_and_the_service_keeps_answering(monkeypatch):
+    monkeypatch.setattr("service.tasks.CONNECT_TIMEOUT_S", 1.0)
+    nobody = f"tcp://127.0.0.1:{free_port()}"
+    with TestClient(create_app(settings(dask_scheduler=nobody))) as c:
+        body = {"preset": {"name": "four-bar"}, "grid": {"L2": {"min": 1, "max": 2, "steps": 2}}}
+        r = c.post("/v1/sweeps", json=body)
+        assert r.status_code == 503 and r.json()["type"] == "/problems/cluster-unavailable"
+        assert nobody in r.json()["detail"] and r.headers["retry-after"] == "5"
+        assert c.get("/health").status_code == 200
+
+
 def executing(api: TestClient) -> int:
     """Tasks running on the embedded cluster's workers right now (asked of the workers, not
     the scheduler: a cancelled task leaves the scheduler at once but runs on until it stops)."""
