@@ -24,6 +24,7 @@ Finished jobs and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import logging
@@ -168,7 +169,8 @@ def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settin
 
 def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np.ndarray,
                     end_wall: float) -> list[PointResult]:
-    """Some points of a sweep as a task (fewer rows than points when stopped)."""
+    """Some ``points`` of a sweep as a task (fewer rows than points when stopped); ``sweep``
+    says what to compute (its own points are not used)."""
     return run_points(sweep.family, points, sweep.compute, sweep.tolerances, sweep.options,
                       _task_deadline(job_id, chunk, end_wall))
 
@@ -306,8 +308,10 @@ class JobManager:
         job = Job(uuid.uuid4().hex, SWEEPS, time.time() + self.settings.job_time_limit_s,
                   sizes=[len(c) for c in chunks], names=names, done=[0.0] * len(chunks))
         self._admit(job)
+        # each task gets its own points only (not every point of the sweep)
+        shared = dataclasses.replace(sweep, points=sweep.points[:0])
         futures = [
-            client.submit(run_sweep_chunk, job.id, k, sweep, sweep.points[idx], job.end_wall,
+            client.submit(run_sweep_chunk, job.id, k, shared, sweep.points[idx], job.end_wall,
                           key=f"linkage-job-{job.id}-{k}", pure=False)
             for k, idx in enumerate(chunks)
         ]
