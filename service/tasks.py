@@ -66,6 +66,8 @@ PROGRESS_INTERVAL_S = 0.1
 STOP_CHECK_S = 0.2
 #: A job still running this long after its time limit is failed and its tasks cancelled.
 GRACE_S = 10.0
+#: Finished jobs kept at most, per job that may be active (``LINKAGE_MAX_JOBS``).
+KEPT_PER_ACTIVE = 10
 #: How long connecting to an external scheduler may take.
 CONNECT_TIMEOUT_S = 10.0
 #: Sweep chunks per worker: enough to balance uneven points, few enough to keep tasks cheap.
@@ -428,11 +430,16 @@ class JobManager:
         return None if job.finished is None else job.finished + self.settings.job_ttl_s
 
     def _purge(self) -> None:
-        """Forget expired jobs; fail those far past their time limit."""
+        """Forget expired jobs (and the oldest finished ones beyond :data:`KEPT_PER_ACTIVE`
+        times ``LINKAGE_MAX_JOBS``, which bounds the memory results take); fail the jobs far
+        past their time limit."""
         now = time.time()
         with self._lock:
-            expired = [j.id for j in self._jobs.values()
-                       if j.finished is not None and now > j.finished + self.settings.job_ttl_s]
+            finished = sorted((j for j in self._jobs.values() if j.finished is not None),
+                              key=lambda j: j.finished or 0.0)
+            surplus = len(finished) - KEPT_PER_ACTIVE * self.settings.max_jobs
+            expired = [j.id for k, j in enumerate(finished)
+                       if k < surplus or now > (j.finished or 0.0) + self.settings.job_ttl_s]
             gone = [self._jobs.pop(job_id) for job_id in expired]
             overdue = [j for j in self._jobs.values()
                        if not j.finished_state and now > j.end_wall + GRACE_S]

@@ -24,6 +24,7 @@ from fastapi.testclient import TestClient
 
 from service.config import Settings
 from service.main import create_app
+from service.tasks import Job, JobManager
 
 #: Generous: the machine is shared; a finished job answers at once.
 WAIT_S = 120.0
@@ -304,6 +305,17 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
         assert r.status_code == 404 and "LINKAGE_JOB_TTL_S" in r.json()["detail"]
     finally:
         manager.settings = kept
+
+
+def test_finished_jobs_kept_are_bounded():
+    """At most 10 x LINKAGE_MAX_JOBS finished jobs are kept, the newest (no cluster needed)."""
+    manager = JobManager(settings(max_jobs=2))
+    for k in range(25):
+        job = Job(f"j{k}", "sweeps", end_wall=time.time() + 60, sizes=[1], done=[1.0])
+        job.status, job.finished = "done", time.time() + k  # finished in this order
+        manager._jobs[job.id] = job
+    manager._purge()
+    assert sorted(manager._jobs, key=lambda i: int(i[1:])) == [f"j{k}" for k in range(5, 25)]
 
 
 def test_operations_are_listed(api):
