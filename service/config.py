@@ -126,7 +126,11 @@ class Settings:
     (a request's head must arrive within this time, 5 s) and ``LINKAGE_BODY_TIMEOUT_S`` (its
     body within this time, 10 s), ``LINKAGE_CORS_ORIGINS``
     (comma-separated origins allowed to call the service from a browser, e.g.
-    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin).
+    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin). Jobs (``service.tasks``):
+    ``LINKAGE_DASK_SCHEDULER`` (``tcp://host:port`` of an existing Dask cluster; unset: an
+    embedded one with ``LINKAGE_DASK_WORKERS`` worker processes, one per core),
+    ``LINKAGE_JOB_TIME_LIMIT_S`` (per job, 3600 s), ``LINKAGE_JOB_TTL_S`` (how long finished
+    jobs and their results are kept, 3600 s) and ``LINKAGE_MAX_JOBS`` (queued or running, 64).
     """
 
     max_vertices: int = 50_000
@@ -140,6 +144,11 @@ class Settings:
     header_timeout_s: float = 5.0
     body_timeout_s: float = 10.0
     cors_origins: tuple[str, ...] = ()
+    dask_scheduler: str | None = None
+    dask_workers: int = field(default_factory=default_workers)
+    job_time_limit_s: float = 3600.0
+    job_ttl_s: float = 3600.0
+    max_jobs: int = 64
 
     @classmethod
     def from_env(cls) -> Settings:
@@ -155,6 +164,11 @@ class Settings:
             header_timeout_s=_env_float("LINKAGE_HEADER_TIMEOUT_S", cls.header_timeout_s),
             body_timeout_s=_env_float("LINKAGE_BODY_TIMEOUT_S", cls.body_timeout_s),
             cors_origins=_env_list("LINKAGE_CORS_ORIGINS"),
+            dask_scheduler=os.environ.get("LINKAGE_DASK_SCHEDULER") or None,
+            dask_workers=_env_int("LINKAGE_DASK_WORKERS", default_workers()),
+            job_time_limit_s=_env_float("LINKAGE_JOB_TIME_LIMIT_S", cls.job_time_limit_s),
+            job_ttl_s=_env_float("LINKAGE_JOB_TTL_S", cls.job_ttl_s),
+            max_jobs=_env_int("LINKAGE_MAX_JOBS", cls.max_jobs),
         )
 
     def replace(self, **changes: object) -> Settings:

@@ -14,7 +14,8 @@ from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
 from service.middleware import RequestContext
-from service.routers import analysis, design, figures, health, presets
+from service.routers import analysis, design, figures, health, jobs, presets
+from service.tasks import JobManager
 from service.workers import EnginePool
 
 VIEWER = Path(__file__).parent / "viewer"
@@ -31,6 +32,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     metrics = Metrics()
     pool = EnginePool(resolved.workers, resolved.max_queue, on_event=metrics.engine_event,
                       memory_mb=resolved.worker_memory)
+    job_manager = JobManager(resolved)  # its Dask cluster starts with the first job
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -38,6 +40,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         try:
             yield
         finally:
+            await run_in_threadpool(job_manager.close)
             await run_in_threadpool(pool.close)
 
     app = FastAPI(
@@ -52,6 +55,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.engine_pool = pool
     app.state.metrics = metrics
+    app.state.jobs = job_manager
     if settings is not None:
         app.dependency_overrides[get_settings] = lambda: settings
     errors.install(app)
@@ -62,6 +66,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(presets.router)
     app.include_router(analysis.router)
     app.include_router(design.router)
+    app.include_router(jobs.router)
     app.include_router(figures.router)
     # The web viewer: static files shipped in the package, calling the public endpoints only.
     app.mount("/viewer", StaticFiles(directory=VIEWER, html=True), name="viewer")

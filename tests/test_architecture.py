@@ -1,9 +1,11 @@
-"""The engine is pure numpy/scipy: nothing under engine/ imports the web stack."""
+"""The engine is pure numpy/scipy: nothing under engine/ imports the web stack (nor Dask or the
+command line's progress bar: jobs and sweeps reach the engine through plain functions)."""
 
 import ast
 from pathlib import Path
 
-FORBIDDEN = {"fastapi", "pydantic", "starlette", "uvicorn", "httpx", "service"}
+FORBIDDEN = {"fastapi", "pydantic", "starlette", "uvicorn", "httpx", "service", "dask",
+             "distributed", "rich"}
 
 
 def test_engine_imports_no_web_stack():

@@ -1,0 +1,217 @@
+"""``linkage-topology``: the service's jobs and sweeps from the command line, no server needed.
+
+Examples::
+
+    linkage-topology sweep --preset four-bar --grid L2=0.5:2:20 -o sweep.csv
+    linkage-topology sweep --preset gated-kl-chain --param n=4 --param gate=2 \\
+        --sample D=2.5:0.2 --count 100 --seed 0 --compute components,windings -o gate.json
+    linkage-topology sweep request.json -o rows.csv        # a POST /v1/sweeps body
+    linkage-topology run analysis/configuration-space request.json -o space.json
+    linkage-topology run analysis/critical-points --preset four-bar --param L2=1
+
+The work runs on Dask exactly as in the service: on ``--scheduler`` (default
+``LINKAGE_DASK_SCHEDULER``) or an embedded cluster of ``--workers`` processes. Progress comes
+from the engine (points done, ...) and is drawn with ``rich`` unless ``--no-progress``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+
+from engine.errors import EngineError
+from engine.presets import build_preset
+from service import mappers, tasks
+from service.config import Settings
+from service.schemas.jobs import SweepRequest
+from service.workers import ServiceFault
+
+#: How often the progress bar reads the job's state (the state itself is pushed by the tasks).
+REFRESH_S = 0.1
+
+
+class UsageError(Exception):
+    """Bad command-line input: reported on stderr with exit status 2."""
+
+
+def _pairs(items: list[str], what: str) -> dict[str, str]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise UsageError(f"{what}: expected NAME=VALUE, got {item!r}")
+        out[key] = value
+    return out
+
+
+def _numbers(text: str, count: int, what: str) -> list[float]:
+    parts = text.split(":")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(f"{what}: not a number in {text!r}") from None
+    if len(values) != count:
+        raise UsageError(f"{what}: expected {count} numbers separated by ':', got {text!r}")
+    return values
+
+
+def _preset(args: argparse.Namespace) -> dict[str, Any]:
+    given = _pairs(args.param, "--param")
+    params = {k: _numbers(v, 1, f"--param {k}")[0] for k, v in given.items()}
+    return {"name": args.preset, "parameters": params}
+
+
+def _request(args: argparse.Namespace, model: type[BaseModel]) -> BaseModel:
+    """The request from a JSON file, or built from the flags."""
+    if args.request is not None:
+        if args.preset is not None:
+            raise UsageError("give a request file or --preset, not both")
+        try:
+            body = json.loads(Path(args.request).read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise UsageError(f"cannot read {args.request}: {err}") from None
+    elif args.preset is None:
+        raise UsageError("give a request file or --preset")
+    elif model is SweepRequest:
+        body = {"preset": _preset(args), "seed": args.seed,
+                "compute": args.compute.split(",")}
+        if args.grid:
+            body["grid"] = {k: dict(zip(("min", "max", "steps"), _numbers(v, 3, f"--grid {k}"),
+                                        strict=True))
+                            for k, v in _pairs(args.grid, "--grid").items()}
+            for axis in body["grid"].values():
+                axis["steps"] = int(axis["steps"])
+        if args.sample:
+            body["samples"] = {k: dict(zip(("mean", "sd"), _numbers(v, 2, f"--sample {k}"),
+                                           strict=True))
+                               for k, v in _pairs(args.sample, "--sample").items()}
+            body["count"] = args.count
+    else:
+        preset = _preset(args)
+        linkage = mappers.linkage_out(build_preset(preset["name"], preset["parameters"]))
+        body = {"linkage": linkage.model_dump(mode="json", exclude_none=True)}
+    if args.options:
+        body["options"] = json.loads(args.options)
+    try:
+        return model.model_validate_json(json.dumps(body))
+    except ValidationError as err:
+        lines = [f"  {'.'.join(map(str, e['loc']))}: {e['msg']}" for e in err.errors()]
+        raise UsageError("invalid request:\n" + "\n".join(lines)) from None
+
+
+def _wait(manager: tasks.JobManager, job: tasks.Job, show: bool) -> None:
+    """Until the job finishes, drawing its progress unless ``show`` is False."""
+    if not show:
+        while not job.finished_state:
+            time.sleep(REFRESH_S)
+        return
+    columns = (TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+               TimeElapsedColumn(), TextColumn("{task.fields[message]}"))
+    with Progress(*columns, console=Console(stderr=True)) as bar:  # stdout: the result
+        task = bar.add_task(job.operation, total=1.0, message=job.message)
+        while not job.finished_state:
+            bar.update(task, completed=job.fraction, message=job.message)
+            time.sleep(REFRESH_S)
+        bar.update(task, completed=job.fraction, message=job.message)
+
+
+def _write(result: Any, out: str | None, fmt: str | None, sweep: bool) -> None:
+    fmt = fmt or ("csv" if out and out.endswith(".csv") else "json")
+    if fmt == "csv":
+        if not sweep:
+            raise UsageError("CSV is written for sweeps only")
+        text = mappers.sweep_csv(result)
+    else:
+        text = json.dumps(result, indent=2) + "\n"
+    if out in (None, "-"):
+        sys.stdout.write(text)
+    else:
+        Path(out).write_text(text)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="linkage-topology", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--preset", help="build the linkage from this preset")
+    common.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a preset parameter (repeatable)")
+    common.add_argument("--options", help="search options as JSON (the requests' options)")
+    common.add_argument("-o", "--output", help="write here (.csv or .json; default stdout)")
+    common.add_argument("--format", choices=("json", "csv"), help="default: from --output")
+    common.add_argument("--no-progress", action="store_true", help="no progress bar")
+    common.add_argument("--scheduler", help="Dask scheduler address (default "
+                        "LINKAGE_DASK_SCHEDULER, else an embedded cluster)")
+    common.add_argument("--workers", type=int, help="embedded cluster workers (default: cores)")
+    common.add_argument("--time-limit", type=float, help="seconds (default "
+                        "LINKAGE_JOB_TIME_LIMIT_S)")
+    sw = sub.add_parser("sweep", parents=[common], help="a sweep (grid or Monte Carlo)")
+    sw.add_argument("request", nargs="?", help="a JSON file with a POST /v1/sweeps body")
+    sw.add_argument("--grid", action="append", default=[], metavar="NAME=MIN:MAX:STEPS")
+    sw.add_argument("--sample", action="append", default=[], metavar="NAME=MEAN:SD")
+    sw.add_argument("--count", type=int, help="Monte Carlo points")
+    sw.add_argument("--seed", type=int, default=0)
+    sw.add_argument("--compute", default="components",
+                    help="comma-separated: components,critical,margin,windings")
+    run = sub.add_parser("run", parents=[common], help="one analysis, e.g. "
+                         "analysis/configuration-space")
+    run.add_argument("operation", choices=sorted(tasks.OPERATIONS))
+    run.add_argument("request", nargs="?", help="a JSON file with that endpoint's request body")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    settings = Settings.from_env()
+    changes: dict[str, Any] = {}
+    if args.scheduler:
+        changes["dask_scheduler"] = args.scheduler
+    if args.workers:
+        changes["dask_workers"] = args.workers
+    if args.time_limit:
+        changes["job_time_limit_s"] = args.time_limit
+    settings = settings.replace(**changes)
+    sweep = args.command == "sweep"
+    manager = tasks.JobManager(settings)
+    try:
+        if sweep:
+            body = _request(args, SweepRequest)
+            assert isinstance(body, SweepRequest)
+            job = manager.submit_sweep(mappers.sweep_in(body, settings.limits),
+                                       tuple(body.grid or body.samples or {}))
+        else:
+            body = _request(args, tasks.OPERATIONS[args.operation].request)
+            job = manager.submit(args.operation, body)
+        try:
+            _wait(manager, job, show=not args.no_progress)
+        except KeyboardInterrupt:
+            manager.cancel(job.id)
+            print("cancelled", file=sys.stderr)
+            return 130
+        if job.status != "done":
+            error = job.error or {"title": job.status, "detail": job.message}
+            print(f"{error['title']}: {error['detail']}", file=sys.stderr)
+            return 1
+        _write(job.result, args.output, args.format, sweep)
+        return 0
+    except (UsageError, EngineError) as err:
+        print(f"linkage-topology: {err}", file=sys.stderr)
+        return 2
+    except ServiceFault as err:
+        print(f"linkage-topology: {err.title}: {err.detail}", file=sys.stderr)
+        return 1
+    finally:
+        manager.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

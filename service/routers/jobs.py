@@ -1,0 +1,97 @@
+"""Jobs (long work with progress, on Dask) and sweeps (a job over a family of linkages)."""
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Request, Response
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+
+from service import mappers, tasks
+from service.config import Settings, get_settings
+from service.errors import problem_responses
+from service.schemas.jobs import JobOut, JobRequest, OperationOut, SweepRequest
+from service.tasks import JobManager
+
+router = APIRouter(prefix="/v1", tags=["jobs"])
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+_CSV = "text/csv"
+
+
+def job_manager(request: Request) -> JobManager:
+    manager: JobManager = request.app.state.jobs
+    return manager
+
+
+Manager = Annotated[JobManager, Depends(job_manager)]
+
+
+def _accepted(manager: JobManager, job: tasks.Job) -> JSONResponse:
+    body = mappers.job_out(job, manager.expires(job)).model_dump(mode="json")
+    return JSONResponse(body, status_code=202, headers={"location": f"/v1/jobs/{job.id}"})
+
+
+@router.post("/jobs", status_code=202, response_model=JobOut,
+             responses=problem_responses(400, 413, 422, 503))
+def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
+    """Run any analysis as a job: ``operation`` is its path (e.g.
+    ``analysis/configuration-space``), ``body`` the request that path takes. Answers 202 with
+    the job's ``Location``; the job's result is that endpoint's answer."""
+    model = tasks.REQUESTS.get(job.operation)
+    if model is None:
+        known = ", ".join(tasks.REQUESTS)
+        raise RequestValidationError([{
+            "loc": ("body", "operation"), "type": "value_error",
+            "msg": f"unknown operation {job.operation!r}; known: {known}"}])
+    body = mappers.job_body_in(model, job.body)
+    if isinstance(body, SweepRequest):
+        return create_sweep(body, manager, settings)
+    return _accepted(manager, manager.submit(job.operation, body))
+
+
+@router.get("/jobs/operations", response_model=list[OperationOut])
+def operations() -> list[OperationOut]:
+    """The operations a job can run, with the request schema of each one's body."""
+    return [OperationOut(operation=k, request=m.__name__) for k, m in tasks.REQUESTS.items()]
+
+
+@router.get("/jobs/{job_id}", response_model=JobOut, responses=problem_responses(404))
+def get_job(job_id: str, manager: Manager) -> JobOut:
+    """Status (queued, running, done, failed, cancelled), progress, and the result when done."""
+    job = manager.get(job_id)
+    return mappers.job_out(job, manager.expires(job))
+
+
+@router.delete("/jobs/{job_id}", response_model=JobOut, responses=problem_responses(404))
+def cancel_job(job_id: str, manager: Manager) -> JobOut:
+    """Cancel a job: running tasks stop at their next check, the others never start. A job
+    that has already finished is left as it is."""
+    job = manager.cancel(job_id)
+    return mappers.job_out(job, manager.expires(job))
+
+
+@router.get(
+    "/jobs/{job_id}/result",
+    responses={**problem_responses(404, 406, 409),
+               200: {"content": {"application/json": {}, _CSV: {}},
+                     "description": "the result; a sweep's rows as CSV with Accept: text/csv"}},
+)
+def job_result(job_id: str, request: Request, manager: Manager) -> Response:
+    """The result of a finished job alone; ``Accept: text/csv`` gives a sweep's rows as CSV."""
+    job = manager.get(job_id)
+    if job.status != "done":
+        raise tasks.JobNotDone(f"job {job_id} is {job.status}, not done")
+    if _CSV in request.headers.get("accept", ""):
+        if job.operation != tasks.SWEEPS:
+            raise tasks.NotAcceptable("CSV is offered for sweeps only; ask for application/json")
+        return Response(mappers.sweep_csv(job.result), media_type=_CSV)
+    return JSONResponse(job.result)
+
+
+@router.post("/sweeps", status_code=202, response_model=JobOut,
+             responses=problem_responses(400, 413, 422, 503))
+def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
+    """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
+    result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""
+    sweep = mappers.sweep_in(body, settings.limits)
+    names = tuple(body.grid or body.samples or {})
+    return _accepted(manager, manager.submit_sweep(sweep, names))

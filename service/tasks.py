@@ -1,0 +1,453 @@
+"""Jobs: long work on ``dask.distributed``, with progress from the engine and cancellation.
+
+A job is one operation (any analysis endpoint's work from :mod:`service.jobs`, or a sweep) run
+as Dask tasks. By default the tasks run on an embedded ``LocalCluster`` (worker processes, one
+thread each, ``LINKAGE_DASK_WORKERS`` of them), started on first use and closed at shutdown;
+with ``LINKAGE_DASK_SCHEDULER=tcp://host:port`` on an existing cluster instead. The job table
+lives in the service process (a restart forgets it).
+
+Progress and cancellation cross the process boundary with Dask's own primitives, not timers:
+
+* each task builds a :class:`~engine.budget.Deadline` whose ``progress`` sink publishes what
+  the engine reports (points done, components traced, ...) with ``Worker.log_event`` on the
+  topic :data:`TOPIC`, which the service's client subscribes to;
+* ``DELETE`` sets a ``distributed.Event`` per job that the deadline's ``stop`` flag reads
+  (at most every :data:`STOP_CHECK_S`), so running tasks end at their next check, and
+  cancels the tasks not yet started.
+
+A task whose worker dies fails the job with ``KilledWorker`` (the embedded scheduler allows no
+retry; an external scheduler retries as its ``distributed.scheduler.allowed-failures`` says).
+Each job has its own time limit (``LINKAGE_JOB_TIME_LIMIT_S``): tasks see it as their
+deadline, and a job still running :data:`GRACE_S` after it is failed and its tasks cancelled.
+Finished jobs and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import logging
+import math
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from distributed import Client, Event, Future, LocalCluster, get_worker
+from pydantic import BaseModel
+
+from engine.budget import Deadline, ProgressSink
+from engine.errors import EngineError, NumericalFailure
+from engine.sweep import PointResult, run_points
+from service import jobs, mappers
+from service.config import Settings
+from service.schemas.common import AnalysisRequest
+from service.schemas.jobs import SweepRequest
+from service.schemas.space import (
+    CriticalValuesRequest,
+    DesignRequest,
+    RobustnessRequest,
+    SpaceRequest,
+    SplittingRequest,
+)
+from service.workers import Busy, ServiceFault
+
+log = logging.getLogger("service.tasks")
+
+#: Dask event topic of progress reports (``{"job", "chunk", "fraction", "message"}``).
+TOPIC = "linkage-jobs"
+#: Shortest interval between two progress reports of one task (the last one always goes).
+PROGRESS_INTERVAL_S = 0.1
+#: Shortest interval between two reads of a job's cancel flag by one task.
+STOP_CHECK_S = 0.2
+#: A job still running this long after its time limit is failed and its tasks cancelled.
+GRACE_S = 10.0
+#: Finished jobs kept at most, per job that may be active (``LINKAGE_MAX_JOBS``).
+KEPT_PER_ACTIVE = 10
+#: How long connecting to an external scheduler may take.
+CONNECT_TIMEOUT_S = 10.0
+#: Sweep chunks per worker: enough to balance uneven points, few enough to keep tasks cheap.
+CHUNKS_PER_WORKER = 4
+
+
+@dataclass(frozen=True)
+class Operation:
+    """An analysis endpoint's request schema and the work behind it."""
+
+    request: type[BaseModel]
+    run: Callable[..., BaseModel]
+
+
+#: The operations a job may run: the analysis endpoints' paths (without ``/v1/``).
+OPERATIONS: dict[str, Operation] = {
+    "analysis/rigidity": Operation(AnalysisRequest, jobs.rigidity),
+    "analysis/second-order": Operation(AnalysisRequest, jobs.second_order_analysis),
+    "analysis/critical-points": Operation(SpaceRequest, jobs.critical_points),
+    "analysis/configuration-space": Operation(SpaceRequest, jobs.configuration_space),
+    "analysis/splitting": Operation(SplittingRequest, jobs.splitting),
+    "analysis/robustness": Operation(RobustnessRequest, jobs.robustness_margin),
+    "analysis/critical-values": Operation(CriticalValuesRequest, jobs.critical_values),
+    "design/splitting": Operation(DesignRequest, jobs.design_splitting),
+}
+#: A sweep is a job too (``POST /v1/sweeps``, or ``POST /v1/jobs`` with this operation).
+SWEEPS = "sweeps"
+REQUESTS: dict[str, type[BaseModel]] = {
+    **{name: op.request for name, op in OPERATIONS.items()}, SWEEPS: SweepRequest
+}
+
+
+class ClusterUnavailable(ServiceFault):
+    status = 503
+    kind = "cluster-unavailable"
+    title = "Dask cluster unavailable"
+
+
+class UnknownJob(ServiceFault):
+    status = 404
+    kind = "unknown-job"
+    title = "Unknown job"
+
+
+class JobNotDone(ServiceFault):
+    status = 409
+    kind = "job-not-done"
+    title = "Job not done"
+
+
+class NotAcceptable(ServiceFault):
+    status = 406
+    kind = "not-acceptable"
+    title = "Not acceptable"
+
+
+# -- in the Dask worker ----------------------------------------------------------------------
+
+
+def _cancel_flag(job_id: str) -> str:
+    return f"linkage-cancel-{job_id}"
+
+
+def _task_deadline(job_id: str, chunk: int, end_wall: float) -> Deadline:
+    """The deadline of one task: the job's time limit (wall clock, as workers may run on
+    other machines), its cancel flag, and a progress sink that publishes to :data:`TOPIC`."""
+    worker = get_worker()
+    flag = Event(_cancel_flag(job_id))
+    checked = {"at": -math.inf, "set": False, "sent": -math.inf}
+
+    def stop() -> bool:
+        now = time.monotonic()
+        if not checked["set"] and now - checked["at"] >= STOP_CHECK_S:
+            checked["at"], checked["set"] = now, bool(flag.is_set())
+        return bool(checked["set"])
+
+    def progress(fraction: float, message: str) -> None:
+        now = time.monotonic()
+        if fraction < 1.0 and now - checked["sent"] < PROGRESS_INTERVAL_S:
+            return
+        checked["sent"] = now
+        worker.log_event(TOPIC, {"job": job_id, "chunk": chunk, "fraction": fraction,
+                                 "message": message})
+
+    sink: ProgressSink = progress
+    sink(0.0, f"started on {worker.address}")
+    return Deadline.after(end_wall - time.time(), stop=stop, progress=sink)
+
+
+def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settings,
+                  end_wall: float) -> bytes:
+    """One analysis as a task: the synchronous endpoint's JSON answer."""
+    fn = OPERATIONS[operation].run
+    deadline = _task_deadline(job_id, 0, end_wall)
+    # the engine searches take the deadline as they gain one (engine/budget.py)
+    kwargs = {"deadline": deadline} if "deadline" in inspect.signature(fn).parameters else {}
+    payload = fn(body, settings, **kwargs).model_dump_json(by_alias=True).encode()
+    deadline.report(1.0, "done")
+    return payload
+
+
+def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np.ndarray,
+                    end_wall: float) -> list[PointResult]:
+    """Some ``points`` of a sweep as a task (fewer rows than points when stopped); ``sweep``
+    says what to compute (its own points are not used)."""
+    return run_points(sweep.family, points, sweep.compute, sweep.tolerances, sweep.options,
+                      _task_deadline(job_id, chunk, end_wall))
+
+
+# -- in the service --------------------------------------------------------------------------
+
+
+@dataclass
+class Job:
+    """One job's state (guarded by the manager's lock)."""
+
+    id: str
+    operation: str
+    end_wall: float
+    sizes: list[int]
+    names: tuple[str, ...] = ()
+    status: str = "queued"
+    done: list[float] = field(default_factory=list)
+    message: str = "queued"
+    created: float = field(default_factory=time.time)
+    started: float | None = None
+    finished: float | None = None
+    result: Any = None
+    error: dict[str, Any] | None = None
+    futures: list[Future] = field(default_factory=list)
+    parts: dict[int, Any] = field(default_factory=dict)
+
+    @property
+    def fraction(self) -> float:
+        if self.status == "done":
+            return 1.0
+        total = sum(self.sizes)
+        return sum(d * s for d, s in zip(self.done, self.sizes, strict=True)) / total
+
+    @property
+    def finished_state(self) -> bool:
+        return self.status in ("done", "failed", "cancelled")
+
+
+def _failure(err: BaseException) -> dict[str, Any]:
+    """A job's ``error`` from the exception its task raised."""
+    name = type(err).__name__
+    if isinstance(err, EngineError):
+        loc = [p if isinstance(p, int) else str(p) for p in err.loc]
+        return {"title": "Invalid input", "detail": err.message, "loc": loc}
+    if isinstance(err, NumericalFailure):
+        return {"title": "No trustworthy answer", "detail": str(err), "loc": []}
+    if name == "KilledWorker":
+        return {"title": "Worker failed", "detail": "the Dask worker running this job died "
+                f"(killed, e.g. out of memory): {err}", "loc": []}
+    return {"title": "Job failed", "detail": f"{name}: {err}", "loc": []}
+
+
+class JobManager:
+    """Jobs of one service process on one Dask client (connected on first use)."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self._lock = threading.RLock()
+        self._jobs: dict[str, Job] = {}
+        self._client: Client | None = None
+        self._cluster: LocalCluster | None = None
+
+    # -- cluster ------------------------------------------------------------------------
+
+    def client(self) -> Client:
+        """The Dask client: to ``LINKAGE_DASK_SCHEDULER``, else to an embedded cluster."""
+        with self._lock:
+            if self._client is None:
+                self._client = self._connect()
+                self._client.subscribe_topic(TOPIC, self._on_event)
+            return self._client
+
+    def _connect(self) -> Client:
+        address = self.settings.dask_scheduler
+        try:
+            if address:
+                return Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+            self._cluster = LocalCluster(
+                n_workers=self.settings.dask_workers, threads_per_worker=1, processes=True,
+                host="127.0.0.1", dashboard_address=None,
+                # a task whose worker dies fails its job at once (no silent rerun)
+                scheduler_kwargs={"allowed_failures": 0},
+            )
+            return Client(self._cluster, set_as_default=False)
+        except Exception as err:  # unreachable, refused, or a cluster that cannot start
+            where = address or "the embedded cluster"
+            raise ClusterUnavailable(f"cannot reach the Dask scheduler at {where}: {err}",
+                                     retry_after=5) from None
+
+    def workers(self) -> int:
+        """Workers of the cluster now (at least one, for sizing chunks)."""
+        return max(1, len(self.client().nthreads()))
+
+    def close(self) -> None:
+        """Cancel unfinished jobs, then close the client and the embedded cluster."""
+        with self._lock:
+            client, cluster = self._client, self._cluster
+            self._client = self._cluster = None
+            unfinished = [j for j in self._jobs.values() if not j.finished_state]
+        if client is not None:
+            for job in unfinished:
+                self._stop(client, job, "cancelled", "the service shut down")
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+    # -- jobs ---------------------------------------------------------------------------
+
+    def _admit(self, job: Job) -> None:
+        self._purge()
+        with self._lock:
+            active = sum(not j.finished_state for j in self._jobs.values())
+            if active >= self.settings.max_jobs:
+                raise Busy(f"{active} jobs are queued or running (LINKAGE_MAX_JOBS = "
+                           f"{self.settings.max_jobs}); retry later", retry_after=5)
+            self._jobs[job.id] = job
+
+    def submit(self, operation: str, body: BaseModel) -> Job:
+        """Start one analysis (``operation`` a key of :data:`OPERATIONS`)."""
+        client = self.client()
+        job = Job(uuid.uuid4().hex, operation, time.time() + self.settings.job_time_limit_s,
+                  sizes=[1], done=[0.0])
+        self._admit(job)
+        future = client.submit(run_operation, job.id, operation, body, self.settings,
+                               job.end_wall, key=f"linkage-job-{job.id}", pure=False)
+        self._watch(job, [future])
+        return job
+
+    def submit_sweep(self, sweep: mappers.SweepJob, names: tuple[str, ...]) -> Job:
+        """Start a sweep, in chunks of its points spread over the workers."""
+        client = self.client()
+        n = len(sweep.points)
+        chunks = np.array_split(np.arange(n), min(n, CHUNKS_PER_WORKER * self.workers()))
+        job = Job(uuid.uuid4().hex, SWEEPS, time.time() + self.settings.job_time_limit_s,
+                  sizes=[len(c) for c in chunks], names=names, done=[0.0] * len(chunks))
+        self._admit(job)
+        # each task gets its own points only (not every point of the sweep)
+        shared = dataclasses.replace(sweep, points=sweep.points[:0])
+        futures = [
+            client.submit(run_sweep_chunk, job.id, k, shared, sweep.points[idx], job.end_wall,
+                          key=f"linkage-job-{job.id}-{k}", pure=False)
+            for k, idx in enumerate(chunks)
+        ]
+        self._watch(job, futures)
+        return job
+
+    def _watch(self, job: Job, futures: list[Future]) -> None:
+        with self._lock:
+            job.futures = futures
+        for k, future in enumerate(futures):
+            future.add_done_callback(lambda f, k=k: self._on_done(job, k, f))
+
+    def _on_event(self, event: tuple[float, dict[str, Any]]) -> None:
+        """A progress report from a task (runs on the client's event loop)."""
+        msg = event[1]
+        with self._lock:
+            job = self._jobs.get(str(msg.get("job")))
+            if job is None or job.finished_state:
+                return
+            if job.status == "queued":
+                job.status, job.started = "running", time.time()
+            k = int(msg["chunk"])
+            job.done[k] = max(job.done[k], float(msg["fraction"]))  # tasks report in order
+            if job.operation == SWEEPS:
+                total = sum(job.sizes)
+                job.message = f"{round(job.fraction * total)} of {total} points done"
+            else:
+                job.message = str(msg["message"])
+
+    def _on_done(self, job: Job, k: int, future: Future) -> None:
+        """A task ended: keep its part; the job is done when every part is in."""
+        if future.cancelled():  # by us (the job has ended already), or by a lost cluster
+            self._stop(self._client, job, "failed", error={
+                "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
+                "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
+            return
+        try:
+            part = future.result()
+        except BaseException as err:  # the task's exception, or the worker's death
+            with self._lock:
+                if job.finished_state:
+                    return
+            log.warning("job %s failed: %s: %s", job.id, type(err).__name__, err)
+            self._stop(self._client, job, "failed", error=_failure(err))
+            return
+        with self._lock:
+            if job.finished_state:
+                return
+            job.parts[k] = part
+            if len(job.parts) < len(job.sizes):
+                return
+        self._finish(job)
+
+    def _finish(self, job: Job) -> None:
+        if job.operation == SWEEPS:
+            rows = [row for k in range(len(job.sizes)) for row in job.parts[k]]
+            if len(rows) < sum(job.sizes):  # a task stopped early: the time limit
+                self._stop(self._client, job, "failed", error={
+                    "title": "Time limit exceeded", "loc": [],
+                    "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
+                    f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
+                return
+            result = mappers.sweep_out(job.names, rows).model_dump(mode="json")
+        else:
+            result = json.loads(job.parts[0])
+        with self._lock:
+            job.result, job.parts = result, {}
+            job.status, job.message, job.finished = "done", "done", time.time()
+            job.started = job.started or job.finished
+            job.futures = []
+        self._forget_flag(job)
+
+    def _stop(self, client: Client | None, job: Job, status: str, reason: str = "",
+              error: dict[str, Any] | None = None) -> None:
+        """End a job: stop its running tasks (cancel flag) and drop the others."""
+        with self._lock:
+            if job.finished_state:
+                return
+            job.status, job.finished = status, time.time()
+            job.message = reason or status
+            job.error, job.parts = error, {}
+            futures, job.futures = job.futures, []
+        if client is None:
+            return
+        try:
+            Event(_cancel_flag(job.id), client=client).set()
+            client.cancel(futures)
+        except Exception as err:  # e.g. the cluster went away: nothing left to stop
+            log.warning("could not stop the tasks of job %s: %s", job.id, err)
+
+    def _forget_flag(self, job: Job) -> None:
+        client = self._client
+        if client is not None:
+            try:
+                Event(_cancel_flag(job.id), client=client).clear()
+            except Exception as err:
+                log.debug("cancel flag of job %s: %s", job.id, err)
+
+    def cancel(self, job_id: str) -> Job:
+        job = self.get(job_id)
+        self._stop(self._client, job, "cancelled", "cancelled on request")
+        return job
+
+    def get(self, job_id: str) -> Job:
+        self._purge()
+        with self._lock:
+            job = self._jobs.get(job_id)
+        if job is None:
+            raise UnknownJob(f"no job {job_id!r} (finished jobs are kept LINKAGE_JOB_TTL_S = "
+                             f"{self.settings.job_ttl_s:g} s)")
+        return job
+
+    def expires(self, job: Job) -> float | None:
+        return None if job.finished is None else job.finished + self.settings.job_ttl_s
+
+    def _purge(self) -> None:
+        """Forget expired jobs (and the oldest finished ones beyond :data:`KEPT_PER_ACTIVE`
+        times ``LINKAGE_MAX_JOBS``, which bounds the memory results take); fail the jobs far
+        past their time limit."""
+        now = time.time()
+        with self._lock:
+            finished = sorted((j for j in self._jobs.values() if j.finished is not None),
+                              key=lambda j: j.finished or 0.0)
+            surplus = len(finished) - KEPT_PER_ACTIVE * self.settings.max_jobs
+            expired = [j.id for k, j in enumerate(finished)
+                       if k < surplus or now > (j.finished or 0.0) + self.settings.job_ttl_s]
+            gone = [self._jobs.pop(job_id) for job_id in expired]
+            overdue = [j for j in self._jobs.values()
+                       if not j.finished_state and now > j.end_wall + GRACE_S]
+        for job in gone:
+            if job.status != "done":
+                self._forget_flag(job)
+        for job in overdue:
+            self._stop(self._client, job, "failed", error={
+                "title": "Time limit exceeded", "loc": [],
+                "detail": f"the job ran longer than LINKAGE_JOB_TIME_LIMIT_S = "
+                f"{self.settings.job_time_limit_s:g} s and was stopped"})
