@@ -126,7 +126,8 @@ class Settings:
     (a request's head must arrive within this time, 5 s) and ``LINKAGE_BODY_TIMEOUT_S`` (its
     body within this time, 10 s), ``LINKAGE_CORS_ORIGINS``
     (comma-separated origins allowed to call the service from a browser, e.g.
-    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin). Jobs (``service.tasks``):
+    ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin).
+    Jobs (``service.tasks``):
     ``LINKAGE_DASK_SCHEDULER`` (``tcp://host:port`` of an existing Dask cluster; unset: an
     embedded one with ``LINKAGE_DASK_WORKERS`` worker processes, one per core),
     ``LINKAGE_JOB_TIME_LIMIT_S`` (per job, 3600 s), ``LINKAGE_JOB_TTL_S`` (how long finished
