@@ -6,13 +6,14 @@ from typing import Annotated, Any, TypeVar
 from fastapi import APIRouter, Depends, Request, Response
 
 from service import figures
+from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
 from service.schemas.space import CriticalValuesRequest, SplittingRequest
 from service.workers import engine_pool
 
-router = APIRouter(prefix="/v1/figures", tags=["figures"])
+router = APIRouter(prefix="/v1/figures", tags=["figures"], route_class=JsonBodyRoute)
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 B = TypeVar("B")
 _svg: dict[int | str, dict[str, Any]] = {

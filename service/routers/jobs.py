@@ -7,12 +7,13 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from service import mappers, tasks
+from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
 from service.schemas.jobs import JobOut, JobRequest, OperationOut, SweepRequest
 from service.tasks import JobManager
 
-router = APIRouter(prefix="/v1", tags=["jobs"])
+router = APIRouter(prefix="/v1", tags=["jobs"], route_class=JsonBodyRoute)
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 _CSV = "text/csv"
 
