@@ -34,6 +34,7 @@ Nothing is pinned except in the rotor chain: rigid motions are quotiented out by
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -157,7 +158,9 @@ def _rotor_chain_3d(p: Params) -> Specs:
             raise InvalidParameter(f"must be positive, got {p[key]!r}", loc=(key,))
     k = np.arange(n)
     centres = np.column_stack([k * p["a"], np.zeros(n), np.zeros(n)])
-    axes = np.column_stack([np.zeros(n), np.sin(k * p["tilt"]), np.cos(k * p["tilt"])])
+    # the angle reduced first: k * tilt must not overflow for a huge (but valid) angle
+    tilt = k * math.remainder(p["tilt"], 2 * math.pi)
+    axes = np.column_stack([np.zeros(n), np.sin(tilt), np.cos(tilt)])
     u = np.tile([1.0, 0.0, 0.0], (n, 1))
     v = np.cross(axes, u)
     r = p["r"]
