@@ -19,9 +19,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from engine.constraints import Constraints
-from engine.critical import singular_gap
+from engine.critical import refine_critical, singular_gap
 from engine.lu import BandLU, BorderedFactor, Factor
 from engine.tolerances import Tolerances
+
+#: A step below this fraction of ``step_max`` has collapsed: the tracer looks for a critical
+#: point just ahead (within ten times this) to cross.
+STEP_COLLAPSE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -197,6 +201,7 @@ def trace_curve(
     arc = 0.0
     close_after = 4 * h_max if min_arc_to_close is None else min_arc_to_close
     fac = info.factor
+    tried_at_u = False  # whether a collapsed step looked for a critical point ahead of u
     while len(curve.points) < options.max_points:
         budget -= 1
         if budget < 0:
@@ -205,35 +210,65 @@ def trace_curve(
         if h < h_min:
             curve.stop = "step underflow"
             return curve
-        v = u + h * t
-        strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths) / lengths))
-        if strain > options.strain_tol:
-            h *= 0.5
-            continue
-        w, ok, iters = correct(cons, v, t, tol, factor=fac)
-        if not ok:
-            w, ok, iters = correct(cons, v, t, tol)
-        if not ok or np.linalg.norm(w - v) > 0.5 * h:
-            h *= 0.5
-            continue
-        nxt = tangent_at(cons, w, t)
-        if nxt is None or nxt.tangent @ t < np.cos(options.max_turn):
-            h *= 0.5
-            continue
-        if nxt.sign != sign and sign != 0:
-            # The tangent form never vanishes along a regular curve, so its sign relative to the
-            # direction of travel cannot change between neighbours: a change means the corrector
-            # landed on another branch (near a split branch point the arcs are ~sqrt(dL)
-            # apart), or the step crosses a true critical point. Shrink until the step is tiny;
-            # then accept the crossing only at a truly critical point (exact branch points at
-            # critical lengths), else stop: the curve stays open and the search incomplete.
-            if h > h_cross:
+        crossed = None
+        if h < STEP_COLLAPSE * h_max and not tried_at_u and cons.n_free <= 600:
+            # The step collapsed: near an exact branch point the corrector's own residual acts
+            # as a length perturbation of ~residual_atol, which splits the crossing into a tiny
+            # hyperbola (~sqrt(residual_atol * L) across) whose arc turns onto the other
+            # branch in steps that each pass the turn test. If a critical point lies just
+            # ahead, locate it and cross it; otherwise go on shrinking (a near miss).
+            tried_at_u = True
+            crossed = _cross_ahead(cons, u, t, tol, h_max, options.max_turn, h_cross)
+        if crossed is not None:
+            crossing, (w, nxt) = crossed
+            _append_crossing(curve, crossing, t, nxt.sign)
+            arc += float(np.linalg.norm(crossing - u))
+            u, iters = crossing, 0
+            h = float(np.linalg.norm(w - u))
+        else:
+            v = u + h * t
+            strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths)
+                                  / lengths))
+            if strain > options.strain_tol:
                 h *= 0.5
                 continue
-            # (no dense SVD for large linkages: their crossings are accepted as critical)
-            if cons.n_free <= 600 and singular_gap(cons, w) > 1e-5:
-                curve.stop = "unresolved near-critical point"
-                return curve
+            w, ok, iters = correct(cons, v, t, tol, factor=fac)
+            if not ok:
+                w, ok, iters = correct(cons, v, t, tol)
+            if not ok or np.linalg.norm(w - v) > 0.5 * h:
+                h *= 0.5
+                continue
+            at_w = tangent_at(cons, w, t)
+            if at_w is None or at_w.tangent @ t < np.cos(options.max_turn):
+                h *= 0.5
+                continue
+            nxt = at_w
+            if nxt.sign != sign and sign != 0:
+                # The tangent form never vanishes along a regular curve, so its sign relative
+                # to the direction of travel cannot change between neighbours: a change means
+                # the corrector landed on another branch (near a split branch point the arcs
+                # are ~sqrt(dL) apart), or the step crosses a true critical point. Shrink
+                # until the step is tiny; then accept the crossing only at a truly critical
+                # point (exact branch points at critical lengths), else stop: the curve stays
+                # open and the search incomplete.
+                if h > h_cross:
+                    h *= 0.5
+                    continue
+                # (no dense SVD for large linkages: their crossings are accepted as critical)
+                if cons.n_free <= 600 and singular_gap(cons, w) > 1e-5:
+                    curve.stop = "unresolved near-critical point"
+                    return curve
+                # ``w`` sits on the critical point, where the tangent of ``[t; J]`` is any
+                # vector of the two-dimensional kernel: keep it with the incoming tangent and
+                # jump clear of it along that tangent (see ``_jump``).
+                past = _jump(cons, w, t, tol, h_max, options.max_turn, h_cross)
+                if past is None:
+                    curve.stop = "unresolved branch crossing"
+                    return curve
+                _append_crossing(curve, w, t, past[1].sign)
+                arc += float(np.linalg.norm(w - u))
+                u, (w, nxt) = w, past
+                h = float(np.linalg.norm(w - u))
         step = float(np.linalg.norm(w - u))
         if step > h_max:
             h *= 0.5
@@ -252,9 +287,70 @@ def trace_curve(
             curve.stop = "closed"
             return curve
         u, t, fac, sign = w, nxt.tangent, nxt.factor, nxt.sign
+        tried_at_u = False
         h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
     curve.stop = "max points"
     return curve
+
+
+def _append_crossing(curve: Curve, c: np.ndarray, t: np.ndarray, sign: int) -> None:
+    """Record the critical point ``c`` crossed with tangent ``t``: the determinant vanishes
+    there (``log|det| = -inf``), and ``sign`` is the one beyond it."""
+    curve.points.append(c)
+    curve.tangents.append(t)
+    curve.signs.append(sign)
+    curve.logdets.append(-np.inf)
+
+
+def _cross_ahead(
+    cons: Constraints,
+    u: np.ndarray,
+    t: np.ndarray,
+    tol: Tolerances,
+    h_max: float,
+    max_turn: float,
+    h_min: float,
+) -> tuple[np.ndarray, tuple[np.ndarray, TangentInfo]] | None:
+    """The critical point just ahead of ``u`` (within ``10 STEP_COLLAPSE h_max``, in the
+    direction of ``t``) and the point beyond it on the same branch, or None (no critical point
+    there: a near miss, which the tracer passes with small steps)."""
+    ref = refine_critical(cons, u, tol)
+    ahead = ref.u - u
+    dist = float(np.linalg.norm(ahead))
+    if not ref.critical or dist > 10 * STEP_COLLAPSE * h_max or ahead @ t < 0.5 * dist:
+        return None
+    past = _jump(cons, ref.u, t, tol, h_max, max_turn, h_min)
+    return None if past is None else (ref.u, past)
+
+
+def _jump(
+    cons: Constraints,
+    w: np.ndarray,
+    t: np.ndarray,
+    tol: Tolerances,
+    h_max: float,
+    max_turn: float,
+    h_min: float,
+) -> tuple[np.ndarray, TangentInfo] | None:
+    """Continue the branch arriving at the critical point ``w`` with tangent ``t``: the point
+    beyond it (and its tangent) where a hyperplane correction from ``w + H t`` lands, with the
+    largest ``H <= h_max / 4`` that keeps the landing within ``H / 2`` of the prediction and the
+    new tangent within ``max_turn`` of ``t``; None when no step down to ``h_min`` does.
+
+    At a step ``H`` from a branch point the other branch (crossing at an angle ``a``) is about
+    ``H sin a`` from the predicted point, the own branch only ``O(H^2)`` (its curvature), so the
+    correction stays on the branch it arrived on for every step below ``~ sin a`` times the
+    curvature radius."""
+    step = 0.25 * h_max
+    while step >= h_min:
+        v = w + step * t
+        land, ok, _ = correct(cons, v, t, tol)
+        if ok and np.linalg.norm(land - v) <= 0.5 * step:
+            nxt = tangent_at(cons, land, t)
+            if nxt is not None and nxt.tangent @ t >= np.cos(max_turn):
+                return land, nxt
+        step *= 0.5
+    return None
 
 
 def closest_on_segment(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> np.ndarray:
