@@ -19,6 +19,10 @@ from dataclasses import dataclass, field
 #: Reasons for an incomplete search, as reported in ``search["reason"]``.
 REASON_TIME = "time"
 REASON_BUDGET = "budget"
+#: a critical point that is not isolated: the classification cannot go on
+REASON_DEGENERATE = "degenerate"
+#: a curve or segment that stopped open for a numerical reason (e.g. near a split branch point)
+REASON_UNRESOLVED = "unresolved"
 
 
 #: ``progress(fraction, message)``: how far a search has come (0..1), from the engine itself.

@@ -25,6 +25,7 @@ critical point and none is degenerate; otherwise the steps above run.
 from __future__ import annotations
 
 import itertools
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -33,6 +34,14 @@ from scipy.spatial import cKDTree
 
 from engine.assembly import iter_seeds, projected_random_starts, rotors
 from engine.batched import BATCH_MAX_FREE, BatchedConstraints
+from engine.budget import (
+    NEVER,
+    REASON_BUDGET,
+    REASON_DEGENERATE,
+    REASON_TIME,
+    REASON_UNRESOLVED,
+    Deadline,
+)
 from engine.chain_count import chain_components
 from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
@@ -42,6 +51,7 @@ from engine.linkage import Linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
 from engine.trace import (
+    STOP_TIME,
     Curve,
     TraceOptions,
     correct,
@@ -60,6 +70,9 @@ MIN_STEP_MAX_REL = 1e-6
 #: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
 #: method (measured faster than the dense SVD from about 100 rotors of a chain).
 SPARSE_SEED_RIGIDITY_MIN_FREE = 128
+
+#: Why a traced curve stopped, when that was a count running out (see ``trace_curve``).
+BUDGET_STOPS = re.compile(r"max points|step budget")
 
 #: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
 SEED_CHUNK = 128
@@ -141,8 +154,12 @@ def _require_one_dof(linkage: Linkage, cons: Constraints) -> None:
 
 
 class _Explorer:
-    def __init__(self, linkage: Linkage, tol: Tolerances, options: SpaceOptions) -> None:
+    def __init__(self, linkage: Linkage, tol: Tolerances, options: SpaceOptions,
+                 deadline: Deadline = NEVER) -> None:
         self.linkage = linkage
+        self.deadline = deadline
+        #: the deadline stopped some part of the search (its answer is then incomplete)
+        self.timed_out = False
         self.cons = Constraints(linkage)
         _require_one_dof(linkage, self.cons)
         self.tol = tol
@@ -162,6 +179,33 @@ class _Explorer:
         self.report: dict[str, object] = {}
         self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
             else None
+
+    # -- deadline -------------------------------------------------------------------------
+    def out_of_time(self) -> bool:
+        """True (and remembered) once the deadline has passed: the search stops there."""
+        if not self.timed_out and self.deadline.expired():
+            self.timed_out = True
+        return self.timed_out
+
+    def _trace(self, u: np.ndarray, t: np.ndarray, close: bool = True) -> Curve:
+        curve = trace_curve(self.cons, u, t, self.tol, self.opt.trace, close=close,
+                            deadline=self.deadline)
+        self.timed_out = self.timed_out or curve.stop == STOP_TIME
+        return curve
+
+    def completion(self, degenerate: bool, segments_complete: bool = True) -> dict[str, object]:
+        """``complete`` and, when not, the ``reason``: ``"time"`` (the deadline stopped the
+        search), ``"budget"`` (a count ran out: components, assemblies, points of a curve),
+        ``"degenerate"`` (a critical point that is not isolated) or ``"unresolved"`` (a curve
+        or segment that stopped open for a numerical reason, e.g. near a split branch point)."""
+        budget = bool(self.report.get("component_budget_reached")
+                      or self.report.get("assemblies_truncated")
+                      or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
+        unresolved = bool(self.report.get("open_curves", 0)) or not segments_complete
+        reason = (REASON_TIME if self.timed_out else REASON_BUDGET if budget
+                  else REASON_DEGENERATE if degenerate
+                  else REASON_UNRESOLVED if unresolved else None)
+        return {"complete": reason is None, "reason": reason}
 
     # -- curves ---------------------------------------------------------------------------
     def _rebuild_tree(self) -> None:
@@ -202,10 +246,9 @@ class _Explorer:
                           else None)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
-        curve = trace_curve(self.cons, u, rig.zero_modes[0], self.tol, self.opt.trace)
+        curve = self._trace(u, rig.zero_modes[0])
         if curve.stop != "closed":
-            back = trace_curve(self.cons, u, -rig.zero_modes[0], self.tol, self.opt.trace,
-                               close=False)
+            back = self._trace(u, -rig.zero_modes[0], close=False)
             curve = Curve(
                 points=back.points[::-1][:-1] + curve.points,
                 tangents=[-t for t in back.tangents[::-1][:-1]] + curve.tangents,
@@ -260,6 +303,10 @@ class _Explorer:
         covered = np.zeros(len(stack), dtype=bool)
         tested = np.zeros(len(stack), dtype=int)
         for n, u in enumerate(points):
+            if self.out_of_time():
+                break
+            if batch:
+                self.deadline.report(0.6 * n / len(stack), "tracing the components")
             if batch and not covered[n] and tested[n] < len(self.curves):
                 chunk = np.arange(n, min(len(stack), n + SEED_CHUNK))
                 for c in range(int(tested[chunk].min()), len(self.curves)):
@@ -323,6 +370,8 @@ class _Explorer:
         misses: list[NearMiss] = []
         failed = 0
         for u0 in candidates:
+            if self.out_of_time():
+                break
             ref = refine_critical(self.cons, u0, self.tol)
             failed += not ref.critical
             if ref.critical:
@@ -357,9 +406,13 @@ class _Explorer:
         for i, cp in enumerate(crit):
             if cp.kind != "branch":
                 continue
+            self.deadline.report(0.8 + 0.2 * i / len(crit), "tracing the segments")
             for r, ray in enumerate(rays(cp)):
                 if any((i, r) in key for key in seen):
                     continue
+                if self.out_of_time():
+                    complete = False
+                    break
                 v = cp.u + h0 * ray
                 w, ok, _ = correct(self.cons, v, ray, self.tol)
                 if not ok:
@@ -376,7 +429,8 @@ class _Explorer:
                     return None
 
                 curve = trace_curve(self.cons, w, ray, self.tol, self.opt.trace, stop=stop,
-                                    close=False)
+                                    close=False, deadline=self.deadline)
+                self.timed_out = self.timed_out or curve.stop == STOP_TIME
                 if not curve.stop.startswith("critical:"):
                     complete = False
                     continue
@@ -481,6 +535,7 @@ def find_critical_points(
     tolerances: Tolerances | None = None,
     options: SpaceOptions | None = None,
     start_on_space: bool = True,
+    deadline: Deadline | None = None,
 ) -> CriticalSearch:
     """Critical points and near misses of a 1-DOF linkage, as :func:`explore` finds them,
     without building the segments and components.
@@ -501,7 +556,7 @@ def find_critical_points(
     """
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
-    ex = _Explorer(linkage, tol, opt)
+    ex = _Explorer(linkage, tol, opt, deadline or NEVER)
     if opt.closed_form and opt.critical_closed_form:
         fast = _closed_form_critical(ex)
         if fast is not None:
@@ -517,10 +572,7 @@ def find_critical_points(
             "critical_points_found": len(crit),
             "step_max": ex.h_max,
             "strain_tol": opt.trace.strain_tol,
-            "complete": not ex.report.get("component_budget_reached", False)
-            and not ex.report.get("assemblies_truncated", False)
-            and not ex.report.get("open_curves", 0)
-            and not degenerate,
+            **ex.completion(degenerate),
         }
     )
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
@@ -532,6 +584,7 @@ def explore(
     options: SpaceOptions | None = None,
     start_on_space: bool = True,
     near_misses: bool = True,
+    deadline: Deadline | None = None,
 ) -> SpaceResult:
     """Components, critical points, segments and near misses of a 1-DOF linkage (on its
     configuration space: see :func:`engine.constraints.on_constraints`).
@@ -550,7 +603,7 @@ def explore(
     """
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
-    ex = _Explorer(linkage, tol, opt)
+    ex = _Explorer(linkage, tol, opt, deadline or NEVER)
     # With start_on_space=False the given positions need not satisfy the lengths (e.g. lengths
     # changed for a map): only the seeds are used, and none means an empty configuration space.
     start = linkage.coordinates() if start_on_space else None
@@ -617,11 +670,7 @@ def explore(
             "segments_complete": seg_complete,
             "step_max": ex.h_max,
             "strain_tol": opt.trace.strain_tol,
-            "complete": not ex.report.get("component_budget_reached", False)
-            and not ex.report.get("assemblies_truncated", False)
-            and not ex.report.get("open_curves", 0)
-            and seg_complete
-            and not degenerate,
+            **ex.completion(degenerate, seg_complete),
         }
     )
     return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)
@@ -749,7 +798,8 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
         "segments_complete": True,
         "step_max": ex.h_max,
         "strain_tol": opt.trace.strain_tol,
-        "complete": not truncated,
+        "complete": not (truncated or ex.timed_out),
+        "reason": REASON_TIME if ex.timed_out else REASON_BUDGET if truncated else None,
     })
     return SpaceResult(components, [], [], misses, report, False)
 
@@ -806,6 +856,7 @@ def _closed_form_critical(ex: _Explorer) -> CriticalSearch | None:
         # every sheet of the rotor's whole turn was searched: complete as the general search is
         # when its curves cover the space and no critical point is degenerate
         "complete": True,
+        "reason": None,
     }
     return CriticalSearch(crit, [], search, False)
 

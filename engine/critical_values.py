@@ -27,6 +27,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
 
+from engine.budget import NEVER, REASON_TIME, Deadline
 from engine.configuration_space import (
     SpaceOptions,
     explore,
@@ -62,7 +63,7 @@ class Axis:
 @dataclass(frozen=True)
 class Region:
     point: tuple[float, float]
-    components: int
+    components: int | None  # None: not explored before the deadline
     signature: str
     cells: int
 
@@ -166,15 +167,20 @@ def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndar
 
 
 def _continue(
-    sys: _System, x0: np.ndarray, t0: np.ndarray, box: np.ndarray, h_max: float, budget: int
+    sys: _System, x0: np.ndarray, t0: np.ndarray, box: np.ndarray, h_max: float, budget: int,
+    deadline: Deadline = NEVER,
 ) -> tuple[list[np.ndarray], str]:
-    """Follow ``G = 0`` from ``x0`` along ``t0`` until ``p`` leaves the box or the curve
-    closes."""
+    """Follow ``G = 0`` from ``x0`` along ``t0`` until ``p`` leaves the box, the curve
+    closes, or ``deadline`` passes (``"time"``)."""
     pts = [x0]
     x, t, h = x0, t0, 0.25 * h_max
     travelled = 0.0
     p0 = x0[-2:]
+    passes = 0
     while len(pts) < budget:
+        passes += 1
+        if passes % 16 == 0 and deadline.expired():
+            return pts, REASON_TIME
         if h < 1e-9 * h_max:
             return pts, "step underflow"
         v = x + h * t
@@ -214,9 +220,9 @@ def _validate(linkage: Linkage, axes: list[tuple[str, float, float]]) -> tuple[A
 
 
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
-               tol: Tolerances) -> tuple[int, str]:
+               tol: Tolerances, deadline: Deadline = NEVER) -> tuple[int, str]:
     at = linkage.with_lengths(lengths)
-    res = explore(at, tol, options, start_on_space=False)
+    res = explore(at, tol, options, start_on_space=False, deadline=deadline)
     patterns = set()
     for comp in res.components:
         angles = rotor_angles(at, comp.points)
@@ -236,8 +242,12 @@ def critical_value_slice(
     tolerances: Tolerances | None = None,
     options: SpaceOptions | None = None,
     max_curve_points: int = 4000,
+    deadline: Deadline | None = None,
 ) -> Slice:
     """Curves of the critical value set in the plane of two lengths, and its regions.
+
+    Once ``deadline`` has passed the seeding and tracing stop, and regions not yet explored
+    have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
     Examples
     --------
@@ -249,6 +259,8 @@ def critical_value_slice(
     """
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions(angles=24, random_starts=4)
+    dl = deadline or NEVER
+    timed_out = False
     ax = _validate(linkage, axes)
     sys = _System(linkage, ax)
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
@@ -273,12 +285,16 @@ def critical_value_slice(
 
     grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
             for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
-    for p0 in grid:
+    for k, p0 in enumerate(grid):
+        if dl.expired():
+            timed_out = True
+            break
+        dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
         lengths = linkage.lengths.copy()
         lengths[ax[0].bar], lengths[ax[1].bar] = p0
         at = linkage.with_lengths(lengths)
         # Only the critical configurations are needed here: no segments, no components.
-        res = find_critical_points(at, tol, seed_opt, start_on_space=False)
+        res = find_critical_points(at, tol, seed_opt, start_on_space=False, deadline=dl)
         cons = Constraints(at)
         starts: list[tuple[np.ndarray, np.ndarray | None]] = (
             [(cp.u, None) for cp in res.critical_points]
@@ -298,22 +314,27 @@ def critical_value_slice(
             t = _tangent(sys, x, np.random.default_rng(seeds_used).normal(size=sys.n))
             if t is None:
                 continue
-            fwd, stop_f = _continue(sys, x, t, box, h_max, max_curve_points)
+            fwd, stop_f = _continue(sys, x, t, box, h_max, max_curve_points, dl)
             if stop_f == "closed":
                 curve = np.array(fwd + [fwd[0]])
             else:
-                back, _ = _continue(sys, x, -t, box, h_max, max_curve_points)
+                back, stop_b = _continue(sys, x, -t, box, h_max, max_curve_points, dl)
                 curve = np.array(back[::-1] + fwd[1:])
+                timed_out = timed_out or REASON_TIME in (stop_f, stop_b)
             curves_x.append(curve)
     curves = [_clip(c[:, -2:], box) for c in curves_x]
     curves = _merge_coincident([c for c in curves if len(c) >= 2], 1e-7 * float(max(span)))
-    regions = _regions(linkage, ax, box, curves, resolution, opt, tol)
+    regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
+    timed_out = timed_out or any(r.components is None for r in regions)
     search: dict[str, object] = {
         "seed_lengths": len(grid),
         "seed_configurations": seeds_tried,
         "curves": len(curves),
         "step": h_max,
         "resolution": resolution,
+        "regions_explored": sum(r.components is not None for r in regions),
+        "complete": not timed_out,
+        "reason": REASON_TIME if timed_out else None,
     }
     return Slice(curves, regions, search)
 
@@ -379,6 +400,7 @@ def _regions(
     resolution: int,
     opt: SpaceOptions,
     tol: Tolerances,
+    deadline: Deadline = NEVER,
 ) -> list[Region]:
     n = resolution
     span = box[:, 1] - box[:, 0]
@@ -399,6 +421,11 @@ def _regions(
         point = box[:, 0] + span * (np.array(idx) + 0.5) / n
         lengths = linkage.lengths.copy()
         lengths[ax[0].bar], lengths[ax[1].bar] = point
-        comps, sig = _signature(linkage, lengths, opt, tol)
-        out.append(Region((float(point[0]), float(point[1])), comps, sig, int(cells.sum())))
+        where = (float(point[0]), float(point[1]))
+        if deadline.expired():
+            out.append(Region(where, None, "not explored (time)", int(cells.sum())))
+            continue
+        deadline.report(0.6 + 0.4 * k / count, "critical values: exploring the regions")
+        comps, sig = _signature(linkage, lengths, opt, tol, deadline)
+        out.append(Region(where, comps, sig, int(cells.sum())))
     return out

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
+from engine.budget import NEVER, Deadline
 from engine.critical import CriticalPoint
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
@@ -163,6 +164,8 @@ class Check:
     delta: float
     connects: list[tuple[int, int]]
     traced: list[tuple[int, int]] | None
+    #: not re-traced: the deadline had passed (``traced`` is then None, and says nothing)
+    skipped: bool = False
 
     @property
     def agrees(self) -> bool:
@@ -175,8 +178,10 @@ def verify(
     targets: list[Target],
     d_l: np.ndarray,
     tol: Tolerances,
+    deadline: Deadline = NEVER,
 ) -> list[Check]:
-    """Predict (Appendix A, second order) and re-trace the perturbed linkage at each target."""
+    """Predict (Appendix A, second order) and re-trace the perturbed linkage at each target
+    (once ``deadline`` has passed the remaining targets are predicted only: ``skipped``)."""
     perturbed = linkage.with_lengths(linkage.lengths + d_l)
     scale = float(np.median(linkage.lengths[linkage.active]))
     out = []
@@ -185,6 +190,9 @@ def verify(
         s = split(linkage, t.branch_point, cp, d_l)
         assert cp.analysis.q_eigenvalues is not None  # targets are branch points (validated)
         lam = float(np.abs(cp.analysis.q_eigenvalues).min())
+        if deadline.expired():
+            out.append(Check(t.branch_point, s.sign, s.delta, s.connects, None, skipped=True))
+            continue
         radius = float(np.clip(4 * np.sqrt(abs(s.delta) / lam), 0.05 * scale, 0.3 * scale))
         traced = retraced_pairing(perturbed, cp, radius, tol)
         out.append(Check(t.branch_point, s.sign, s.delta, s.connects, traced))

@@ -271,7 +271,8 @@ def _multistart(
     cp_complete: object = None
     cut = deadline.expired()  # some planned start was never made or never run
     if not cut:
-        space = find_critical_points(linkage, tol, opt)  # no segments needed
+        # no segments needed; half the time at most, the rest is for the local searches
+        space = find_critical_points(linkage, tol, opt, deadline=deadline.fraction(0.5))
         cp_complete = space.search.get("complete")
         starts += [cp.u for cp in space.critical_points]
         starts += [m.critical_u for m in space.near_misses]

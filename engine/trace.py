@@ -18,10 +18,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from engine.budget import NEVER, Deadline
 from engine.constraints import Constraints
 from engine.critical import refine_critical, singular_gap
 from engine.lu import BandLU, BorderedFactor, Factor
 from engine.tolerances import Tolerances
+
+#: The tracer looks at its deadline every this many passes of its loop.
+DEADLINE_EVERY = 16
+
+#: ``Curve.stop`` of a trace that its deadline ended.
+STOP_TIME = "time"
 
 #: A step below this fraction of ``step_max`` has collapsed: the tracer looks for a critical
 #: point just ahead (within ten times this) to cross.
@@ -169,9 +176,11 @@ def trace_curve(
     stop: StopCheck | None = None,
     close: bool = True,
     min_arc_to_close: float | None = None,
+    deadline: Deadline = NEVER,
 ) -> Curve:
     """Trace from ``u0`` (on the constraints) in direction ``t0`` until the curve closes,
-    ``stop`` says so, the budget runs out, or the step underflows.
+    ``stop`` says so, the budget runs out, the step underflows, or ``deadline`` expires
+    (``stop = "time"``).
 
     The step is halved when the predictor's strain exceeds ``strain_tol``, the corrector
     fails, or the tangent turns by more than ``max_turn``; it grows by 1.5 after easy steps.
@@ -206,6 +215,9 @@ def trace_curve(
         budget -= 1
         if budget < 0:
             curve.stop = "step budget"
+            return curve
+        if budget % DEADLINE_EVERY == 0 and deadline.expired():
+            curve.stop = STOP_TIME
             return curve
         if h < h_min:
             curve.stop = "step underflow"

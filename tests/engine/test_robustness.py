@@ -326,13 +326,16 @@ def test_an_expired_deadline_answers_at_once_marked_incomplete():
 
 
 def test_a_deadline_mid_search_keeps_the_best_so_far():
-    calls = {"n": 0}
+    runs = {"n": 0}
 
-    def stop_after_a_while() -> bool:
-        calls["n"] += 1
-        return calls["n"] > 30
+    def count_local_searches(fraction: float, message: str) -> None:
+        runs["n"] += "local searches" in message
 
-    res = robustness(slider_crank(), deadline=Deadline(stop=stop_after_a_while))
+    def stop_after_two_local_searches() -> bool:
+        return runs["n"] > 2
+
+    res = robustness(slider_crank(), deadline=Deadline(stop=stop_after_two_local_searches,
+                                                       progress=count_local_searches))
     assert res.search["complete"] is False and res.search["reason"] == "time"
     assert 0 < res.search["starts_run"] < res.search["starts_planned"]
     if res.success:  # whatever was found is a true critical configuration, never a short bar
