@@ -111,6 +111,10 @@ def _worker_memory_from_env() -> int | None:
     return value
 
 
+#: Share of ``LINKAGE_TIME_LIMIT_S`` that a synchronous search may use at most.
+SEARCH_SHARE = 0.75
+
+
 @dataclass(frozen=True)
 class Settings:
     """Service settings, from the environment (see the README):
@@ -118,6 +122,9 @@ class Settings:
     ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
     bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
+    ``LINKAGE_SEARCH_TIME_S`` (default time a search may take before it answers with what it
+    found, marked incomplete: 4 s; a request may ask for more with ``options.time_budget_s``, up
+    to three quarters of the time limit),
     ``LINKAGE_WORKERS`` (engine worker processes, one per core) and ``LINKAGE_MAX_QUEUE``
     (engine requests admitted at once, running or waiting, 64),
     ``LINKAGE_WORKER_MEMORY_MB`` (memory each engine worker may allocate, its ``RLIMIT_DATA``;
@@ -139,6 +146,7 @@ class Settings:
     max_points: int = 200_000
     max_body_bytes: int = 5 * 1024 * 1024
     time_limit_s: float = 30.0
+    search_time_s: float = 4.0
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
     worker_memory_mb: int | None = None  # None: default_worker_memory_mb(workers)
@@ -159,6 +167,7 @@ class Settings:
             max_points=_env_int("LINKAGE_MAX_POINTS", cls.max_points),
             max_body_bytes=_env_int("LINKAGE_MAX_BODY_BYTES", cls.max_body_bytes),
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
+            search_time_s=_env_float("LINKAGE_SEARCH_TIME_S", cls.search_time_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
             max_queue=_env_int("LINKAGE_MAX_QUEUE", cls.max_queue),
             worker_memory_mb=_worker_memory_from_env(),
@@ -182,6 +191,13 @@ class Settings:
         if self.worker_memory_mb is not None:
             return self.worker_memory_mb
         return default_worker_memory_mb(self.workers)
+
+    def search_seconds(self, requested: float | None = None) -> float:
+        """Seconds a synchronous search may take: ``requested`` (``options.time_budget_s``) or
+        ``LINKAGE_SEARCH_TIME_S``, at most :data:`SEARCH_SHARE` of the time limit (the rest is
+        for answering: mapping and serialising what was found)."""
+        wanted = self.search_time_s if requested is None else requested
+        return max(0.0, min(wanted, SEARCH_SHARE * self.time_limit_s))
 
     @property
     def limits(self) -> Limits:

@@ -104,10 +104,14 @@ def splitting_figure(body: space.SplittingRequest, settings: Settings) -> bytes:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
-    search = find_critical_points(at, tol, mappers.space_options_in(body.options))
+    report: dict[str, object] = {}
+    deadline = jobs.search_deadline(body.options, settings, None, report)
+    search = find_critical_points(at, tol, mappers.space_options_in(body.options),
+                                  deadline=deadline)
+    search.search.update(report)
     crit = search.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
-    ans = mappers.splitting_out(at, splits, len(crit), tol, crit)
+    ans = mappers.splitting_out(at, splits, len(crit), tol, crit, search.search)
     points = mappers.critical_points_out(at, search, proj, tol).critical_points
     return _svg(_draw_splitting, body, ans, points)
 
@@ -405,7 +409,7 @@ def _draw_critical_values(body: space.CriticalValuesRequest,
     curves = [np.asarray(cv, dtype=float).reshape(-1, 2) for cv in ans.curves]
     n = 240
     labels = _region_raster(box, [cv for cv in curves if len(cv) >= 2], n)
-    counts = sorted({r.components for r in ans.regions})
+    counts = sorted({r.components for r in ans.regions if r.components is not None})
     shades = ["#f2f2f2", "#cfe3f5", "#f7d9b9", "#d5ecd0", "#e8d5f0", "#f6d0d8"]
     colour_of = {m: shades[min(m, len(shades) - 1)] for m in counts}
     cell = np.full((n, n), -1, dtype=int)  # index into counts, -1: no region sampled here
@@ -414,7 +418,8 @@ def _draw_critical_values(body: space.CriticalValuesRequest,
     for r in ans.regions:
         i, j = np.clip(((np.asarray(r.point) - box[:, 0]) / span * n).astype(int), 0, n - 1)
         mine = labels == labels[i, j]
-        cell[mine] = counts.index(r.components)
+        if r.components is not None:  # (None: not explored in time, left white)
+            cell[mine] = counts.index(r.components)
         depth = ndimage.distance_transform_edt(np.pad(mine, 1))[1:-1, 1:-1]
         ij = np.unravel_index(int(np.argmax(depth)), depth.shape)
         spots.append(box[:, 0] + span * (np.array(ij) + 0.5) / n)
@@ -426,7 +431,8 @@ def _draw_critical_values(body: space.CriticalValuesRequest,
     for k, cv in enumerate(curves):
         ax.plot(cv[:, 0], cv[:, 1], color="#111111", lw=1.6, gid=f"cv-curve-{k}")
     for k, r in enumerate(ans.regions):
-        ax.annotate(str(r.components), spots[k], ha="center", va="center", fontsize=10,
+        label = "?" if r.components is None else str(r.components)
+        ax.annotate(label, spots[k], ha="center", va="center", fontsize=10,
                     fontweight="bold", gid=f"region-{k}-{r.components}",
                     bbox={"boxstyle": "circle,pad=0.25", "fc": "white", "ec": "#888888",
                           "lw": 0.6})

@@ -26,12 +26,14 @@ from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest
 from service.schemas.space import (
     CriticalPointsResponse,
+    CriticalValuesOptions,
     CriticalValuesRequest,
     CriticalValuesResponse,
     DesignRequest,
     DesignResponse,
     RobustnessRequest,
     RobustnessResponse,
+    SpaceOptions,
     SpaceRequest,
     SpaceResponse,
     SplittingRequest,
@@ -57,20 +59,49 @@ def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOr
     return mappers.second_order_out(at, second_order(at, tol), proj)
 
 
-def critical_points(body: SpaceRequest, settings: Settings) -> CriticalPointsResponse:
+def search_deadline(
+    options: SpaceOptions | CriticalValuesOptions | None, settings: Settings,
+    given: Deadline | None, search: dict[str, object] | None = None,
+) -> Deadline:
+    """The deadline of a search: a job's own (its time limit, progress and cancel flag), else
+    ``options.time_budget_s`` or the default search time, within the request's time limit;
+    the seconds granted go into ``search`` (the answer's report)."""
+    if given is not None:
+        seconds = given.remaining()
+        deadline = given
+    else:
+        seconds = settings.search_seconds(options.time_budget_s if options is not None else None)
+        deadline = Deadline.after(seconds)
+    if search is not None:
+        search["time_budget_s"] = round(seconds, 3) if np.isfinite(seconds) else None
+    return deadline
+
+
+def critical_points(
+    body: SpaceRequest, settings: Settings, deadline: Deadline | None = None
+) -> CriticalPointsResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, proj = on_constraints(linkage, tol)
     # The answer holds no components or segments: only the search for critical points runs.
-    res = find_critical_points(at, tol, mappers.space_options_in(body.options))
+    res = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
+    res.search.update(report)
     return mappers.critical_points_out(at, res, proj, tol)
 
 
-def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse:
+def configuration_space(
+    body: SpaceRequest, settings: Settings, deadline: Deadline | None = None
+) -> SpaceResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, proj = on_constraints(linkage, tol)
     # the response carries no near misses: where the closed form certifies, or the rotor-chain
     # rules prove, that there is no critical point, the critical-point search is skipped
-    res = explore(at, tol, mappers.space_options_in(body.options), near_misses=False)
+    res = explore(at, tol, mappers.space_options_in(body.options), near_misses=False,
+                  deadline=dl)
+    res.search.update(report)
     points = sum(len(c.points) for c in res.components)
     if points > settings.max_points:
         raise InvalidRequest(
@@ -81,41 +112,64 @@ def configuration_space(body: SpaceRequest, settings: Settings) -> SpaceResponse
     return mappers.space_out(at, res, proj, tol)
 
 
-def splitting(body: SplittingRequest, settings: Settings) -> SplittingResponse:
+def splitting(
+    body: SplittingRequest, settings: Settings, deadline: Deadline | None = None
+) -> SplittingResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
-    crit = find_critical_points(at, tol, mappers.space_options_in(body.options)).critical_points
+    found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
+    found.search.update(report)
+    crit = found.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
-    return mappers.splitting_out(at, splits, len(crit), tol, crit)
+    return mappers.splitting_out(at, splits, len(crit), tol, crit, found.search)
 
 
 def robustness_margin(
     body: RobustnessRequest, settings: Settings, deadline: Deadline | None = None
 ) -> RobustnessResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, _ = on_constraints(linkage, tol)
     adjustable = None if body.adjustable is None else list(body.adjustable)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options),
-                     method=body.method or "auto", deadline=deadline)
+                     method=body.method or "auto", deadline=dl)
+    res.search.update(report)
     return mappers.robustness_out(at, res, tol)
 
 
-def critical_values(body: CriticalValuesRequest, settings: Settings) -> CriticalValuesResponse:
+def critical_values(
+    body: CriticalValuesRequest, settings: Settings, deadline: Deadline | None = None
+) -> CriticalValuesResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, _ = on_constraints(linkage, tol)
-    opts = body.options.model_dump(exclude_none=True) if body.options else {}
+    opts = body.options.model_dump(exclude_none=True, exclude={"time_budget_s"}) \
+        if body.options else {}
     axes = [(a.bar, a.min, a.max) for a in body.axes]
-    return mappers.critical_values_out(critical_value_slice(at, axes, tolerances=tol, **opts), tol)
+    res = critical_value_slice(at, axes, tolerances=tol, deadline=dl, **opts)
+    res.search.update(report)
+    return mappers.critical_values_out(res, tol)
 
 
-def design_splitting(body: DesignRequest, settings: Settings) -> DesignResponse:
+def design_splitting(
+    body: DesignRequest, settings: Settings, deadline: Deadline | None = None
+) -> DesignResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     targets = [Target(t.branch_point, t.sign) for t in body.targets]
     check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
+    report: dict[str, object] = {}
+    dl = search_deadline(body.options, settings, deadline, report)
     at, _ = on_constraints(linkage, tol)
-    crit = find_critical_points(at, tol, mappers.space_options_in(body.options)).critical_points
+    found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
+    found.search.update(report)
+    crit = found.critical_points
     margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
     result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
-    checks = verify(at, crit, targets, result.perturbation, tol) if result.feasible else []
-    return mappers.design_out(at, result, list(body.adjustable), checks, tol)
+    checks = verify(at, crit, targets, result.perturbation, tol, deadline=dl) \
+        if result.feasible else []
+    return mappers.design_out(at, result, list(body.adjustable), checks, tol, found.search)

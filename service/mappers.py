@@ -269,7 +269,7 @@ def presets_out() -> list[PresetInfo]:
 
 
 def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
-    given = model.model_dump(exclude_none=True) if model else {}
+    given = model.model_dump(exclude_none=True, exclude={"time_budget_s"}) if model else {}
     trace_keys = {"max_points", "strain_tol", "step_max"}
     trace = TraceOptions(**{k: v for k, v in given.items() if k in trace_keys})
     return SpaceOptions(trace=trace, **{k: v for k, v in given.items() if k not in trace_keys})
@@ -485,7 +485,7 @@ def space_out(
 
 def splitting_out(
     linkage: EngineLinkage, splits: list[Split], found: int, tol: EngineTolerances,
-    crit: list[CriticalPoint],
+    crit: list[CriticalPoint], search: dict[str, object],
 ) -> space.SplittingResponse:
     return space.SplittingResponse(
         branch_points=[
@@ -501,6 +501,7 @@ def splitting_out(
             for s in splits
         ],
         critical_points_found=found,
+        search=_search_out(search),
         tolerances=tolerances_out(tol),
     )
 
@@ -511,6 +512,7 @@ def design_out(
     adjustable: list[str],
     checks: list[Check],
     tol: EngineTolerances,
+    search: dict[str, object],
 ) -> space.DesignResponse:
     return space.DesignResponse(
         feasible=result.feasible,
@@ -532,7 +534,9 @@ def design_out(
             space.ConflictOut(branch_points=c.branch_points, reason=c.reason)
             for c in result.conflicts
         ],
-        verified=all(c.agrees for c in checks) if checks else None,
+        verified=all(c.agrees for c in checks) if checks and not any(c.skipped for c in checks)
+        else None,
+        search=_search_out(search),
         tolerances=tolerances_out(tol),
     )
 

@@ -46,9 +46,12 @@ class ApiClient:
 
 @pytest.fixture(scope="session")
 def app() -> Iterator[Any]:
-    # A generous time limit: CI machines are shared and slow; the limit itself is tested in
-    # tests/service/test_hardening.py with apps of its own.
-    application = create_app(Settings.from_env().replace(time_limit_s=600.0))
+    # A generous time limit and search time: CI machines are shared and slow, and most tests
+    # check complete answers; the limit itself is tested in tests/service/test_hardening.py,
+    # the default search time (anytime answers) in tests/service/test_anytime.py, with apps of
+    # their own.
+    application = create_app(Settings.from_env().replace(time_limit_s=600.0,
+                                                         search_time_s=300.0))
     yield application
     application.state.engine_pool.close()
 

@@ -21,6 +21,15 @@ from service.schemas.common import (
 _StrainTol = Annotated[float, Field(strict=True, gt=0, le=0.2, allow_inf_nan=False)]
 
 
+TimeBudget = Annotated[float, Field(strict=True, gt=0, le=86_400, allow_inf_nan=False)]
+TIME_BUDGET_DOC = (
+    "seconds the search may take before it answers with what it found, marked "
+    "search.complete = false with search.reason = \"time\" (default LINKAGE_SEARCH_TIME_S, 4 s; "
+    "at most three quarters of LINKAGE_TIME_LIMIT_S: a larger value is lowered to that, and "
+    "search.time_budget_s says what was used). Jobs use the job's time limit instead."
+)
+
+
 class SpaceOptions(Strict):
     max_points: Annotated[int, Field(strict=True, ge=10, le=200_000)] | None = Field(
         None, description="budget of points per traced curve (default 20000)"
@@ -44,6 +53,7 @@ class SpaceOptions(Strict):
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] | None = Field(
         None, description="seed of the random starts (default 0)"
     )
+    time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
 
 
 class SpaceRequest(Strict):
@@ -135,6 +145,10 @@ class BranchSplitOut(BaseModel):
 class SplittingResponse(BaseModel):
     branch_points: list[BranchSplitOut]
     critical_points_found: int
+    search: dict[str, object] = Field(
+        description="the critical-point search behind the answer (as in critical-points): "
+        "complete, reason, time_budget_s"
+    )
     tolerances: TolerancesUsed
 
 
@@ -177,7 +191,14 @@ class DesignResponse(BaseModel):
     largest_change: float
     predicted: list[PredictedOut]
     conflicts: list[ConflictOut]
-    verified: bool | None = Field(description="the perturbed linkage, re-traced, agrees")
+    verified: bool | None = Field(
+        description="the perturbed linkage, re-traced, agrees (null: infeasible, or not every "
+        "target re-traced within the time budget)"
+    )
+    search: dict[str, object] = Field(
+        description="the critical-point search behind the answer (as in critical-points): "
+        "complete, reason, time_budget_s"
+    )
     tolerances: TolerancesUsed
 
 
@@ -208,6 +229,9 @@ class RobustnessSearch(BaseModel):
         None, description="multistart: the critical-point search that seeds it was complete"
     )
     planes: int | None = Field(None, description="closed form: critical hyperplanes tried")
+    time_budget_s: float | None = Field(
+        None, description="seconds the search was given (synchronous requests)"
+    )
 
 
 class RobustnessResponse(BaseModel):
@@ -244,6 +268,7 @@ class CriticalValuesOptions(Strict):
     seeds_per_axis: Annotated[int, Field(strict=True, ge=2, le=20)] | None = Field(
         None, description="sample lengths per axis where curves are seeded (default 5)"
     )
+    time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
 
 
 class CriticalValuesRequest(Strict):
@@ -255,7 +280,10 @@ class CriticalValuesRequest(Strict):
 
 class RegionOut(BaseModel):
     point: list[float]
-    components: int
+    components: int | None = Field(
+        description="components of the configuration space at the point (null: not explored "
+        "within the time budget; search.complete is then false)"
+    )
     signature: str
     cells: int = Field(description="raster cells of the region")
 

@@ -18,7 +18,7 @@ FAST = {"angles": 24, "random_starts": 4}
     [("L1=0.5&L2=1.2&L3=1", "closed form"),  # crank-rocker: two components, no critical point
      ("", "tracer")],  # equilateral: three branch points, six segments (aliased "from")
 )
-def test_answer_equals_the_models_json(client, params, method):
+def test_answer_equals_the_models_json(app, client, params, method):
     linkage = client.get(f"/v1/presets/four-bar?{params}").json()
     body = {"linkage": linkage, "options": FAST}
     r = client.post("/v1/analysis/configuration-space", json=body)
@@ -26,7 +26,8 @@ def test_answer_equals_the_models_json(client, params, method):
     assert r.headers["content-type"].startswith("application/json")
     got = r.json()
     assert got["search"]["method"] == method
-    expected = jobs.configuration_space(SpaceRequest.model_validate(body), get_settings())
+    settings = app.dependency_overrides[get_settings]()  # the app's own (conftest)
+    expected = jobs.configuration_space(SpaceRequest.model_validate(body), settings)
     assert got == expected.model_dump(mode="json", by_alias=True)
     SpaceResponse.model_validate(got)
     if method == "tracer":
