@@ -305,8 +305,10 @@ class _Explorer:
         for n, u in enumerate(points):
             if self.out_of_time():
                 break
-            if batch:
-                self.deadline.report(0.6 * n / len(stack), "tracing the components")
+            # progress: seeds tested (all known for small linkages) or components traced
+            done = max(n / len(stack) if batch else 0.0,
+                       len(self.curves) / self.opt.max_components)
+            self.deadline.report(0.6 * done, "tracing the components")
             if batch and not covered[n] and tested[n] < len(self.curves):
                 chunk = np.arange(n, min(len(stack), n + SEED_CHUNK))
                 for c in range(int(tested[chunk].min()), len(self.curves)):

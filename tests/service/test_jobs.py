@@ -254,6 +254,38 @@ def test_cancelled_job_stops_its_tasks(api):
     assert frozen["status"] == "cancelled" and frozen["result"] is None
 
 
+def long_exploration(api: TestClient) -> dict[str, Any]:
+    """The general tracer on a 40-rotor chain: its 2^39 components take far beyond any test."""
+    chain = api.get("/v1/presets/kl-chain?n=40").json()
+    return {"operation": "analysis/configuration-space",
+            "body": {"linkage": chain, "options": {"max_components": 1000}}}
+
+
+def test_analysis_job_progress_comes_from_the_engine_and_cancel_stops_it(api):
+    r = api.post("/v1/jobs", json=long_exploration(api))
+    assert r.status_code == 202
+    location = r.headers["location"]
+    seen: list[float] = []
+    messages: set[str] = set()
+    stop_by = time.monotonic() + WAIT_S
+    while time.monotonic() < stop_by:  # until the engine has reported from inside its search
+        job = api.get(location).json()
+        seen.append(job["progress"]["fraction"])
+        messages.add(job["progress"]["message"])
+        if "tracing the components" in messages and 0 < seen[-1] < 1:
+            break
+        time.sleep(0.05)
+    assert "tracing the components" in messages, messages
+    assert seen == sorted(seen) and 0 < seen[-1] < 1
+    assert executing(api) > 0
+    r = api.delete(location)
+    assert r.status_code == 200 and r.json()["status"] == "cancelled"
+    stop_by = time.monotonic() + 20
+    while executing(api) and time.monotonic() < stop_by:
+        time.sleep(0.1)
+    assert executing(api) == 0  # the engine saw the cancel flag through its deadline
+
+
 def test_error_paths_answer_problems(api, grid_job):
     r = api.post("/v1/jobs", json={"operation": "analysis/nope", "body": {}})
     assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "operation"]
