@@ -97,6 +97,11 @@ class SpaceOptions:
     #: (critical points are in one canonical order whichever path finds them; the report then
     #: has no seeds or traced curves). Needs ``closed_form`` too; False always traces.
     critical_closed_form: bool = True
+    #: With ``critical_closed_form``, where the closed form certifies that there is no critical
+    #: point, take the near misses from its walks instead of tracing the curves (several times
+    #: faster; it may miss one of a mirror pair of closest approaches, which seeds of a
+    #: critical-value slice do not need; False: the general search's near misses).
+    near_misses_closed_form: bool = False
 
 
 @dataclass(frozen=True)
@@ -559,14 +564,21 @@ def find_critical_points(
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
     ex = _Explorer(linkage, tol, opt, deadline or NEVER)
+    start = linkage.coordinates() if start_on_space else None
     if opt.closed_form and opt.critical_closed_form:
         fast = _closed_form_critical(ex)
         if fast is not None:
             return fast
+        if opt.near_misses_closed_form and ex.report.get("closed_form") == NO_CANDIDATE:
+            # certified: no critical point; the near misses from the closed form's walks (as
+            # explore finds them), instead of tracing the curves
+            space = _closed_form(ex, start, near_misses=True)
+            if space is not None:
+                return CriticalSearch([], space.near_misses, space.search, False)
     if opt.critical_closed_form:
         ex.report["method"] = "tracer"
         ex.report.setdefault("closed_form", "off")
-    ex.trace_all(linkage.coordinates() if start_on_space else None)
+    ex.trace_all(start)
     crit, misses, degenerate = ex.critical_points()
     search = dict(ex.report)
     search.update(
@@ -806,6 +818,12 @@ def _closed_form(ex: _Explorer, start: np.ndarray | None, near_misses: bool) -> 
     return SpaceResult(components, [], [], misses, report, False)
 
 
+#: ``search["closed_form"]`` of :func:`_closed_form_critical` when the closed form certifies that
+#: there is no critical point (the near misses then come from the closed-form walks).
+NO_CANDIDATE = ("declined: no candidate (no critical point); the near misses come from the "
+                "closed-form walks or the general search")
+
+
 def _closed_form_critical(ex: _Explorer) -> CriticalSearch | None:
     """:func:`find_critical_points` from the closed-form candidates of
     :func:`engine.dyads.critical_candidates`, or None (the general path runs;
@@ -827,8 +845,7 @@ def _closed_form_critical(ex: _Explorer) -> CriticalSearch | None:
         ex.report["closed_form"] = cc.report["closed_form"]
         return None
     if not len(cc.points):
-        ex.report["closed_form"] = ("declined: no candidate (no critical point); the near "
-                                    "misses come from the general search")
+        ex.report["closed_form"] = NO_CANDIDATE
         return None
     crit, _, degenerate, failed = ex.resolve(list(cc.points))
     if failed or degenerate or not crit:

@@ -272,7 +272,7 @@ def critical_value_slice(
     # near its lengths), so its curves get a point budget: one that fails to close (as near a
     # branch point at critical lengths) must not cost a full trace budget.
     seed_opt = replace(
-        opt, max_components=min(opt.max_components, 8),
+        opt, max_components=min(opt.max_components, 8), near_misses_closed_form=True,
         trace=replace(opt.trace, max_points=min(opt.trace.max_points, SEED_MAX_POINTS)),
     )
 
