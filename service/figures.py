@@ -70,6 +70,11 @@ def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
 
 def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> bytes:
     """The components in two rotor angles, critical points by kind, segments labelled."""
+    if body.linkage.dimension != 2:
+        raise InvalidRequest(
+            "the configuration-space figure draws the components in the angles of two rotors "
+            "in the plane; this linkage is 3D (its components are in the JSON answer of "
+            "/v1/analysis/configuration-space)", loc=("linkage", "dimension"))
     rotors = _rotors(body.linkage)
     if body.axes is None:
         if len(rotors) < 2:

@@ -125,6 +125,15 @@ def test_configuration_space_figure_needs_two_rotors(client: Any) -> None:
     assert_problem(r, 422, ["body", "linkage", "bars"])
 
 
+def test_configuration_space_figure_of_a_3d_linkage_is_a_422_not_a_500(client: Any) -> None:
+    """Rotor angles are planar: a 3D one-degree-of-freedom linkage (the hinged rotor chain)
+    was a 500 (KeyError) here; it is a problem naming the dimension."""
+    linkage = client.get("/v1/presets/rotor-chain-3d").json()
+    r = client.post("/v1/figures/configuration-space", json={"linkage": linkage})
+    assert_problem(r, 422, ["body", "linkage", "dimension"])
+    assert "3D" in r.json()["detail"]
+
+
 # -- critical values and splitting ---------------------------------------------------------
 
 
