@@ -61,13 +61,24 @@ class TimedClient:
     def timed_post(self, url: str, json: Any) -> tuple[httpx.Response, float]:
         key = (url, _canonical(json))
         if key not in self.seen:
+            self.seen[key] = self._post(url, json)
+        return self.seen[key]
+
+    def _post(self, url: str, body: Any) -> tuple[httpx.Response, float]:
+        # uvicorn closes the connection after an unhandled exception (a 500): a request sent on
+        # that kept-alive connection fails before reaching the server, and is sent again once
+        for attempt in (0, 1):
             t0 = time.perf_counter()
             try:
-                r = self.client.post(url, json=json)
+                return self.client.post(url, json=body), time.perf_counter() - t0
             except httpx.TimeoutException:
-                r = httpx.Response(599, json={"title": "client timeout"})
-            self.seen[key] = (r, time.perf_counter() - t0)
-        return self.seen[key]
+                return httpx.Response(599, json={"title": "client timeout"}), \
+                    time.perf_counter() - t0
+            except httpx.TransportError as exc:
+                if attempt:
+                    return httpx.Response(0, json={"title": f"no answer: {exc!r}"}), \
+                        time.perf_counter() - t0
+        raise AssertionError("unreachable")
 
     def post(self, url: str, json: Any = None, **_: Any) -> httpx.Response:
         return self.timed_post(url, json)[0]
@@ -80,7 +91,7 @@ def _canonical(body: Any) -> str:
 def outcome(r: httpx.Response) -> dict[str, Any]:
     """Status, and ``search.complete``/``search.reason`` of a JSON answer, or the problem."""
     out: dict[str, Any] = {"status": r.status_code, "complete": None, "reason": None}
-    if "json" not in r.headers.get("content-type", "") and r.status_code != 599:
+    if "json" not in r.headers.get("content-type", ""):
         return out
     try:
         doc = r.json()
@@ -91,6 +102,8 @@ def outcome(r: httpx.Response) -> dict[str, Any]:
         if isinstance(search, dict):
             out["complete"] = search.get("complete")
             out["reason"] = search.get("reason")
+            out["search"] = {k: v for k, v in search.items()
+                             if k not in ("complete", "reason") and isinstance(v, int | float)}
     else:
         out["problem"] = f"{doc.get('title', '')}: {doc.get('detail', '')}"[:300]
     return out
@@ -134,6 +147,15 @@ def main() -> None:
                   f"({os.cpu_count()} cores), {code['commit'][:12]}")
     load_before = os.getloadavg()
     t_start = time.perf_counter()
+
+    def save() -> None:  # after every row: a run stopped half-way keeps what it measured
+        table.save(args.json, code=code, time_limit_s=args.time_limit or 30.0,
+                   only=args.only, wall_s=round(time.perf_counter() - t_start, 1),
+                   load_before=[round(x, 2) for x in load_before],
+                   load_now=[round(x, 2) for x in os.getloadavg()],
+                   note=f"{os.cpu_count()} cores shared with other work (e.g. test runs): "
+                   "load1 per row is the 1-minute load average when the answer came")
+
     with served_process(["--no-access-log"], env=env, timeout=120, repo=args.repo,
                         python=python, log=args.log) as url, \
             httpx.Client(base_url=url, timeout=(args.time_limit or 30.0) + 120) as http:
@@ -142,11 +164,7 @@ def main() -> None:
             r, seconds = client.timed_post(path, body)
             table.record(f"{preset} {path}", seconds, **outcome(r),
                          load1=round(os.getloadavg()[0], 2), preset=preset, endpoint=path)
-    table.save(args.json, code=code, time_limit_s=args.time_limit or 30.0,
-               only=args.only, wall_s=round(time.perf_counter() - t_start, 1),
-               load_before=[round(x, 2) for x in load_before],
-               load_after=[round(x, 2) for x in os.getloadavg()],
-               note="2 shared cores: the lead's test runs share the machine (load1 per row)")
+            save()
 
 
 if __name__ == "__main__":
