@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 
 def best_of(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, Any]:
@@ -46,9 +46,11 @@ class Table:
         extras = "".join(f"  {k}={_fmt(v)}" for k, v in extra.items())
         print(f"{name:<64} {seconds:10.4f} s  {detail}{extras}", flush=True)
 
-    def save(self, path: Path) -> None:
+    def save(self, path: Path, **meta: Any) -> None:
+        """Write the title, ``meta`` (e.g. the machine's load) and the rows as JSON."""
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"title": self.title, "rows": self.rows}, indent=2) + "\n")
+        path.write_text(json.dumps({"title": self.title, **meta, "rows": self.rows}, indent=2)
+                        + "\n")
 
 
 def _fmt(v: Any) -> str:
@@ -86,16 +88,23 @@ def served(app: Any | None = None, timeout: float = 60.0) -> Iterator[str]:
 
 @contextmanager
 def served_process(uvicorn_args: list[str] | tuple[str, ...] = (),
-                   env: dict[str, str] | None = None, timeout: float = 60.0) -> Iterator[str]:
+                   env: dict[str, str] | None = None, timeout: float = 60.0,
+                   repo: Path | None = None, python: str | None = None,
+                   log: Path | None = None) -> Iterator[str]:
     """The service as deployed: ``uvicorn service.main:app`` in a process of its own on a free
     loopback port (no client work shares its interpreter, as it does with :func:`served`), with
-    more uvicorn options and environment (e.g. ``LINKAGE_WORKERS``); yields the base URL."""
+    more uvicorn options and environment (e.g. ``LINKAGE_WORKERS``); yields the base URL.
+
+    ``repo`` (default: this checkout) is the working directory, so the code served is that
+    tree's (``python -m`` puts it first on ``sys.path``), run by ``python`` (default: this
+    interpreter); ``log`` takes the server's output (default: discarded)."""
     port = free_port()
+    out: IO[str] | int = subprocess.DEVNULL if log is None else open(log, "w")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
+        [python or sys.executable, "-m", "uvicorn", "service.main:app", "--host", "127.0.0.1",
          "--port", str(port), "--log-level", "warning", *uvicorn_args],
-        cwd=Path(__file__).resolve().parents[1], env={**os.environ, **(env or {})},
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        cwd=repo or Path(__file__).resolve().parents[1], env={**os.environ, **(env or {})},
+        stdout=out, stderr=out,
     )
     url = f"http://127.0.0.1:{port}"
     try:
@@ -107,6 +116,8 @@ def served_process(uvicorn_args: list[str] | tuple[str, ...] = (),
             proc.wait(timeout)
         except subprocess.TimeoutExpired:
             proc.kill()
+        if not isinstance(out, int):
+            out.close()
 
 
 def wait_until_healthy(url: str, timeout: float, alive: Callable[[], bool]) -> None:
