@@ -9,7 +9,8 @@ linkage is meaningful for (issue 11): the cases, not tests; used by the tests an
   values, their figures): one degree of freedom with something fixed, ``M - E = 1`` counted as
   ``engine.configuration_space._require_one_dof`` does (``M`` free coordinates, ``E`` bars with
   a free end);
-* the configuration-space figure: also two rotors (bars with exactly one pinned end) as axes;
+* the configuration-space figure: also planar, with two rotors (bars with exactly one pinned end)
+  as axes (3D linkages get a 422 naming ``linkage.dimension``);
 * critical values: the first two bars with a free end as axes, box ``[0.8 L, 1.2 L]`` each;
 * splitting: the first bar with a free end changed by ``1e-3`` of its length;
 * design: only where ``/v1/analysis/critical-points`` (asked through ``client``) reports a
@@ -93,7 +94,8 @@ def bodies(linkage: Json) -> Iterator[tuple[str, Json]]:
     values = {"linkage": linkage, "axes": [
         {"bar": b["id"], "min": BOX[0] * bar_length(linkage, b),
          "max": BOX[1] * bar_length(linkage, b)} for b in bars[:2]]}
-    skip = {"/v1/figures/configuration-space": len(rotors(linkage)) < 2,
+    skip = {"/v1/figures/configuration-space": len(rotors(linkage)) < 2
+            or int(linkage.get("dimension", 2)) != 2,
             "/v1/analysis/critical-values": len(bars) < 2,
             "/v1/figures/critical-values": len(bars) < 2}
     for path in TRACING:

@@ -1,0 +1,56 @@
+"""Every preset with its default parameters through every endpoint it is meaningful for answers
+200 (issue 11): never a 504 for work that is merely large, never a 500; an answer cut short says
+so (``search.complete: false`` with a ``reason``), a complete one has no reason.
+
+The app here has a short search time of its own (the point is the answers' shape, not their
+speed, which ``bench/bench_presets.py`` measures with the service's defaults)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from service.config import Settings
+from service.main import create_app
+from tests.conftest import ApiClient
+from tests.service.preset_matrix import preset_cases
+
+REASONS = {"time", "budget", "degenerate", "unresolved"}
+
+
+@pytest.fixture(scope="module")
+def api() -> Iterator[ApiClient]:
+    app = create_app(Settings.from_env().replace(time_limit_s=30.0, search_time_s=1.0))
+    client = ApiClient(app)
+    yield client
+    client.close()
+    app.state.engine_pool.close()
+
+
+def searches(answer: dict[str, Any]) -> list[dict[str, Any]]:
+    found = answer.get("search")
+    return [found] if isinstance(found, dict) else []
+
+
+def test_every_preset_answers_every_endpoint(api):
+    seen: set[str] = set()
+    answered = 0
+    for preset, path, body in preset_cases(api):
+        r = api.post(path, json=body)
+        assert r.status_code == 200, (preset, path, r.status_code, r.text[:500])
+        answered += 1
+        seen.add(preset)
+        if path.startswith("/v1/figures/"):
+            assert r.headers["content-type"].startswith("image/svg+xml")
+            assert r.text.lstrip().startswith("<?xml") or "<svg" in r.text[:500]
+            continue
+        for search in searches(r.json()):
+            if search["complete"]:
+                assert search["reason"] is None, (preset, path, search)
+            else:
+                assert search["reason"] in REASONS, (preset, path, search)
+    listed = {p["name"] for p in api.get("/v1/presets").json()}
+    assert seen == listed
+    assert answered >= 80  # every preset: first and second order and a figure; 1-DOF: all
