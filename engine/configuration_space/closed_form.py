@@ -1,0 +1,201 @@
+"""The closed-form path of planar dyad chains (:mod:`engine.dyads`): whole components sampled
+in one vectorised pass, or critical points from the closed-form candidates, answered only where
+they are beyond doubt.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.budget import (
+    REASON_BUDGET,
+    REASON_TIME,
+)
+from engine.chain_count import chain_components
+from engine.configuration_space.critical_search import critical_points, resolve
+from engine.configuration_space.explorer import Explorer
+from engine.configuration_space.results import Component, CriticalSearch, SpaceResult
+from engine.configuration_space.segments import mark_through_start
+from engine.constraints import Constraints
+from engine.critical import NearMiss
+from engine.dyads import closed_form_space, critical_candidates
+from engine.trace import (
+    Curve,
+    polyline_distance,
+)
+
+#: The critical-point search on closed-form walks looks at most this many points per walk
+#: (the tracer's own density at the default step bound is far below it).
+SEARCH_POINTS = 2000
+
+
+def walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
+    """A closed walk (n, M; first point repeated) as a traced :class:`Curve`: unit tangents
+    along the walk, ``det([t; J])`` signs and ``log|det|``, computed for all points at once.
+
+    The tangent is the generalised cross product of ``J``'s rows, ``c_k = (-1)^k det(J without
+    column k)``; then ``det([c; J]) = |c|^2``, so with ``t = o c / |c|`` (``o = +-1`` orienting
+    ``t`` along the walk) ``det([t; J]) = o |c|``."""
+    pts = walk[:-1]
+    stride = max(1, int(np.ceil(len(pts) / SEARCH_POINTS)))
+    pts = pts[::stride]
+    lk = cons.linkage
+    pos = np.empty((len(pts), *lk.positions.shape))
+    pos[:] = lk.positions
+    pos[:, ~lk.fixed] = pts
+    r, c, s, ax = cons._pattern
+    bars = cons.linkage.ends[cons.bars]
+    diff = pos[:, bars[:, 0]] - pos[:, bars[:, 1]]  # (n, Ea, d)
+    jac = np.zeros((len(pts), cons.n_constraints, cons.n_free))
+    jac[:, r, c] = 2.0 * s * diff[:, r, ax]
+    m = cons.n_free
+    cof = np.empty((len(pts), m))
+    for k in range(m):  # M small determinants per point, each vectorised over the points
+        cols = np.r_[0:k, k + 1:m]
+        cof[:, k] = (-1) ** k * np.linalg.det(jac[:, :, cols])
+    ahead = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
+    orient = np.where(np.einsum("ij,ij->i", cof, ahead) >= 0, 1, -1)
+    norm = np.linalg.norm(cof, axis=1)
+    tangents = orient[:, None] * cof / np.maximum(norm, 1e-300)[:, None]
+    return Curve(points=list(pts), tangents=list(tangents), signs=orient.tolist(),
+                 logdets=np.log(np.maximum(norm, 1e-300)).tolist(), stop="closed")
+
+
+def closed_form_answer(
+    ex: Explorer, start: np.ndarray | None, near_misses: bool
+) -> SpaceResult | None:
+    """The answer of :func:`explore` from :func:`engine.dyads.closed_form_space`, or None
+    (the general path runs; ``search["closed_form"]`` then says why the closed form declined).
+
+    With ``near_misses`` the usual critical-point search runs on the closed-form walks (for the
+    near misses); should it find a critical point the closed form's certificate is contradicted
+    and the general path answers instead."""
+    lk, opt = ex.linkage, ex.opt
+    try:
+        cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
+    except (ArithmeticError, ValueError, MemoryError) as exc:  # a safety net: never worse
+        ex.report["method"] = "tracer"                          # than the general path
+        ex.report["closed_form"] = f"declined: {type(exc).__name__}: {exc}"
+        return None
+    if cf.components is None:
+        ex.report["method"] = "tracer"
+        ex.report["closed_form"] = cf.report["closed_form"]
+        return None
+    free = ~np.asarray(lk.fixed)
+    walks = [c[:, free] for c in cf.components]
+    if start is not None:  # as the tracer, which starts there: the given one first
+        walks.sort(key=lambda w: polyline_distance(w, start) > ex.h_max)
+    truncated = len(walks) > opt.max_components
+    walks = walks[: opt.max_components]
+    report: dict[str, object] = {
+        "method": "closed form",
+        "closed_form": "used",
+        "closed_form_rotor": cf.report["rotor"],
+        "closed_form_sheets": cf.report["sheets"],
+        "closed_form_folds": cf.report["folds"],
+        "closed_form_samples": cf.report["samples"],
+        "closed_form_margin": cf.report["margin"],
+        "rotor_sweeps": [cf.report["rotor"]],
+        "angles_per_rotor": cf.report["samples"],
+        "assembly_budget_per_angle": cf.report["sheets"],
+        "assemblies_truncated": False,
+        "random_starts": 0,
+        "random_starts_projected": 0,
+        "seeds": 0,
+        "curves_traced": 0,
+        "component_budget_reached": truncated,
+        "open_curves": 0,
+    }
+    misses: list[NearMiss] = []
+    if near_misses:
+        ex.curves = [walk_curve(ex.cons, w) for w in walks]
+        if ex.curves:
+            ex._rebuild_tree()
+        crit, misses, degenerate = critical_points(ex)
+        if crit or degenerate:
+            ex.curves, ex.tree = [], None
+            ex.report = {"method": "tracer", "closed_form": "declined: the critical-point "
+                         "search found a critical point"}
+            return None
+        report["critical_multistart"] = ex.report["critical_multistart"]
+        report["critical_candidates"] = ex.report["critical_candidates"]
+    else:
+        report["critical_multistart"] = 0
+        report["critical_candidates"] = 0
+    components = [Component(w, True, False, [], []) for w in walks]
+    mark_through_start(components, start, ex.h_max)
+    count = chain_components(lk)
+    if count is not None:  # as in the general path
+        report["components_total"] = count.components
+        report["components_total_rule"] = count.rule
+    report.update({
+        "critical_points_found": 0,
+        "segments_complete": True,
+        "step_max": ex.h_max,
+        "strain_tol": opt.trace.strain_tol,
+        "complete": not (truncated or ex.timed_out),
+        "reason": REASON_TIME if ex.timed_out else REASON_BUDGET if truncated else None,
+    })
+    return SpaceResult(components, [], [], misses, report, False)
+
+
+#: ``search["closed_form"]`` of :func:`closed_form_critical` when the closed form certifies that
+#: there is no critical point (the near misses then come from the closed-form walks).
+NO_CANDIDATE = ("declined: no candidate (no critical point); the near misses come from the "
+                "closed-form walks or the general search")
+
+
+def closed_form_critical(ex: Explorer) -> CriticalSearch | None:
+    """:func:`find_critical_points` from the closed-form candidates of
+    :func:`engine.dyads.critical_candidates`, or None (the general path runs;
+    ``search["closed_form"]`` then says why).
+
+    Every candidate is refined, deduplicated and classified as in the general search. The
+    answer is given only when it is beyond doubt: at least one candidate, every candidate
+    refines to a critical point (a start that does not is a near miss, i.e. lengths near but
+    not at critical values, or a failed refinement: the general search decides), and no
+    critical point is degenerate (non-isolated sets are merged by the general search). With no
+    candidate at all the certificate holds (no critical point) but the near misses come from
+    the general search, which then runs."""
+    try:
+        cc = critical_candidates(ex.linkage, ex.tol)
+    except (ArithmeticError, ValueError, MemoryError) as exc:  # a safety net, as in explore
+        ex.report["closed_form"] = f"declined: {type(exc).__name__}: {exc}"
+        return None
+    if cc.points is None:
+        ex.report["closed_form"] = cc.report["closed_form"]
+        return None
+    if not len(cc.points):
+        ex.report["closed_form"] = NO_CANDIDATE
+        return None
+    crit, _, degenerate, failed = resolve(ex, list(cc.points))
+    if failed or degenerate or not crit:
+        why = (f"{failed} of {len(cc.points)} candidates did not refine to a critical point"
+               if failed else "a degenerate critical point" if degenerate
+               else "no critical point")
+        ex.report["closed_form"] = f"declined: {why}"
+        return None
+    search: dict[str, object] = {
+        "method": "closed-form candidates",
+        "closed_form": "used",
+        "closed_form_rotor": cc.report["rotor"],
+        "closed_form_sheets": cc.report["sheets"],
+        "closed_form_samples": cc.report["samples"],
+        "closed_form_margin": cc.report["margin"],
+        "closed_form_extrema": cc.report.get("extrema_within_margin", 0),
+        "closed_form_doubtful_folds": cc.report.get("doubtful_folds", 0),
+        "critical_candidates": len(cc.points),
+        "critical_multistart": 0,
+        "curves_traced": 0,
+        "assemblies_truncated": False,
+        "component_budget_reached": False,
+        "open_curves": 0,
+        "critical_points_found": len(crit),
+        "step_max": ex.h_max,
+        "strain_tol": ex.opt.trace.strain_tol,
+        # every sheet of the rotor's whole turn was searched: complete as the general search is
+        # when its curves cover the space and no critical point is degenerate
+        "complete": True,
+        "reason": None,
+    }
+    return CriticalSearch(crit, [], search, False)

@@ -1,0 +1,121 @@
+"""Critical points along the traced curves: candidates (sign changes and deep minima of the
+augmented determinant, closest approaches, a seeded multistart), refined, deduplicated,
+classified and merged where not isolated.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from engine.assembly import projected_random_starts
+from engine.configuration_space.explorer import Explorer
+from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
+
+#: Above this many free coordinates the critical-point search uses only candidates along the
+#: traced curves (no random multistart on the augmented system).
+MULTISTART_MAX_FREE = 64
+
+
+def candidates(ex: Explorer) -> list[np.ndarray]:
+    """Starts of the refinement: sign changes and deep minima of ``|det([t; J])|`` along each
+    curve, each curve's closest approach, and (small linkages) random projected starts."""
+    starts: list[np.ndarray] = []
+    for curve in ex.curves:
+        pts = np.array(curve.points)
+        signs = np.array(curve.signs)
+        flips = np.flatnonzero(signs[1:] * signs[:-1] < 0)
+        starts += [0.5 * (pts[i] + pts[i + 1]) for i in flips]
+        logd = np.array(curve.logdets)
+        if len(logd) >= 3:
+            deep = np.median(logd) - np.log(30.0)
+            mins = np.flatnonzero(
+                (logd[1:-1] <= logd[:-2]) & (logd[1:-1] <= logd[2:]) & (logd[1:-1] < deep)
+            ) + 1
+            starts += [pts[i] for i in mins]
+        if len(logd):  # the closest approach of every curve, however shallow
+            starts.append(pts[int(np.argmin(logd))])
+    # Seeded multistart from random points projected onto the constraints (close to where
+    # critical points live); only for small linkages, where it is cheap: larger ones rely on
+    # the candidates along the traced curves.
+    starts_used = ex.opt.random_starts if ex.cons.n_free <= MULTISTART_MAX_FREE else 0
+    rng = np.random.default_rng(ex.opt.seed + 1)
+    starts += projected_random_starts(ex.linkage, ex.tol, starts_used, rng)
+    ex.report["critical_multistart"] = starts_used
+    return starts
+
+
+def critical_points(ex: Explorer) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
+    """The critical points, near misses and degeneracy found from :func:`candidates`."""
+    starts = candidates(ex)
+    ex.report["critical_candidates"] = len(starts)
+    exact, misses, degenerate, _ = resolve(ex, starts)
+    return exact, misses, degenerate
+
+
+def resolve(
+    ex: Explorer, candidates: Iterable[np.ndarray]
+) -> tuple[list[CriticalPoint], list[NearMiss], bool, int]:
+    """Refine every candidate on the augmented system; deduplicate, classify and merge the
+    critical points (near misses only against traced curves): ``(critical points, near
+    misses, degenerate, how many candidates did not refine to a critical point)``."""
+    exact: list[CriticalPoint] = []
+    misses: list[NearMiss] = []
+    failed = 0
+    for u0 in candidates:
+        if ex.out_of_time():
+            break
+        ref = refine_critical(ex.cons, u0, ex.tol)
+        failed += not ref.critical
+        if ref.critical:
+            if any(np.linalg.norm(ref.u - c.u) <= 1e-6 * ex.scale for c in exact):
+                continue
+            analysis = classify(ex.linkage, ref.u, ex.tol)
+            exact.append(CriticalPoint(ref.u, analysis, ref.length_residual,
+                                       ref.stress_residual))
+        elif ex.tree is not None:
+            _, i = ex.tree.query(ref.u)
+            curve, offset = ex._tree_point(int(i))
+            on = curve.points[offset]
+            misses.append(NearMiss(on, singular_gap(ex.cons, on),
+                                   float(np.linalg.norm(on - ref.u)),
+                                   ref.length_residual, ref.u, ref.sigma))
+    exact, degenerate = merge_non_isolated(exact)
+    # One canonical order, whichever path found them (closed-form candidates, traced
+    # curves, multistart): every endpoint numbers the critical points alike, so a
+    # branch_point index from one answer means the same point in another.
+    exact.sort(key=lambda c: tuple(np.round(c.u / ex.scale, 5)))
+    misses = dedupe_misses(misses, ex.scale)
+    return exact, misses, degenerate, failed
+
+
+def merge_non_isolated(points: list[CriticalPoint]) -> tuple[list[CriticalPoint], bool]:
+    """Keep isolated critical points; merge points of non-isolated sets into one entry per
+    stress support (the set is a continuum: any count of its points would be wrong)."""
+    kept: list[CriticalPoint] = []
+    supports: set[tuple[int, ...]] = set()
+    degenerate = False
+    for cp in points:
+        reason = cp.analysis.reason or ""
+        if cp.kind == "degenerate" and "non-isolated" in reason:
+            degenerate = True
+            stress = cp.analysis.self_stress
+            support = tuple(np.flatnonzero(np.abs(stress) > 1e-6).tolist()) if stress is not None \
+                else ()
+            if support in supports:
+                continue
+            supports.add(support)
+        elif cp.kind == "degenerate":
+            degenerate = True
+        kept.append(cp)
+    return kept, degenerate
+
+
+def dedupe_misses(misses: list[NearMiss], scale: float) -> list[NearMiss]:
+    misses = sorted(misses, key=lambda m: m.length_gap)
+    out: list[NearMiss] = []
+    for m in misses:
+        if all(np.linalg.norm(m.critical_u - o.critical_u) > 1e-4 * scale for o in out):
+            out.append(m)
+    return out

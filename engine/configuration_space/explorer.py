@@ -1,0 +1,230 @@
+"""The search state: constraints, the curves traced from the seeds (with a k-d tree of their
+points), the report and the deadline.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from collections.abc import Iterable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from engine.assembly import iter_seeds
+from engine.batched import BATCH_MAX_FREE, BatchedConstraints
+from engine.budget import (
+    NEVER,
+    REASON_BUDGET,
+    REASON_DEGENERATE,
+    REASON_TIME,
+    REASON_UNRESOLVED,
+    Deadline,
+)
+from engine.configuration_space.results import (
+    MIN_STEP_MAX_REL,
+    SpaceOptions,
+    require_one_dof,
+)
+from engine.constraints import Constraints
+from engine.errors import InvalidRequest
+from engine.linkage import Linkage
+from engine.rigidity import first_order
+from engine.tolerances import Tolerances
+from engine.trace import (
+    STOP_TIME,
+    Curve,
+    correct,
+    trace_curve,
+)
+
+#: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
+#: method (measured faster than the dense SVD from about 100 rotors of a chain).
+SPARSE_SEED_RIGIDITY_MIN_FREE = 128
+
+
+#: Why a traced curve stopped, when that was a count running out (see ``trace_curve``).
+BUDGET_STOPS = re.compile(r"max points|step budget")
+
+
+#: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
+SEED_CHUNK = 128
+
+
+class Explorer:
+    """The state of one search: the linkage's constraints, the curves traced so far (with a
+    k-d tree of their points), the search report and the deadline."""
+
+    def __init__(self, linkage: Linkage, tol: Tolerances, options: SpaceOptions,
+                 deadline: Deadline = NEVER) -> None:
+        self.linkage = linkage
+        self.deadline = deadline
+        #: the deadline stopped some part of the search (its answer is then incomplete)
+        self.timed_out = False
+        self.cons = Constraints(linkage)
+        require_one_dof(linkage, self.cons)
+        self.tol = tol
+        self.opt = options
+        self.h_max = options.trace.resolved_step_max(self.cons)
+        self.scale = float(np.median(linkage.lengths[self.cons.bars]))
+        if self.h_max < MIN_STEP_MAX_REL * self.scale:
+            raise InvalidRequest(
+                f"step_max = {self.h_max:g} is below {MIN_STEP_MAX_REL:g} of the median bar "
+                f"length ({self.scale:g}): a curve would need more points than any budget",
+                loc=("options", "step_max"),
+            )
+        self.curves: list[Curve] = []
+        self.tree: cKDTree | None = None
+        self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self.tree_first: np.ndarray = np.zeros(0, dtype=int)
+        self.report: dict[str, object] = {}
+        self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
+            else None
+
+    def out_of_time(self) -> bool:
+        """True (and remembered) once the deadline has passed: the search stops there."""
+        if not self.timed_out and self.deadline.expired():
+            self.timed_out = True
+        return self.timed_out
+
+    def _trace(self, u: np.ndarray, t: np.ndarray, close: bool = True) -> Curve:
+        curve = trace_curve(self.cons, u, t, self.tol, self.opt.trace, close=close,
+                            deadline=self.deadline)
+        self.timed_out = self.timed_out or curve.stop == STOP_TIME
+        return curve
+
+    def completion(self, degenerate: bool, segments_complete: bool = True) -> dict[str, object]:
+        """``complete`` and, when not, the ``reason``: ``"time"`` (the deadline stopped the
+        search), ``"budget"`` (a count ran out: components, assemblies, points of a curve),
+        ``"degenerate"`` (a critical point that is not isolated) or ``"unresolved"`` (a curve
+        or segment that stopped open for a numerical reason, e.g. near a split branch point)."""
+        budget = bool(self.report.get("component_budget_reached")
+                      or self.report.get("assemblies_truncated")
+                      or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
+        unresolved = bool(self.report.get("open_curves", 0)) or not segments_complete
+        reason = (REASON_TIME if self.timed_out else REASON_BUDGET if budget
+                  else REASON_DEGENERATE if degenerate
+                  else REASON_UNRESOLVED if unresolved else None)
+        return {"complete": reason is None, "reason": reason}
+
+    def _rebuild_tree(self) -> None:
+        pts = [np.array(c.points) for c in self.curves]
+        self.tree = cKDTree(np.vstack(pts))
+        self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+        # index of each curve's first point in the tree: a point's offset in its curve
+        self.tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+    def _tree_point(self, i: int) -> tuple[Curve, int]:
+        """The curve owning tree point ``i`` and the point's index along it."""
+        owner = int(self.tree_owner[i])
+        return self.curves[owner], int(i) - int(self.tree_first[owner])
+
+    def on_traced(self, u: np.ndarray) -> bool:
+        """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
+        correction from the nearest curve point towards ``u`` lands on ``u``."""
+        if self.tree is None:
+            return False
+        dist, idx = self.tree.query(u, k=min(4, self.tree.n))
+        for d, i in zip(np.atleast_1d(dist), np.atleast_1d(idx), strict=True):
+            if d > self.h_max:
+                continue
+            curve, offset = self._tree_point(int(i))
+            p, t = curve.points[offset], curve.tangents[offset]
+            v = p + ((u - p) @ t) * t
+            w, ok, _ = correct(self.cons, v, t, self.tol)
+            if ok and np.linalg.norm(w - u) <= 1e-6 * self.scale:
+                return True
+        return False
+
+    def trace_from(self, u: np.ndarray) -> Curve | None:
+        # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
+        # Lanczos, same rank rule), a dense SVD costs O(M^3) per traced curve (0.1-0.2 s at
+        # M = 200 to 400, more than tracing the curve).
+        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
+                          sparse=True if self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
+                          else None)
+        if rig.critical or rig.zero_modes.shape[0] != 1:
+            return None
+        curve = self._trace(u, rig.zero_modes[0])
+        if curve.stop != "closed":
+            back = self._trace(u, -rig.zero_modes[0], close=False)
+            curve = Curve(
+                points=back.points[::-1][:-1] + curve.points,
+                tangents=[-t for t in back.tangents[::-1][:-1]] + curve.tangents,
+                signs=back.signs[::-1][:-1] + curve.signs,
+                logdets=back.logdets[::-1][:-1] + curve.logdets,
+                stop=f"open ({back.stop}; {curve.stop})",
+            )
+        return curve
+
+    def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
+        """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
+        linkages): each point is tested from its 4 nearest points of ``curve`` within the step
+        bound (a superset of the tests :meth:`on_traced` makes for that curve), and a point
+        counts as on the curve only when a hyperplane correction lands on it."""
+        assert self.batched is not None  # only called for small linkages
+        pts = np.array(curve.points)
+        tans = np.array(curve.tangents)
+        k = min(4, len(pts))
+        dist, idx = cKDTree(pts).query(us, k=k)
+        dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+        on = np.zeros(len(us), dtype=bool)
+        for r in range(k):  # nearest curve point first; the next only where that one failed
+            which = np.flatnonzero(~on & (dist[:, r] <= self.h_max))
+            if not len(which):
+                continue
+            p, t = pts[idx[which, r]], tans[idx[which, r]]
+            u = us[which]
+            v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+            w, ok = self.batched.correct(v, t, self.tol)
+            on[which[ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)]] = True
+        return on
+
+    def trace_all(self, start: np.ndarray | None) -> None:
+        # Seeds are generated on demand: once the component budget is reached the rest (on long
+        # chains the costly random projections) is never computed; the report then counts the
+        # seeds generated up to that point.
+        found = iter_seeds(
+            self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
+            self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
+        )
+        truncated = False
+        first = [start] if start is not None else []
+        # Small linkages: every seed is generated (they are cheap) and tested in chunks, each
+        # against every curve traced so far in one batch per curve (``tested`` counts the
+        # curves a seed has been tested against), so a seed reached in the loop below is tested
+        # against every traced curve. Large ones take seeds lazily and test them one by one.
+        batch = self.batched is not None
+        points: Iterable[np.ndarray] = list(itertools.chain(first, found)) if batch \
+            else itertools.chain(first, found)
+        stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
+        batch = batch and len(stack) > 0
+        covered = np.zeros(len(stack), dtype=bool)
+        tested = np.zeros(len(stack), dtype=int)
+        for n, u in enumerate(points):
+            if self.out_of_time():
+                break
+            # progress: seeds tested (all known for small linkages) or components traced
+            done = max(n / len(stack) if batch else 0.0,
+                       len(self.curves) / self.opt.max_components)
+            self.deadline.report(0.6 * done, "tracing the components")
+            if batch and not covered[n] and tested[n] < len(self.curves):
+                chunk = np.arange(n, min(len(stack), n + SEED_CHUNK))
+                for c in range(int(tested[chunk].min()), len(self.curves)):
+                    sel = chunk[~covered[chunk] & (tested[chunk] <= c)]
+                    if len(sel):
+                        covered[sel[self.on_curve(stack[sel], self.curves[c])]] = True
+                tested[chunk] = len(self.curves)
+            if (covered[n] if batch else self.on_traced(u)):
+                continue
+            if len(self.curves) >= self.opt.max_components:
+                truncated = True
+                break
+            curve = self.trace_from(u)
+            if curve is None:
+                continue
+            self.curves.append(curve)
+            self._rebuild_tree()
+        self.report["curves_traced"] = len(self.curves)
+        self.report["component_budget_reached"] = truncated
+        self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)

@@ -1,0 +1,158 @@
+"""The two searches: :func:`explore` (components, critical points, segments) and
+:func:`find_critical_points` (the critical points alone).
+"""
+
+from __future__ import annotations
+
+from engine.budget import (
+    NEVER,
+    Deadline,
+)
+from engine.chain_count import chain_components
+from engine.configuration_space.closed_form import (
+    NO_CANDIDATE,
+    closed_form_answer,
+    closed_form_critical,
+)
+from engine.configuration_space.critical_search import critical_points
+from engine.configuration_space.explorer import Explorer
+from engine.configuration_space.results import (
+    CriticalSearch,
+    SpaceOptions,
+    SpaceResult,
+)
+from engine.configuration_space.segments import (
+    assemble_components,
+    mark_through_start,
+    trace_segments,
+)
+from engine.critical import CriticalPoint, NearMiss
+from engine.linkage import Linkage
+from engine.tolerances import Tolerances
+
+
+def find_critical_points(
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    start_on_space: bool = True,
+    deadline: Deadline | None = None,
+) -> CriticalSearch:
+    """Critical points and near misses of a 1-DOF linkage, as :func:`explore` finds them,
+    without building the segments and components.
+
+    The critical points come from the traced curves (sign changes and deep minima of the
+    augmented determinant, closest approaches) and the multistart, exactly as in
+    :func:`explore`; the segments only connect critical points already found (a ray traced
+    from a branch point crosses any other critical point on its way and goes on to a known
+    one), so they add nothing to the search: its ``complete`` here is that of the curves
+    (component budget, assemblies, no open curve) and of the classification (not degenerate).
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> res = find_critical_points(build_preset("four-bar", {"L2": 1.0}))
+    >>> len(res.critical_points), res.search["complete"]
+    (3, True)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
+    ex = Explorer(linkage, tol, opt, deadline or NEVER)
+    start = linkage.coordinates() if start_on_space else None
+    if opt.closed_form and opt.critical_closed_form:
+        fast = closed_form_critical(ex)
+        if fast is not None:
+            return fast
+        if opt.near_misses_closed_form and ex.report.get("closed_form") == NO_CANDIDATE:
+            # certified: no critical point; the near misses from the closed form's walks (as
+            # explore finds them), instead of tracing the curves
+            space = closed_form_answer(ex, start, near_misses=True)
+            if space is not None:
+                return CriticalSearch([], space.near_misses, space.search, False)
+    if opt.critical_closed_form:
+        ex.report["method"] = "tracer"
+        ex.report.setdefault("closed_form", "off")
+    ex.trace_all(start)
+    crit, misses, degenerate = critical_points(ex)
+    search = dict(ex.report)
+    search.update(
+        {
+            "critical_points_found": len(crit),
+            "step_max": ex.h_max,
+            "strain_tol": opt.trace.strain_tol,
+            **ex.completion(degenerate),
+        }
+    )
+    return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
+def explore(
+    linkage: Linkage,
+    tolerances: Tolerances | None = None,
+    options: SpaceOptions | None = None,
+    start_on_space: bool = True,
+    near_misses: bool = True,
+    deadline: Deadline | None = None,
+) -> SpaceResult:
+    """Components, critical points, segments and near misses of a 1-DOF linkage (on its
+    configuration space: see :func:`engine.constraints.on_constraints`).
+
+    ``near_misses=False`` says the caller does not need the near misses: where the closed form
+    of :mod:`engine.dyads` certifies that no critical point exists, or the rules of
+    :mod:`engine.chain_count` prove it for a rotor chain, the critical-point search (which
+    finds the near misses, and would find no critical point) is then skipped.
+
+    Examples
+    --------
+    >>> from engine.presets import build_preset
+    >>> res = explore(build_preset("four-bar", {"L2": 1.2}))
+    >>> len(res.components), len(res.critical_points)
+    (1, 0)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SpaceOptions()
+    ex = Explorer(linkage, tol, opt, deadline or NEVER)
+    # With start_on_space=False the given positions need not satisfy the lengths (e.g. lengths
+    # changed for a map): only the seeds are used, and none means an empty configuration space.
+    start = linkage.coordinates() if start_on_space else None
+    # -- closed-form path (engine.dyads); None: not a dyad chain, or at/near critical lengths --
+    if opt.closed_form:
+        fast = closed_form_answer(ex, start, near_misses)
+        if fast is not None:
+            return fast
+    # -- general path ---------------------------------------------------------------------
+    ex.report.setdefault("method", "tracer")
+    ex.report.setdefault("closed_form", "off")
+    ex.trace_all(start)
+    count = chain_components(linkage)
+    if count is not None and not near_misses:
+        # The chain rules prove that there is no critical point (engine.chain_count): the
+        # search would only find near misses, which the caller does not want. On long chains
+        # it is most of the cost (dense refinements on 2n unknowns).
+        crit: list[CriticalPoint] = []
+        misses: list[NearMiss] = []
+        degenerate = False
+        ex.report["critical_search"] = f"skipped: {count.rule} proves no critical point"
+    else:
+        crit, misses, degenerate = critical_points(ex)
+    # Segments need every critical point classified; with a degenerate one the traced curves
+    # themselves are the answer (they may pass through critical points).
+    segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
+    components = assemble_components(ex, crit, segs, degenerate)
+    mark_through_start(components, start, ex.h_max)
+    search = dict(ex.report)
+    if count is not None:
+        # the true total for rotor chains (four-bar decomposition), also when the budget of
+        # traced components is far below it (a 100-rotor spinner chain has 2^99)
+        search["components_total"] = count.components
+        search["components_total_rule"] = count.rule
+    search.update(
+        {
+            "critical_points_found": len(crit),
+            "segments_complete": seg_complete,
+            "step_max": ex.h_max,
+            "strain_tol": opt.trace.strain_tol,
+            **ex.completion(degenerate, seg_complete),
+        }
+    )
+    return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)
