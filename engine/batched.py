@@ -30,16 +30,9 @@ class BatchedConstraints:
         ends = lk.ends[cons.bars]
         self.i, self.j = ends[:, 0], ends[:, 1]
         self.lengths = lk.lengths[cons.bars]
-        d = lk.dimension
-        fi = lk.free_index
-        rows = np.repeat(np.arange(cons.n_constraints), d)
-        axes = np.tile(np.arange(d), cons.n_constraints)
-        ci, cj = fi[self.i].ravel(), fi[self.j].ravel()
-        ki, kj = ci >= 0, cj >= 0
-        self.rows = np.concatenate([rows[ki], rows[kj]])
-        self.cols = np.concatenate([ci[ki], cj[kj]])
-        self.sign = np.concatenate([np.ones(ki.sum()), -np.ones(kj.sum())])
-        self.axes = np.concatenate([axes[ki], axes[kj]])
+        pattern = cons.pattern
+        self.rows, self.cols = pattern.rows, pattern.cols
+        self.sign, self.axes = pattern.sign, pattern.axes
 
     def bar_vectors(self, us: np.ndarray) -> np.ndarray:
         """``p_i - p_j`` (K, Ea, d)."""

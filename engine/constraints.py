@@ -26,6 +26,37 @@ from engine.tolerances import Tolerances
 DENSE_MAX_FREE = 600
 
 
+@dataclass(frozen=True)
+class JacobianPattern:
+    """COO pattern of ``J`` (one entry per free coordinate of each end of each bar): ``rows``
+    (the bar), ``cols`` (the free coordinate), ``sign`` (+1 for the first end, -1 for the
+    second) and ``axes`` (the coordinate axis). ``J[rows, cols] = 2 sign (p_i - p_j)[rows,
+    axes]``: the one description of the structure that the dense, sparse and batched
+    Jacobians and the augmented system all use."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    sign: np.ndarray
+    axes: np.ndarray
+
+    @classmethod
+    def of(cls, linkage: Linkage, first: np.ndarray, second: np.ndarray) -> JacobianPattern:
+        """The pattern for bars with ends ``first``, ``second`` (vertex indices, in row
+        order) of ``linkage``."""
+        d = linkage.dimension
+        fi = linkage.free_index
+        rows = np.repeat(np.arange(len(first)), d)
+        axes = np.tile(np.arange(d), len(first))
+        ci, cj = fi[first].ravel(), fi[second].ravel()  # (Ea*d,), -1 where fixed
+        ki, kj = ci >= 0, cj >= 0
+        return cls(
+            rows=np.concatenate([rows[ki], rows[kj]]),
+            cols=np.concatenate([ci[ki], cj[kj]]),
+            sign=np.concatenate([np.ones(int(ki.sum())), -np.ones(int(kj.sum()))]),
+            axes=np.concatenate([axes[ki], axes[kj]]),
+        )
+
+
 class Constraints:
     """The constraint system of a linkage: sparsity pattern computed once, values on demand.
 
@@ -65,26 +96,16 @@ class Constraints:
         return self.n_free > DENSE_MAX_FREE
 
     @cached_property
-    def _pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """COO pattern of J: row, column, which end (+1 for i, -1 for j), axis."""
-        d = self.linkage.dimension
-        fi = self.linkage.free_index
-        rows = np.repeat(np.arange(self.n_constraints), d)
-        axes = np.tile(np.arange(d), self.n_constraints)
-        ci = fi[self._i].ravel()  # (Ea*d,)
-        cj = fi[self._j].ravel()
-        keep_i, keep_j = ci >= 0, cj >= 0
-        r = np.concatenate([rows[keep_i], rows[keep_j]])
-        c = np.concatenate([ci[keep_i], cj[keep_j]])
-        s = np.concatenate([np.ones(keep_i.sum()), -np.ones(keep_j.sum())])
-        ax = np.concatenate([axes[keep_i], axes[keep_j]])
-        return r, c, s, ax
+    def pattern(self) -> JacobianPattern:
+        """The sparsity pattern of ``J`` (computed once: the values change, the structure
+        never)."""
+        return JacobianPattern.of(self.linkage, self._i, self._j)
 
     @cached_property
     def _csr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """CSR structure of J, computed once: the order taking pattern values to CSR order,
         the column indices and the row pointers (the values change, the structure never)."""
-        r, c, _, _ = self._pattern
+        r, c = self.pattern.rows, self.pattern.cols
         order = np.lexsort((c, r))
         indptr = np.searchsorted(r[order], np.arange(self.n_constraints + 1))
         return order, c[order].astype(np.int32), indptr.astype(np.int32)
@@ -93,7 +114,7 @@ class Constraints:
     def _csc_below(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """CSC structure of ``[0; J]`` (J one row down, an empty first row): the order taking
         pattern values to CSC order, the row indices and the column pointers."""
-        r, c, _, _ = self._pattern
+        r, c = self.pattern.rows, self.pattern.cols
         order = np.lexsort((r, c))
         indptr = np.searchsorted(c[order], np.arange(self.n_free + 1))
         return order, (r[order] + 1).astype(np.int32), indptr.astype(np.int32)
@@ -118,7 +139,7 @@ class Constraints:
         coordinates, rows by the mean position of their columns. Returns the position of each
         column, the band row of each pattern entry's bar (before inserting the unit row) and
         its band column, the sorted row keys, and the sign of the two permutations."""
-        r, c, _, _ = self._pattern
+        r, c = self.pattern.rows, self.pattern.cols
         m, ea = self.n_free, self.n_constraints
         inc = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(ea, m))
         order = reverse_cuthill_mckee((inc.T @ inc).tocsr(), symmetric_mode=True)
@@ -172,7 +193,7 @@ class Constraints:
     def _band_row_rank(self) -> np.ndarray:
         """The band row of each bar (before inserting the unit row), (Ea,)."""
         out = np.empty(self.n_constraints, dtype=np.intp)
-        out[self._pattern[0]] = self._band_layout[1]
+        out[self.pattern.rows] = self._band_layout[1]
         return out
 
     @cached_property
@@ -180,7 +201,7 @@ class Constraints:
         """CSC structure of ``[row; J]`` (a dense first row over all M columns): the order
         taking ``concatenate([row, J values in pattern order])`` to CSC order, the row indices
         and the column pointers."""
-        r, c, _, _ = self._pattern
+        r, c = self.pattern.rows, self.pattern.cols
         rows = np.concatenate([np.zeros(self.n_free, dtype=np.int64), r + 1])
         cols = np.concatenate([np.arange(self.n_free), c])
         order = np.lexsort((rows, cols))
@@ -205,7 +226,7 @@ class Constraints:
         """Analytic Jacobian ``J = d(l^2)/du``, (Ea, M): ``2 (p_i - p_j)`` on the coordinates of
         end ``i`` and its negative on those of end ``j`` (fixed coordinates dropped)."""
         sparse = self.use_sparse if sparse is None else sparse
-        r, c, _, _ = self._pattern
+        r, c = self.pattern.rows, self.pattern.cols
         vals = self.jacobian_values(u)
         shape = (self.n_constraints, self.n_free)
         if sparse:
@@ -217,7 +238,7 @@ class Constraints:
 
     def jacobian_values(self, u: np.ndarray) -> np.ndarray:
         """The nonzero values of ``J(u)`` in the order of the (fixed) sparsity pattern."""
-        r, _, s, ax = self._pattern
+        r, s, ax = self.pattern.rows, self.pattern.sign, self.pattern.axes
         return 2.0 * s * self.bar_vectors(u)[r, ax]
 
     def bordered_jacobian(

@@ -110,16 +110,9 @@ class AugmentedSystem:
         self.lengths = lk.lengths[cons.bars]
         self.targets = self.lengths**2
         self.scale = 2.0 * float(np.median(self.lengths))
-        d = lk.dimension
-        fi = lk.free_index
-        rows = np.repeat(np.arange(self.e), d)
-        axes = np.tile(np.arange(d), self.e)
-        ci, cj = fi[self.i].ravel(), fi[self.j].ravel()
-        ki, kj = ci >= 0, cj >= 0
-        self.rows = np.concatenate([rows[ki], rows[kj]])
-        self.cols = np.concatenate([ci[ki], cj[kj]])
-        self.sign2 = 2.0 * np.concatenate([np.ones(ki.sum()), -np.ones(kj.sum())])
-        self.axes = np.concatenate([axes[ki], axes[kj]])
+        pattern = cons.pattern
+        self.rows, self.cols, self.axes = pattern.rows, pattern.cols, pattern.axes
+        self.sign2 = 2.0 * pattern.sign
         self._u: np.ndarray | None = None
         self._sq = np.zeros(self.e)
         self._jac = np.zeros((self.e, self.m))

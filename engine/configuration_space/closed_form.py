@@ -43,7 +43,8 @@ def walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
     pos = np.empty((len(pts), *lk.positions.shape))
     pos[:] = lk.positions
     pos[:, ~lk.fixed] = pts
-    r, c, s, ax = cons._pattern
+    pattern = cons.pattern
+    r, c, s, ax = pattern.rows, pattern.cols, pattern.sign, pattern.axes
     bars = cons.linkage.ends[cons.bars]
     diff = pos[:, bars[:, 0]] - pos[:, bars[:, 1]]  # (n, Ea, d)
     jac = np.zeros((len(pts), cons.n_constraints, cons.n_free))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import engine.configuration_space as cs
+import engine.configuration_space.explorer as cs  # where the seeds are drawn
 import engine.trace as tr
 from engine.assembly import iter_seeds, seeds
 from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
