@@ -38,13 +38,17 @@ class Deadline:
     at: float = float("inf")
     stop: Callable[[], bool] | None = field(default=None, compare=False)
     progress: ProgressSink | None = field(default=None, compare=False)
+    #: the seconds this deadline was given when it was made (None: never expires), for reports
+    budget_s: float | None = field(default=None, compare=False)
 
     @classmethod
     def after(cls, seconds: float | None, *, stop: Callable[[], bool] | None = None,
               progress: ProgressSink | None = None) -> Deadline:
         """A deadline ``seconds`` from now (``None``: never)."""
-        at = float("inf") if seconds is None else time.monotonic() + max(0.0, float(seconds))
-        return cls(at, stop, progress)
+        if seconds is None:
+            return cls(float("inf"), stop, progress)
+        seconds = max(0.0, float(seconds))
+        return cls(time.monotonic() + seconds, stop, progress, seconds)
 
     def expired(self) -> bool:
         if self.stop is not None and self.stop():
@@ -67,7 +71,13 @@ class Deadline:
         sub-search gets part of the time so that the caller can still finish its own work."""
         if self.at == float("inf"):
             return self
-        return Deadline(time.monotonic() + share * self.remaining(), self.stop, self.progress)
+        seconds = share * self.remaining()
+        return Deadline(time.monotonic() + seconds, self.stop, self.progress, seconds)
 
 
 NEVER = Deadline()
+
+
+def granted(deadline: Deadline) -> float | None:
+    """The seconds ``deadline`` was given, rounded for a report (None without a limit)."""
+    return None if deadline.budget_s is None else round(deadline.budget_s, 3)

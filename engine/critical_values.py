@@ -27,7 +27,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
 
-from engine.budget import NEVER, REASON_TIME, Deadline
+from engine.budget import NEVER, REASON_TIME, Deadline, granted
 from engine.configuration_space import (
     SpaceOptions,
     explore,
@@ -229,7 +229,7 @@ def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
         patterns.add(",".join(f"{b}:{abs(w) if (w := winding(a, comp.closed)) is not None else '?'}"
                               for b, a in angles.items()))
     count = len(res.components)
-    complete = bool(res.search.get("complete", True))
+    complete = res.search.complete
     shown = f"{count}" if complete else f">={count} (search budget reached)"
     return count, f"components={shown}; turns={'|'.join(sorted(patterns))}"
 
@@ -336,6 +336,8 @@ def critical_value_slice(
         "complete": not timed_out,
         "reason": REASON_TIME if timed_out else None,
     }
+    if (seconds := granted(dl)) is not None:
+        search["time_budget_s"] = seconds
     return Slice(curves, regions, search)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from engine.assembly import iter_projected_random_starts
-from engine.budget import NEVER, REASON_TIME, Deadline
+from engine.budget import NEVER, REASON_TIME, Deadline, granted
 from engine.configuration_space import SpaceOptions, find_critical_points
 from engine.constraints import Constraints
 from engine.critical import dense_stress_hessian, refine_critical
@@ -254,7 +254,8 @@ def robustness(
                 f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
                 if found else "no critical value is reachable by the adjustable bars",
                 method="closed-form", guarantee="exact",
-                search={"complete": True, "reason": None, "planes": exact.planes},
+                search={"complete": True, "reason": None, "planes": exact.planes,
+                        **_granted(deadline)},
             )
     if method == "closed-form":
         raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "
@@ -273,7 +274,7 @@ def _multistart(
     if not cut:
         # no segments needed; half the time at most, the rest is for the local searches
         space = find_critical_points(linkage, tol, opt, deadline=deadline.fraction(0.5))
-        cp_complete = space.search.get("complete")
+        cp_complete = space.search.complete
         starts += [cp.u for cp in space.critical_points]
         starts += [m.critical_u for m in space.near_misses]
     rng = np.random.default_rng(1234 + opt.seed)
@@ -316,7 +317,7 @@ def _multistart(
     search: dict[str, object] = {
         "complete": complete, "reason": None if complete else REASON_TIME,
         "starts_planned": planned, "starts_run": run,
-        "critical_points_complete": cp_complete,
+        "critical_points_complete": cp_complete, **_granted(deadline),
     }
     guarantee = f"best local minimum over {converged} converged of {run} starts"
     nearest = np.array(linkage.lengths, dtype=float)
@@ -328,3 +329,9 @@ def _multistart(
     message = "best over starts" if complete else "best over the starts run before the deadline"
     return Margin(best[0], nearest, best[2], run, converged, True, message,
                   method="multistart", guarantee=guarantee, search=search)
+
+
+def _granted(deadline: Deadline | None) -> dict[str, object]:
+    """``time_budget_s`` for the report, when the search had a deadline."""
+    seconds = granted(deadline) if deadline is not None else None
+    return {} if seconds is None else {"time_budget_s": seconds}

@@ -213,7 +213,7 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
     if want & {"components", "windings"} or ("margin" in want and not family.on_space):
         res = explore(linkage, tol, opt, start_on_space=family.on_space, near_misses=False)
     if res is not None and "components" in want:
-        complete = bool(res.search.get("complete", True))
+        complete = res.search.complete
         total = res.search.get("components_total")
         out["components"] = (len(res.components) if complete or not isinstance(total, int)
                              else total)

@@ -109,11 +109,9 @@ def splitting_figure(body: space.SplittingRequest, settings: Settings) -> bytes:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     at, proj = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
-    report: dict[str, object] = {}
-    deadline = jobs.search_deadline(body.options, settings, None, report)
+    deadline = jobs.search_deadline(body.options, settings, None)
     search = find_critical_points(at, tol, mappers.space_options_in(body.options),
                                   deadline=deadline)
-    search.search.update(report)
     crit = search.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
     ans = mappers.splitting_out(at, splits, len(crit), tol, crit, search.search)

@@ -61,32 +61,25 @@ def second_order_analysis(body: AnalysisRequest, settings: Settings) -> SecondOr
 
 def search_deadline(
     options: SpaceOptions | CriticalValuesOptions | None, settings: Settings,
-    given: Deadline | None, search: dict[str, object] | None = None,
+    given: Deadline | None,
 ) -> Deadline:
     """The deadline of a search: a job's own (its time limit, progress and cancel flag), else
-    ``options.time_budget_s`` or the default search time, within the request's time limit;
-    the seconds granted go into ``search`` (the answer's report)."""
+    ``options.time_budget_s`` or the default search time, within the request's time limit (the
+    engine reports the seconds granted as ``search.time_budget_s``)."""
     if given is not None:
-        seconds = given.remaining()
-        deadline = given
-    else:
-        seconds = settings.search_seconds(options.time_budget_s if options is not None else None)
-        deadline = Deadline.after(seconds)
-    if search is not None:
-        search["time_budget_s"] = round(seconds, 3) if np.isfinite(seconds) else None
-    return deadline
+        return given
+    return Deadline.after(
+        settings.search_seconds(options.time_budget_s if options is not None else None))
 
 
 def critical_points(
     body: SpaceRequest, settings: Settings, deadline: Deadline | None = None
 ) -> CriticalPointsResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, proj = on_constraints(linkage, tol)
     # The answer holds no components or segments: only the search for critical points runs.
     res = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
-    res.search.update(report)
     return mappers.critical_points_out(at, res, proj, tol)
 
 
@@ -94,14 +87,12 @@ def configuration_space(
     body: SpaceRequest, settings: Settings, deadline: Deadline | None = None
 ) -> SpaceResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, proj = on_constraints(linkage, tol)
     # the response carries no near misses: where the closed form certifies, or the rotor-chain
     # rules prove, that there is no critical point, the critical-point search is skipped
     res = explore(at, tol, mappers.space_options_in(body.options), near_misses=False,
                   deadline=dl)
-    res.search.update(report)
     points = sum(len(c.points) for c in res.components)
     if points > settings.max_points:
         raise InvalidRequest(
@@ -116,12 +107,10 @@ def splitting(
     body: SplittingRequest, settings: Settings, deadline: Deadline | None = None
 ) -> SplittingResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
     found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
-    found.search.update(report)
     crit = found.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
     return mappers.splitting_out(at, splits, len(crit), tol, crit, found.search)
@@ -131,13 +120,11 @@ def robustness_margin(
     body: RobustnessRequest, settings: Settings, deadline: Deadline | None = None
 ) -> RobustnessResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     adjustable = None if body.adjustable is None else list(body.adjustable)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options),
                      method=body.method or "auto", deadline=dl)
-    res.search.update(report)
     return mappers.robustness_out(at, res, tol)
 
 
@@ -145,14 +132,12 @@ def critical_values(
     body: CriticalValuesRequest, settings: Settings, deadline: Deadline | None = None
 ) -> CriticalValuesResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     opts = body.options.model_dump(exclude_none=True, exclude={"time_budget_s"}) \
         if body.options else {}
     axes = [(a.bar, a.min, a.max) for a in body.axes]
     res = critical_value_slice(at, axes, tolerances=tol, deadline=dl, **opts)
-    res.search.update(report)
     return mappers.critical_values_out(res, tol)
 
 
@@ -162,11 +147,9 @@ def design_splitting(
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     targets = [Target(t.branch_point, t.sign) for t in body.targets]
     check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
-    report: dict[str, object] = {}
-    dl = search_deadline(body.options, settings, deadline, report)
+    dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
-    found.search.update(report)
     crit = found.critical_points
     margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
     result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)

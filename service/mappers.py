@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -415,7 +416,7 @@ def _critical_out(linkage: EngineLinkage, k: int, cp: CriticalPoint) -> space.Cr
     )
 
 
-def _search_out(search: dict[str, object]) -> dict[str, object]:
+def _search_out(search: Mapping[str, object]) -> dict[str, object]:
     return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in search.items()}
 
 
@@ -485,7 +486,7 @@ def space_out(
 
 def splitting_out(
     linkage: EngineLinkage, splits: list[Split], found: int, tol: EngineTolerances,
-    crit: list[CriticalPoint], search: dict[str, object],
+    crit: list[CriticalPoint], search: Mapping[str, object],
 ) -> space.SplittingResponse:
     return space.SplittingResponse(
         branch_points=[
@@ -512,7 +513,7 @@ def design_out(
     adjustable: list[str],
     checks: list[Check],
     tol: EngineTolerances,
-    search: dict[str, object],
+    search: Mapping[str, object],
 ) -> space.DesignResponse:
     return space.DesignResponse(
         feasible=result.feasible,

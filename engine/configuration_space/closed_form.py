@@ -7,10 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.budget import (
-    REASON_BUDGET,
-    REASON_TIME,
-)
+from engine.budget import granted
 from engine.chain_count import chain_components
 from engine.configuration_space.critical_search import critical_points, resolve
 from engine.configuration_space.explorer import Explorer
@@ -19,6 +16,7 @@ from engine.configuration_space.segments import mark_through_start
 from engine.constraints import Constraints
 from engine.critical import NearMiss
 from engine.dyads import closed_form_space, critical_candidates
+from engine.report import SearchReport
 from engine.trace import (
     Curve,
     polyline_distance,
@@ -134,10 +132,10 @@ def closed_form_answer(
         "segments_complete": True,
         "step_max": ex.h_max,
         "strain_tol": opt.trace.strain_tol,
-        "complete": not (truncated or ex.timed_out),
-        "reason": REASON_TIME if ex.timed_out else REASON_BUDGET if truncated else None,
     })
-    return SpaceResult(components, [], [], misses, report, False)
+    search = SearchReport(report, timed_out=ex.timed_out, budget=truncated,
+                          time_budget_s=granted(ex.deadline))
+    return SpaceResult(components, [], [], misses, search, False)
 
 
 #: ``search["closed_form"]`` of :func:`closed_form_critical` when the closed form certifies that
@@ -194,9 +192,8 @@ def closed_form_critical(ex: Explorer) -> CriticalSearch | None:
         "critical_points_found": len(crit),
         "step_max": ex.h_max,
         "strain_tol": ex.opt.trace.strain_tol,
-        # every sheet of the rotor's whole turn was searched: complete as the general search is
-        # when its curves cover the space and no critical point is degenerate
-        "complete": True,
-        "reason": None,
     }
-    return CriticalSearch(crit, [], search, False)
+    # every sheet of the rotor's whole turn was searched: complete as the general search is
+    # when its curves cover the space and no critical point is degenerate
+    return CriticalSearch(crit, [], SearchReport(search, time_budget_s=granted(ex.deadline)),
+                          False)

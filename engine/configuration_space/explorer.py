@@ -13,14 +13,7 @@ from scipy.spatial import cKDTree
 
 from engine.assembly import iter_seeds
 from engine.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.budget import (
-    NEVER,
-    REASON_BUDGET,
-    REASON_DEGENERATE,
-    REASON_TIME,
-    REASON_UNRESOLVED,
-    Deadline,
-)
+from engine.budget import NEVER, Deadline, granted
 from engine.configuration_space.results import (
     MIN_STEP_MAX_REL,
     SpaceOptions,
@@ -29,6 +22,7 @@ from engine.configuration_space.results import (
 from engine.constraints import Constraints
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage
+from engine.report import SearchReport
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
 from engine.trace import (
@@ -93,19 +87,17 @@ class Explorer:
         self.timed_out = self.timed_out or curve.stop == STOP_TIME
         return curve
 
-    def completion(self, degenerate: bool, segments_complete: bool = True) -> dict[str, object]:
-        """``complete`` and, when not, the ``reason``: ``"time"`` (the deadline stopped the
-        search), ``"budget"`` (a count ran out: components, assemblies, points of a curve),
-        ``"degenerate"`` (a critical point that is not isolated) or ``"unresolved"`` (a curve
-        or segment that stopped open for a numerical reason, e.g. near a split branch point)."""
+    def finish(self, degenerate: bool, segments_done: bool = True,
+               **details: object) -> SearchReport:
+        """The report of the search: what was done (``self.report`` and ``details``), and the
+        flags that decide whether it is complete (:class:`engine.report.SearchReport`)."""
         budget = bool(self.report.get("component_budget_reached")
                       or self.report.get("assemblies_truncated")
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
-        unresolved = bool(self.report.get("open_curves", 0)) or not segments_complete
-        reason = (REASON_TIME if self.timed_out else REASON_BUDGET if budget
-                  else REASON_DEGENERATE if degenerate
-                  else REASON_UNRESOLVED if unresolved else None)
-        return {"complete": reason is None, "reason": reason}
+        unresolved = bool(self.report.get("open_curves", 0)) or not segments_done
+        return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
+                            degenerate=degenerate, unresolved=unresolved,
+                            time_budget_s=granted(self.deadline))
 
     def _rebuild_tree(self) -> None:
         pts = [np.array(c.points) for c in self.curves]

@@ -11,6 +11,7 @@ from engine.constraints import Constraints
 from engine.critical import CriticalPoint, NearMiss
 from engine.errors import InvalidLinkage
 from engine.linkage import Linkage
+from engine.report import SearchReport
 from engine.trace import (
     TraceOptions,
 )
@@ -79,7 +80,7 @@ class SpaceResult:
     critical_points: list[CriticalPoint]
     segments: list[Segment]
     near_misses: list[NearMiss]
-    search: dict[str, object]
+    search: SearchReport
     degenerate: bool
 
 
@@ -90,7 +91,7 @@ class CriticalSearch:
 
     critical_points: list[CriticalPoint]
     near_misses: list[NearMiss]
-    search: dict[str, object]
+    search: SearchReport
     degenerate: bool
 
 

@@ -74,15 +74,8 @@ def find_critical_points(
         ex.report.setdefault("closed_form", "off")
     ex.trace_all(start)
     crit, misses, degenerate = critical_points(ex)
-    search = dict(ex.report)
-    search.update(
-        {
-            "critical_points_found": len(crit),
-            "step_max": ex.h_max,
-            "strain_tol": opt.trace.strain_tol,
-            **ex.completion(degenerate),
-        }
-    )
+    search = ex.finish(degenerate, critical_points_found=len(crit), step_max=ex.h_max,
+                       strain_tol=opt.trace.strain_tol)
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
 
 
@@ -140,19 +133,12 @@ def explore(
     segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
     components = assemble_components(ex, crit, segs, degenerate)
     mark_through_start(components, start, ex.h_max)
-    search = dict(ex.report)
     if count is not None:
         # the true total for rotor chains (four-bar decomposition), also when the budget of
         # traced components is far below it (a 100-rotor spinner chain has 2^99)
-        search["components_total"] = count.components
-        search["components_total_rule"] = count.rule
-    search.update(
-        {
-            "critical_points_found": len(crit),
-            "segments_complete": seg_complete,
-            "step_max": ex.h_max,
-            "strain_tol": opt.trace.strain_tol,
-            **ex.completion(degenerate, seg_complete),
-        }
-    )
+        ex.report["components_total"] = count.components
+        ex.report["components_total_rule"] = count.rule
+    search = ex.finish(degenerate, seg_complete, critical_points_found=len(crit),
+                       segments_complete=seg_complete, step_max=ex.h_max,
+                       strain_tol=opt.trace.strain_tol)
     return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)

@@ -1,0 +1,86 @@
+"""The report of a configuration-space search: what was done, and whether it is complete.
+
+Every search of :mod:`engine.configuration_space` (the tracer, the closed forms) ends in one
+:class:`SearchReport`. Its ``details`` are the counts of what was done (seeds, curves, candidates,
+closed-form samples: they differ between methods); whether the answer is complete, and if not
+why, is decided in one place from four flags, :attr:`SearchReport.complete` and
+:attr:`SearchReport.reason`. It reads like the ``search`` object of the HTTP answers (a read-only
+mapping: ``report["complete"]``, ``report.get("seeds")``), which :meth:`SearchReport.as_dict`
+gives.
+
+>>> r = SearchReport({"method": "tracer", "curves_traced": 3}, budget=True)
+>>> r.complete, r.reason, r["curves_traced"]
+(False, 'budget', 3)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from engine.budget import REASON_BUDGET, REASON_DEGENERATE, REASON_TIME, REASON_UNRESOLVED
+
+
+@dataclass(frozen=True)
+class SearchReport(Mapping[str, Any]):
+    """What a search did (``details``) and why it may be incomplete.
+
+    Attributes
+    ----------
+    details : Mapping[str, object]
+        Counts and choices of the method (e.g. ``method``, ``seeds``, ``curves_traced``,
+        ``closed_form_sheets``), as the answer's ``search`` shows them.
+    timed_out : bool
+        The deadline stopped some part of the search.
+    budget : bool
+        A count ran out: components, assemblies per angle, points of a curve.
+    degenerate : bool
+        A critical point is not isolated: the classification cannot go on.
+    unresolved : bool
+        A curve or segment stopped open for a numerical reason (e.g. near a split branch point).
+    time_budget_s : float or None
+        Seconds the search was given (None: no deadline).
+    """
+
+    details: Mapping[str, object] = field(default_factory=dict)
+    timed_out: bool = False
+    budget: bool = False
+    degenerate: bool = False
+    unresolved: bool = False
+    time_budget_s: float | None = None
+
+    @property
+    def reason(self) -> str | None:
+        """Why the search is incomplete (the first that applies: time, budget, degenerate,
+        unresolved), None when it is complete."""
+        return (REASON_TIME if self.timed_out else REASON_BUDGET if self.budget
+                else REASON_DEGENERATE if self.degenerate
+                else REASON_UNRESOLVED if self.unresolved else None)
+
+    @property
+    def complete(self) -> bool:
+        return self.reason is None
+
+    def with_details(self, **more: object) -> SearchReport:
+        """The same report with more (or changed) details."""
+        return replace(self, details={**self.details, **more})
+
+    def as_dict(self) -> dict[str, object]:
+        """The answer's ``search``: the details, ``complete``, ``reason`` and (with a deadline)
+        ``time_budget_s``."""
+        out: dict[str, object] = {**self.details, "complete": self.complete,
+                                  "reason": self.reason}
+        if self.time_budget_s is not None:
+            out["time_budget_s"] = self.time_budget_s
+        return out
+
+    # -- read-only mapping (the answer's ``search``) ------------------------------------------
+    def __getitem__(self, key: str) -> Any:
+        return self.as_dict()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.as_dict())
+
+    def __len__(self) -> int:
+        return len(self.as_dict())
