@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from engine.errors import NoNearbySolution
 from engine.linkage import Linkage
 from engine.lu import parity
-from engine.tolerances import Tolerances
+from engine.tolerances import NORM_FLOOR, Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
 DENSE_MAX_FREE = 600
@@ -376,7 +376,7 @@ def _escape(
     _, s, vt = np.linalg.svd(jac, full_matrices=True)
     s_full = np.zeros(cons.n_free)
     s_full[: s.size] = s
-    z = vt[s_full <= 1e-3 * max(float(s_full.max()), 1e-300)]
+    z = vt[s_full <= 1e-3 * max(float(s_full.max()), NORM_FLOOR)]
     if z.shape[0] == 0:
         return None
     curv = z @ cons.stress_hessian(g, sparse=False) @ z.T

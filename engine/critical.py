@@ -20,7 +20,7 @@ from scipy.optimize import least_squares
 from engine.constraints import Constraints
 from engine.linkage import Linkage
 from engine.second_order import SecondOrderResult, second_order
-from engine.tolerances import Tolerances
+from engine.tolerances import NORM_FLOOR, Tolerances
 
 
 @dataclass(frozen=True)
@@ -175,7 +175,7 @@ def refine_critical(
     s = s / np.linalg.norm(s)
     jac = cons.jacobian(u, sparse=False)
     length_res = cons.max_residual(u)
-    stress_res = float(np.linalg.norm(jac.T @ s) / max(float(np.linalg.norm(jac)), 1e-300))
+    stress_res = float(np.linalg.norm(jac.T @ s) / max(float(np.linalg.norm(jac)), NORM_FLOOR))
     ok = length_res <= tol.residual_atol and stress_res <= tol.rank_rtol
     return Refined(u, s, length_res, stress_res, ok)
 

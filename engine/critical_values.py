@@ -39,7 +39,7 @@ from engine.constraints import Constraints
 from engine.critical import dense_stress_hessian, refine_critical
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
-from engine.tolerances import Tolerances
+from engine.tolerances import NORM_FLOOR, Tolerances
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -345,7 +345,7 @@ def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Distance of each point (n, 2) to the polyline ``line`` (m, 2)."""
     a, b = line[:-1], line[1:]
     ab = b - a
-    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
     rel = points[:, None, :] - a[None, :, :]
     s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
     foot = a[None, :, :] + s[:, :, None] * ab[None, :, :]

@@ -42,12 +42,7 @@ from engine.critical import dense_stress_hessian, refine_critical
 from engine.dyad_margin import exact_margin
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
-from engine.tolerances import Tolerances
-
-#: Shortest bar of a critical configuration, in units of ``residual_atol``: a bar shorter than
-#: this is degenerate (a zero-length bar has a self-stress of its own at every configuration),
-#: not a critical value of the linkage.
-MIN_CRITICAL_LENGTH_ATOL = 1e3
+from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: A local search whose start, moved onto the critical set, has a bar shorter than this
 #: (relative to the median length) is abandoned: it is in a degenerate configuration's basin.
@@ -116,7 +111,7 @@ def _local(
         key = u.tobytes()
         if key not in memo:
             memo.clear()
-            memo[key] = (np.sqrt(np.maximum(cons.squared_lengths(u), 1e-300)),
+            memo[key] = (np.sqrt(np.maximum(cons.squared_lengths(u), NORM_FLOOR)),
                          cons.jacobian(u, sparse=False))
         return memo[key]
 
@@ -161,7 +156,7 @@ def _local(
     # Onto the critical set first (least squares, the adjustable lengths free): cheap, and a
     # start that lands on a degenerate configuration (a bar shrunk to nearly nothing) is in
     # that configuration's basin, where SLSQP spends its whole iteration budget for nothing.
-    s0 = s0 * scale / max(float(np.linalg.norm(s0 * lengths(u0))), 1e-300)
+    s0 = s0 * scale / max(float(np.linalg.norm(s0 * lengths(u0))), NORM_FLOOR)
     # a run that diverges (the stress growing without bound) overflows; it is rejected below
     with np.errstate(over="ignore", invalid="ignore"):
         try:

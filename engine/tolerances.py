@@ -17,6 +17,18 @@ RESOLUTION_MARGIN = 8.0
 MAX_RESIDUAL_REL = 1e-6
 #: Smallest relative tolerance (``rank_rtol``, ``q_rtol``) that means anything in float64.
 MIN_RELATIVE = 1e-14
+#: Two configurations (or dyad centres) closer than this, relative to the median bar length,
+#: are the same point: duplicates of a critical point, a seed on a traced curve, centres that
+#: coincide.
+SAME_POINT_REL = 1e-6
+#: Shortest bar of a critical configuration, in units of ``residual_atol``: a bar shorter than
+#: this is degenerate (a zero-length bar has a self-stress of its own at every configuration),
+#: not a critical value of the linkage.
+MIN_CRITICAL_LENGTH_ATOL = 1e3
+
+#: Floor of a norm or distance that is divided by (a zero vector has no direction: its
+#: quotient is then 0 instead of a division by zero).
+NORM_FLOOR = 1e-300
 
 
 @dataclass(frozen=True)

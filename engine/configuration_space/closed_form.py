@@ -17,6 +17,7 @@ from engine.constraints import Constraints
 from engine.critical import NearMiss
 from engine.dyads import closed_form_space, critical_candidates
 from engine.report import SearchReport
+from engine.tolerances import NORM_FLOOR
 from engine.trace import (
     Curve,
     polyline_distance,
@@ -55,9 +56,9 @@ def walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
     ahead = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
     orient = np.where(np.einsum("ij,ij->i", cof, ahead) >= 0, 1, -1)
     norm = np.linalg.norm(cof, axis=1)
-    tangents = orient[:, None] * cof / np.maximum(norm, 1e-300)[:, None]
+    tangents = orient[:, None] * cof / np.maximum(norm, NORM_FLOOR)[:, None]
     return Curve(points=list(pts), tangents=list(tangents), signs=orient.tolist(),
-                 logdets=np.log(np.maximum(norm, 1e-300)).tolist(), stop="closed")
+                 logdets=np.log(np.maximum(norm, NORM_FLOOR)).tolist(), stop="closed")
 
 
 def closed_form_answer(

@@ -12,6 +12,7 @@ import numpy as np
 from engine.assembly import projected_random_starts
 from engine.configuration_space.explorer import Explorer
 from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
+from engine.tolerances import SAME_POINT_REL
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
@@ -69,7 +70,7 @@ def resolve(
         ref = refine_critical(ex.cons, u0, ex.tol)
         failed += not ref.critical
         if ref.critical:
-            if any(np.linalg.norm(ref.u - c.u) <= 1e-6 * ex.scale for c in exact):
+            if any(np.linalg.norm(ref.u - c.u) <= SAME_POINT_REL * ex.scale for c in exact):
                 continue
             analysis = classify(ex.linkage, ref.u, ex.tol)
             exact.append(CriticalPoint(ref.u, analysis, ref.length_residual,

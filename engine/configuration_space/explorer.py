@@ -24,7 +24,7 @@ from engine.errors import InvalidRequest
 from engine.linkage import Linkage
 from engine.report import SearchReport
 from engine.rigidity import first_order
-from engine.tolerances import Tolerances
+from engine.tolerances import SAME_POINT_REL, Tolerances
 from engine.trace import (
     STOP_TIME,
     Curve,
@@ -124,7 +124,7 @@ class Explorer:
             p, t = curve.points[offset], curve.tangents[offset]
             v = p + ((u - p) @ t) * t
             w, ok, _ = correct(self.cons, v, t, self.tol)
-            if ok and np.linalg.norm(w - u) <= 1e-6 * self.scale:
+            if ok and np.linalg.norm(w - u) <= SAME_POINT_REL * self.scale:
                 return True
         return False
 
@@ -169,7 +169,7 @@ class Explorer:
             u = us[which]
             v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
             w, ok = self.batched.correct(v, t, self.tol)
-            on[which[ok & (np.linalg.norm(w - u, axis=1) <= 1e-6 * self.scale)]] = True
+            on[which[ok & (np.linalg.norm(w - u, axis=1) <= SAME_POINT_REL * self.scale)]] = True
         return on
 
     def trace_all(self, start: np.ndarray | None) -> None:

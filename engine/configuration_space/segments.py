@@ -9,6 +9,7 @@ import numpy as np
 from engine.configuration_space.explorer import Explorer
 from engine.configuration_space.results import Component, Segment, rays
 from engine.critical import CriticalPoint
+from engine.tolerances import NORM_FLOOR
 from engine.trace import (
     STOP_TIME,
     Curve,
@@ -75,7 +76,7 @@ def _arrival_ray(cp: CriticalPoint, near: np.ndarray) -> int:
     if cp.kind != "branch":
         return -1
     d = near - cp.u
-    return int(np.argmax(rays(cp) @ (d / max(np.linalg.norm(d), 1e-300))))
+    return int(np.argmax(rays(cp) @ (d / max(np.linalg.norm(d), NORM_FLOOR))))
 
 
 def euler_walks(n_nodes: int, segs: list[Segment]) -> list[list[tuple[int, bool]]]:

@@ -1,0 +1,329 @@
+"""Planar dyad chains: the chain of a linkage, its placement on every sheet, the detection
+grid shared by the closed form and the candidates, and the folds on it.
+
+See :mod:`engine.dyads` for the sheets, the folds and the certificate of no critical point.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from engine.assembly import dyad_plan, rotors
+from engine.linkage import Linkage
+from engine.tolerances import SAME_POINT_REL, Tolerances
+
+#: More dyads than this (2^k sheets) are left to the general tracer.
+MAX_DYADS = 6
+#: Angle samples of the detection grid (per sheet).
+DETECT_SAMPLES = 4096
+#: Samples of the dense check inside a fold's grid cell.
+FOLD_CELL_SAMPLES = 33
+
+
+class Decline(Exception):
+    """A check of the closed form is within its margin: the general engine answers instead."""
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A rotor and the dyads that place every other free vertex (arrays over the ``k`` dyads)."""
+
+    rotor: int
+    pin: int
+    tip: int
+    radius: float
+    vertex: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    ra: np.ndarray
+    rb: np.ndarray
+    base: np.ndarray  # (V, 2) positions of the pins (free vertices overwritten)
+
+    @property
+    def k(self) -> int:
+        return len(self.vertex)
+
+
+def chain_of(linkage: Linkage) -> Chain | None:
+    """The first rotor whose dyad plan places every free vertex with exactly the active bars
+    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None."""
+    if linkage.dimension != 2:
+        return None
+    fixed = np.asarray(linkage.fixed)
+    full: np.ndarray = np.asarray(fixed.all(axis=1), dtype=bool)
+    if not np.all(full | ~fixed.any(axis=1)):
+        return None  # sliders: left to the general engine
+    active = Counter(tuple(sorted((int(i), int(j)))) for i, j in linkage.ends[linkage.active])
+    for rotor in rotors(linkage):
+        plan = dyad_plan(linkage, rotor)
+        if plan is None or len(plan) > MAX_DYADS or any(s.axis >= 0 or s.b < 0 for s in plan):
+            continue
+        pin, tip = (int(x) for x in linkage.ends[rotor])
+        if not full[pin]:
+            pin, tip = tip, pin
+        used = Counter([tuple(sorted((pin, tip)))])
+        for s in plan:
+            used[tuple(sorted((s.vertex, s.a)))] += 1
+            used[tuple(sorted((s.vertex, s.b)))] += 1
+        if used != active:
+            continue  # an extra or missing bar: not a plain dyad chain
+        return Chain(
+            rotor=rotor, pin=pin, tip=tip, radius=float(linkage.lengths[rotor]),
+            vertex=np.array([s.vertex for s in plan], dtype=int),
+            a=np.array([s.a for s in plan], dtype=int),
+            b=np.array([s.b for s in plan], dtype=int),
+            ra=np.array([s.ra for s in plan]), rb=np.array([s.rb for s in plan]),
+            base=np.array(linkage.positions, dtype=float),
+        )
+    return None
+
+
+def place(
+    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None = None,
+    given: dict[int, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (n, V, 2), ``nu`` (n, k) and squared centre distances (n, k) at angles
+    ``theta`` (n,) on sheets ``signs`` (n, k) of +-1.
+
+    ``flat`` (n, k) bool forces a dyad's vertex onto its centres' line (its fold point, so that
+    the two sheets that meet there give bitwise the same configuration). ``given = {j: v}``
+    puts dyad ``j``'s vertex at ``v`` (n, 2) instead (a point of the circle it is free on where
+    its centres coincide). Where ``nu < 0`` the
+    vertex is put on the line too; the caller masks those samples (the loop runs over the ``k``
+    dyads, at most :data:`MAX_DYADS`, each vectorised over all samples).
+    """
+    n = len(theta)
+    pos = np.empty((n, *ch.base.shape))
+    pos[:] = ch.base
+    pos[:, ch.tip, 0] = ch.base[ch.pin, 0] + ch.radius * np.cos(theta)
+    pos[:, ch.tip, 1] = ch.base[ch.pin, 1] + ch.radius * np.sin(theta)
+    nu = np.empty((n, ch.k))
+    d2 = np.empty((n, ch.k))
+    for j in range(ch.k):
+        ra, rb = ch.ra[j], ch.rb[j]
+        c0 = pos[:, ch.a[j]]
+        delta = pos[:, ch.b[j]] - c0
+        dd = delta[:, 0] ** 2 + delta[:, 1] ** 2
+        # 4 d^2 h^2 = ((ra + rb)^2 - d^2)(d^2 - (ra - rb)^2) = 4 ra^2 rb^2 sin^2(angle at v):
+        # a product of differences (no cancellation in the quartic) and no division.
+        quad = ((ra + rb) ** 2 - dd) * (dd - (ra - rb) ** 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 0.5 / dd
+            along = (dd + ra * ra - rb * rb) * inv
+            hh = np.sqrt(np.maximum(quad, 0.0)) * inv * signs[:, j]
+        if flat is not None:
+            hh = np.where(flat[:, j], 0.0, hh)
+        if given is not None and j in given:
+            pos[:, ch.vertex[j]] = given[j]
+        else:
+            pos[:, ch.vertex[j], 0] = c0[:, 0] + along * delta[:, 0] - hh * delta[:, 1]
+            pos[:, ch.vertex[j], 1] = c0[:, 1] + along * delta[:, 1] + hh * delta[:, 0]
+        nu[:, j] = quad / (4.0 * ra * ra * rb * rb)
+        d2[:, j] = dd
+    return pos, nu, d2
+
+
+def sheets_of(k: int) -> np.ndarray:
+    """All ``2^k`` sign vectors (S, k), ``+1`` first (the first root of
+    :func:`engine.assembly.assemblies_at`)."""
+    s = np.arange(2**k)[:, None] >> np.arange(k)[None, :]
+    return 1 - 2 * (s & 1)
+
+
+def golden(
+    f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
+) -> np.ndarray:
+    """Vectorised golden-section minimisation of ``f`` (arrays in, arrays out) on each
+    ``[lo, hi]``; returns the smallest value seen per bracket (ends included)."""
+    return golden_arg(f, lo, hi, iters)[0]
+
+
+def golden_arg(
+    f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_golden` with the argument of the smallest value seen: ``(value, argument)``."""
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo.copy(), hi.copy()
+    c, d = b - g * (b - a), a + g * (b - a)
+    fa, fb, fc, fd = f(a), f(b), f(c), f(d)
+    best = np.minimum(fa, fb)
+    arg = np.where(fa <= fb, a, b)
+
+    def keep(x: np.ndarray, fx: np.ndarray) -> None:
+        nonlocal best, arg
+        better = fx < best
+        best, arg = np.where(better, fx, best), np.where(better, x, arg)
+
+    keep(c, fc)
+    keep(d, fd)
+    for _ in range(iters):
+        left = fc < fd
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        c_new = b - g * (b - a)
+        d_new = a + g * (b - a)
+        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
+        x_new = np.where(left, c, d)
+        fc_new = f(x_new)
+        fc, fd = np.where(left, fc_new, fd), np.where(left, fc, fc_new)
+        keep(x_new, fc_new)
+    return best, arg
+
+
+class Extrema(NamedTuple):
+    mask: np.ndarray
+    prev_nu: np.ndarray
+    next_nu: np.ndarray
+    prev_ok: np.ndarray
+    next_ok: np.ndarray
+
+
+def discrete_extrema(nu: np.ndarray, prefix: np.ndarray, axis: int) -> Extrema:
+    """Samples (along the periodic ``axis`` of the angle grid) where ``nu`` is a discrete
+    minimum of a positive run or a maximum of a negative run, with the neighbours' values and
+    whether they are defined (``prefix``); at the end of a prefix run only one neighbour exists,
+    so one-sided extrema count too."""
+    prev_nu, next_nu = np.roll(nu, 1, axis=axis), np.roll(nu, -1, axis=axis)
+    prev_ok, next_ok = np.roll(prefix, 1, axis=axis), np.roll(prefix, -1, axis=axis)
+    pos_min = (nu > 0) & (nu <= prev_nu) & (nu <= next_nu)
+    neg_max = (nu < 0) & (nu >= prev_nu) & (nu >= next_nu)
+    pos_min |= (nu > 0) & ((~prev_ok & (nu <= next_nu)) | (~next_ok & (nu <= prev_nu)))
+    neg_max |= (nu < 0) & ((~prev_ok & (nu >= next_nu)) | (~next_ok & (nu >= prev_nu)))
+    return Extrema(pos_min | neg_max, prev_nu, next_nu, prev_ok, next_ok)
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """Every sheet of a dyad chain on the detection grid (shared by the closed form and the
+    critical-point candidates, so both see the same grid): ``nu`` and ``d2`` (sheets, n, k),
+    ``prefix[s, i, j]`` (dyads before ``j`` assembled, so ``nu_j`` is defined there), the margin
+    ``tau`` and the report so far; ``problem`` says why the closed form cannot be used."""
+
+    k: int
+    scale: float
+    tau: float
+    n: int
+    dth: float
+    grid: np.ndarray
+    sheets: np.ndarray
+    nu: np.ndarray
+    d2: np.ndarray
+    pos_nu: np.ndarray
+    prefix: np.ndarray
+    report: dict[str, object]
+    problem: str | None
+
+
+def sample_sheets(linkage: Linkage, ch: Chain, tol: Tolerances, samples: int) -> Sampled:
+    k = ch.k
+    scale = float(np.median(linkage.lengths[linkage.active]))
+    tau = float(np.clip(1e4 * tol.residual_atol / scale, 1e-10, 1e-3))
+    n = int(samples)
+    dth = 2 * np.pi / n
+    offset = (np.sqrt(5) - 1) / 2  # irrational offset: symmetric angles are often special
+    grid = dth * (np.arange(n) + offset)
+    sheets = sheets_of(k)
+    n_sheets = len(sheets)
+    report: dict[str, object] = {
+        "rotor": linkage.bar_ids[ch.rotor], "dyads": k, "sheets": n_sheets,
+        "samples": n, "margin": tau,
+    }
+    _, nu, d2 = place(ch, np.tile(grid, n_sheets), np.repeat(sheets, n, axis=0))
+    nu = nu.reshape(n_sheets, n, k)
+    d2 = d2.reshape(n_sheets, n, k)
+    pos_nu = nu > 0
+    prefix = np.concatenate(
+        [np.ones((n_sheets, n, 1), bool), np.cumprod(pos_nu, axis=2)[:, :, :-1].astype(bool)],
+        axis=2,
+    )
+    problem = None
+    if not (np.isfinite(scale) and np.all(np.isfinite(nu)) and np.all(np.isfinite(d2))):
+        problem = "non-finite values (coordinates or lengths too large)"
+    elif np.any(prefix & (d2 <= (SAME_POINT_REL * scale) ** 2)):
+        # centres that coincide make a dyad's vertex free on a circle
+        problem = "a dyad's centres (nearly) coincide"
+    return Sampled(k, scale, tau, n, dth, grid, sheets, nu, d2, pos_nu, prefix, report, problem)
+
+
+def bisect_folds(
+    nu_at: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, dyad: np.ndarray
+) -> np.ndarray:
+    """The fold angle in each bracket: the last angle where ``nu`` of ``dyad`` is positive,
+    bisected to the last bit from ``lo`` (inside: positive) and ``hi`` (outside);
+    ``nu_at(theta)`` gives ``nu`` (n, k) at the angles."""
+    rows = np.arange(len(lo))
+    lo, hi = lo.copy(), hi.copy()
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        inside = nu_at(mid)[rows, dyad] > 0
+        lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+    return lo
+
+
+@dataclass(frozen=True)
+class Folds:
+    """Every fold of a sampled chain: where a sheet's run of assembled samples ends.
+
+    ``ends`` lists ``(sheet, inside index, outside index, -1 at a run's start / +1 at its end)``;
+    per fold (arrays): ``sheet``, ``inside``, ``direction``, the ``dyad`` that stops assembling,
+    its angle ``star``, the ``slope`` of that dyad's ``nu`` there (transversality), and the
+    fold's grid cell sampled densely: angles ``cell`` (F, FOLD_CELL_SAMPLES) and every dyad's
+    ``nu`` there ``cell_nu`` (F, FOLD_CELL_SAMPLES, k; the fold's own dyad flat at the fold)."""
+
+    ends: list[tuple[int, int, int, int]]
+    sheet: np.ndarray
+    inside: np.ndarray
+    direction: np.ndarray
+    dyad: np.ndarray
+    star: np.ndarray
+    slope: np.ndarray
+    cell: np.ndarray
+    cell_nu: np.ndarray
+
+
+def run_ends(valid: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """``(sheet, inside, outside, -1 | +1)`` of every run of ``valid`` (S, n) samples (periodic)."""
+    n = valid.shape[1]
+    ends: list[tuple[int, int, int, int]] = []
+    for s in range(len(valid)):
+        v = valid[s]
+        up = np.flatnonzero(v & ~np.roll(v, 1))  # run starts: outside is i - 1
+        down = np.flatnonzero(v & ~np.roll(v, -1))  # run ends: outside is i + 1
+        ends += [(s, int(i), (int(i) - 1) % n, -1) for i in up]
+        ends += [(s, int(i), (int(i) + 1) % n, +1) for i in down]
+    return ends
+
+
+def locate_folds(ch: Chain, sm: Sampled) -> Folds | None:
+    """The folds of every sheet (None where every sheet turns fully: no fold)."""
+    ends = run_ends(np.asarray(sm.pos_nu.all(axis=2), dtype=bool))
+    if not ends:
+        return None
+    e = np.array(ends)
+    es, ein, eout, edir = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+    jf = np.argmax(~sm.pos_nu[es, eout], axis=1)  # the first dyad that fails outside
+    f_signs = sm.sheets[es]
+    rows = np.arange(len(es))
+
+    def nu_at(theta: np.ndarray) -> np.ndarray:
+        return place(ch, theta, f_signs)[1]
+
+    # the outside angle, unwrapped next to the inside one
+    star = bisect_folds(nu_at, sm.grid[ein], sm.grid[ein] + edir * sm.dth, jf)
+    h = 1e-3 * sm.dth
+    slope = np.abs(nu_at(star + h)[rows, jf] - nu_at(star - h)[rows, jf]) / (2 * h)
+    # the fold's grid cell, densely (the vertex moves like sqrt(theta - theta*) there, faster
+    # than the grid resolves)
+    sig = np.linspace(0.0, 1.0, FOLD_CELL_SAMPLES)
+    cell = star[:, None] + (sm.grid[ein] - star)[:, None] * sig[None, :] ** 2
+    rep_flat = np.zeros((cell.size, ch.k), bool)
+    rep_flat[::FOLD_CELL_SAMPLES][rows, jf] = True  # sigma = 0 is the fold itself
+    _, cell_nu, _ = place(ch, cell.ravel(), np.repeat(f_signs, FOLD_CELL_SAMPLES, axis=0),
+                          rep_flat)
+    return Folds(ends, es, ein, edir, jf, star, slope, cell,
+                 cell_nu.reshape(len(es), FOLD_CELL_SAMPLES, ch.k))
