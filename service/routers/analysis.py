@@ -8,17 +8,10 @@ from service.config import Settings, get_settings
 from service.errors import problem_responses
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest
-from service.schemas.space import (
-    CriticalPointsResponse,
-    CriticalValuesRequest,
-    CriticalValuesResponse,
-    RobustnessRequest,
-    RobustnessResponse,
-    SpaceRequest,
-    SpaceResponse,
-    SplittingRequest,
-    SplittingResponse,
-)
+from service.schemas.critical_values import CriticalValuesRequest, CriticalValuesResponse
+from service.schemas.robustness import RobustnessRequest, RobustnessResponse
+from service.schemas.space import CriticalPointsResponse, SpaceRequest, SpaceResponse
+from service.schemas.splitting import SplittingRequest, SplittingResponse
 from service.workers import engine_call
 
 router = APIRouter(prefix="/v1/analysis", tags=["analysis"], route_class=JsonBodyRoute)

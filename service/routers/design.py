@@ -6,7 +6,7 @@ from service import jobs
 from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
-from service.schemas.space import DesignRequest, DesignResponse
+from service.schemas.design import DesignRequest, DesignResponse
 from service.workers import engine_call
 
 router = APIRouter(prefix="/v1/design", tags=["design"], route_class=JsonBodyRoute)

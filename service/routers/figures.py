@@ -9,8 +9,9 @@ from service import figures
 from service.bodies import JsonBodyRoute
 from service.config import Settings, get_settings
 from service.errors import problem_responses
+from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
-from service.schemas.space import CriticalValuesRequest, SplittingRequest
+from service.schemas.splitting import SplittingRequest
 from service.workers import engine_pool
 
 router = APIRouter(prefix="/v1/figures", tags=["figures"], route_class=JsonBodyRoute)
