@@ -30,7 +30,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from engine.errors import EngineError
 from engine.presets import build_preset
 from service import mappers, tasks
-from service.config import Settings
+from service.config import get_settings
 from service.schemas.jobs import SweepRequest
 from service.workers import ServiceFault
 
@@ -171,7 +171,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    settings = Settings.from_env()
+    settings = get_settings()
     changes: dict[str, Any] = {}
     if args.scheduler:
         changes["dask_scheduler"] = args.scheduler
