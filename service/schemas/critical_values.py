@@ -12,6 +12,7 @@ from service.schemas.common import (
     Strict,
     Tolerances,
     TolerancesUsed,
+    default_of,
 )
 from service.schemas.space import TIME_BUDGET_DOC, TimeBudget
 
@@ -25,10 +26,11 @@ class AxisIn(Strict):
 class CriticalValuesOptions(Strict):
     resolution: Annotated[int, Field(strict=True, ge=8, le=400)] | None = Field(
         None, description="raster of the regions and step of the curves: box / resolution "
-        "(default 48)"
+        "(default 48)", json_schema_extra=default_of(48),
     )
     seeds_per_axis: Annotated[int, Field(strict=True, ge=2, le=20)] | None = Field(
-        None, description="sample lengths per axis where curves are seeded (default 5)"
+        None, description="sample lengths per axis where curves are seeded (default 5)",
+        json_schema_extra=default_of(5),
     )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
 

@@ -13,6 +13,7 @@ from service.schemas.common import (
     Tolerances,
     TolerancesUsed,
     VertexVectors,
+    default_of,
 )
 from service.schemas.space import SpaceOptions
 
@@ -28,7 +29,7 @@ class RobustnessRequest(Strict):
     method: Literal["auto", "closed-form", "multistart"] | None = Field(
         None, description="auto (default): the exact closed form for one-loop planar dyad chains "
         "(four-bars), else the multistart; closed-form: 422 where it does not apply; "
-        "multistart: always the multistart"
+        "multistart: always the multistart", json_schema_extra=default_of("auto"),
     )
 
 

@@ -15,6 +15,7 @@ from service.schemas.common import (
     Tolerances,
     TolerancesUsed,
     VertexVectors,
+    default_of,
 )
 
 _StrainTol = Annotated[float, Field(strict=True, gt=0, le=0.2, allow_inf_nan=False)]
@@ -31,26 +32,32 @@ TIME_BUDGET_DOC = (
 
 class SpaceOptions(Strict):
     max_points: Annotated[int, Field(strict=True, ge=10, le=200_000)] | None = Field(
-        None, description="budget of points per traced curve (default 20000)"
+        None, description="budget of points per traced curve (default 20000)",
+        json_schema_extra=default_of(20000),
     )
     strain_tol: _StrainTol | None = Field(
-        None, description="largest relative bar strain of a predictor step (default 0.01)"
+        None, description="largest relative bar strain of a predictor step (default 0.01)",
+        json_schema_extra=default_of(0.01),
     )
     step_max: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = Field(
         None, description="largest distance between consecutive points (default: a tenth of "
         "the median bar length)"
     )
     angles: Annotated[int, Field(strict=True, ge=4, le=2000)] | None = Field(
-        None, description="rotor angles swept for seeds (default 60)"
+        None, description="rotor angles swept for seeds (default 60)",
+        json_schema_extra=default_of(60),
     )
     random_starts: Annotated[int, Field(strict=True, ge=0, le=1000)] | None = Field(
-        None, description="random starts for seeds and for the critical-point search (default 12)"
+        None, description="random starts for seeds and for the critical-point search (default 12)",
+        json_schema_extra=default_of(12),
     )
     max_components: Annotated[int, Field(strict=True, ge=1, le=1000)] | None = Field(
-        None, description="budget of traced components (default 32)"
+        None, description="budget of traced components (default 32)",
+        json_schema_extra=default_of(32),
     )
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] | None = Field(
-        None, description="seed of the random starts (default 0)"
+        None, description="seed of the random starts (default 0)",
+        json_schema_extra=default_of(0),
     )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
 
