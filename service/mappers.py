@@ -7,7 +7,7 @@ import io
 import json
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 import numpy as np
 from fastapi.exceptions import RequestValidationError
@@ -528,16 +528,26 @@ def robustness_in(
     return adjustable, body.method or "auto"
 
 
+class SliceOptions(TypedDict, total=False):
+    """Keyword arguments of :func:`engine.critical_values.critical_value_slice` that a request
+    may set (those it leaves out keep the engine's defaults)."""
+
+    resolution: int
+    seeds_per_axis: int
+
+
 def critical_values_in(
     body: cv_schemas.CriticalValuesRequest,
-) -> tuple[list[tuple[str, float, float]], dict[str, int]]:
-    """The slice's axes ``(bar, min, max)`` and the keyword arguments of
-    :func:`engine.critical_values.critical_value_slice` that the request sets (the others keep
-    the engine's defaults); the time budget goes to the deadline, not to the slice."""
+) -> tuple[list[tuple[str, float, float]], SliceOptions]:
+    """The slice's axes ``(bar, min, max)`` and the options the request sets; its time budget
+    goes to the deadline, not to the slice."""
     axes = [(a.bar, a.min, a.max) for a in body.axes]
-    given = body.options.model_dump(exclude_none=True, exclude={"time_budget_s"}) \
-        if body.options else {}
-    return axes, given
+    opts = SliceOptions()
+    if body.options is not None and body.options.resolution is not None:
+        opts["resolution"] = body.options.resolution
+    if body.options is not None and body.options.seeds_per_axis is not None:
+        opts["seeds_per_axis"] = body.options.seeds_per_axis
+    return axes, opts
 
 
 def design_in(body: design_schemas.DesignRequest) -> tuple[list[Target], list[str]]:
