@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
@@ -260,6 +261,18 @@ def _second_order_flex_out(linkage: EngineLinkage, pre: PrestressResult) -> Seco
         velocity=_raw_vertex_vectors(linkage, pre.second_order_flex),
         acceleration=_raw_vertex_vectors(linkage, pre.second_order_acceleration),
     )
+
+
+def preset_overrides_in(query: Iterable[tuple[str, str]]) -> dict[str, float]:
+    """A preset's parameters from a query string, each a number (the engine names unknown
+    parameters and values that give no valid linkage)."""
+    overrides: dict[str, float] = {}
+    for key, raw in query:
+        try:
+            overrides[key] = float(raw)
+        except ValueError:
+            raise InvalidParameter(f"not a number: {raw!r}", loc=(key,)) from None
+    return overrides
 
 
 def presets_out() -> list[PresetInfo]:

@@ -8,7 +8,6 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request
 
-from engine.errors import InvalidParameter
 from engine.presets import PRESETS, Preset, build_preset
 from service import mappers
 from service.config import Settings, SettingsDep
@@ -29,12 +28,7 @@ def list_presets() -> list[PresetInfo]:
 def _build(name: str, request: Request, settings: Settings) -> Linkage:
     """The preset with every query parameter as an override: the engine names unknown ones,
     values out of range and values that give no valid linkage."""
-    overrides: dict[str, float] = {}
-    for key, raw in request.query_params.items():
-        try:
-            overrides[key] = float(raw)
-        except ValueError:
-            raise InvalidParameter(f"not a number: {raw!r}", loc=(key,)) from None
+    overrides = mappers.preset_overrides_in(request.query_params.items())
     return mappers.linkage_out(build_preset(name, overrides, settings.limits))
 
 
