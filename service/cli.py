@@ -186,8 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         if sweep:
             body = _request(args, SweepRequest)
             assert isinstance(body, SweepRequest)
-            job = manager.submit_sweep(mappers.sweep_in(body, settings.limits),
-                                       tuple(body.grid or body.samples or {}))
+            sweep_job = mappers.sweep_in(body, settings.limits)
+            job = manager.submit_sweep(sweep_job, sweep_job.names)
         else:
             body = _request(args, tasks.OPERATIONS[args.operation].request)
             job = manager.submit(args.operation, body)

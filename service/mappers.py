@@ -297,13 +297,15 @@ def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
 
 @dataclass(frozen=True)
 class SweepJob:
-    """A sweep request in engine terms: the family, its points (N, P) and what to compute."""
+    """A sweep request in engine terms: the family, its points (N, P) and what to compute;
+    ``names`` are the swept bars or parameters (the columns of ``points``)."""
 
     family: Family
     points: np.ndarray
     compute: tuple[str, ...]
     tolerances: EngineTolerances
     options: SpaceOptions
+    names: tuple[str, ...]
 
 
 def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
@@ -337,7 +339,7 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
         points = sample_points([SampleAxis(k, a.mean, a.sd) for k, a in body.samples.items()],
                                body.count, body.seed)
     compute = tuple(c for c in COMPUTE if c in body.compute)
-    return SweepJob(family, points, compute, tol, space_options_in(body.options))
+    return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
 
 
 def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.SweepResult:

@@ -102,5 +102,4 @@ def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) ->
     """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
     result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""
     sweep = mappers.sweep_in(body, settings.limits)
-    names = tuple(body.grid or body.samples or {})
-    return _accepted(manager, manager.submit_sweep(sweep, names))
+    return _accepted(manager, manager.submit_sweep(sweep, sweep.names))
