@@ -17,8 +17,10 @@ from engine.presets import build_preset
 from service import jobs, mappers
 from service.config import Settings
 from service.schemas.common import AnalysisRequest
+from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
-from service.schemas.space import CriticalValuesRequest, SpaceRequest, SplittingRequest
+from service.schemas.space import SpaceRequest
+from service.schemas.splitting import SplittingRequest
 
 
 def best(fn: Callable[[], Any], repeat: int) -> float:

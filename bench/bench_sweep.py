@@ -48,8 +48,8 @@ SWEEPS: dict[str, dict[str, Any]] = {
 
 def run(manager: tasks.JobManager, body: dict[str, Any]) -> int:
     req = SweepRequest.model_validate(body)
-    job = manager.submit_sweep(mappers.sweep_in(req, manager.settings.limits),
-                               tuple(req.grid or req.samples or {}))
+    sweep = mappers.sweep_in(req, manager.settings.limits)
+    job = manager.submit_sweep(sweep, sweep.names)
     while not job.finished_state:
         time.sleep(0.01)
     assert job.status == "done", job.error

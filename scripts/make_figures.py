@@ -17,8 +17,9 @@ def main() -> None:
     from engine.presets import build_preset
     from service import figures, mappers
     from service.config import Settings
+    from service.schemas.critical_values import CriticalValuesRequest
     from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
-    from service.schemas.space import CriticalValuesRequest, SplittingRequest
+    from service.schemas.splitting import SplittingRequest
 
     settings = Settings()
 

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ValidationError
 
 from engine.errors import LimitExceeded
 from engine.linkage import Limits
-from service.config import Settings, get_settings
+from service.config import app_settings
 from service.errors import problem
 from service.gcpause import gc_paused
 
@@ -81,14 +81,8 @@ class ParsedBody(Request):
         return self._value
 
 
-def _settings(request: Request) -> Settings:
-    provider: Callable[[], Settings] = request.app.dependency_overrides.get(
-        get_settings, get_settings)
-    return provider()
-
-
 async def _parsed(request: Request, model: type[BaseModel], body: bytes) -> Request:
-    settings = _settings(request)
+    settings = app_settings(request.app)
     kind, value = await request.app.state.engine_pool.run(
         settings.time_limit_s, parse_request, model, body, settings.limits)
     if kind == "ok":

@@ -30,7 +30,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from engine.errors import EngineError
 from engine.presets import build_preset
 from service import mappers, tasks
-from service.config import Settings
+from service.config import get_settings
 from service.schemas.jobs import SweepRequest
 from service.workers import ServiceFault
 
@@ -171,7 +171,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    settings = Settings.from_env()
+    settings = get_settings()
     changes: dict[str, Any] = {}
     if args.scheduler:
         changes["dask_scheduler"] = args.scheduler
@@ -186,8 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         if sweep:
             body = _request(args, SweepRequest)
             assert isinstance(body, SweepRequest)
-            job = manager.submit_sweep(mappers.sweep_in(body, settings.limits),
-                                       tuple(body.grid or body.samples or {}))
+            sweep_job = mappers.sweep_in(body, settings.limits)
+            job = manager.submit_sweep(sweep_job, sweep_job.names)
         else:
             body = _request(args, tasks.OPERATIONS[args.operation].request)
             job = manager.submit(args.operation, body)

@@ -5,8 +5,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Annotated
+
+from fastapi import Depends, FastAPI
 
 from engine.linkage import Limits
 
@@ -206,5 +210,22 @@ class Settings:
 
 @lru_cache(maxsize=1)
 def get_settings() -> Settings:
-    """FastAPI dependency; tests override it with ``app.dependency_overrides``."""
+    """The settings dependency: the environment's settings, read once.
+
+    This is the one way the service obtains settings. Routes take :data:`SettingsDep`; code
+    that runs outside a route's dependencies (the request middleware, large-body parsing) asks
+    :func:`app_settings`, which resolves this same dependency. ``create_app(settings)`` and tests
+    override it with ``app.dependency_overrides[get_settings]``, and every part of a request
+    then sees the override. Outside an application (the uvicorn protocol, the command line) it
+    is called directly."""
     return Settings.from_env()
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+def app_settings(app: FastAPI) -> Settings:
+    """The settings ``app`` runs with: its override of :func:`get_settings`, if any, else the
+    environment's (what :data:`SettingsDep` gives its routes)."""
+    provider: Callable[[], Settings] = app.dependency_overrides.get(get_settings, get_settings)
+    return provider()

@@ -35,14 +35,13 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from scipy import ndimage
 
-from engine.configuration_space import find_critical_points
-from engine.constraints import on_constraints
 from engine.errors import InvalidRequest
-from engine.splitting import length_change, split
-from service import jobs, mappers
+from service import jobs
 from service.config import Settings
 from service.schemas import common as c
+from service.schemas import critical_values as cv_schemas
 from service.schemas import space
+from service.schemas import splitting as splitting_schemas
 from service.schemas.common import AnalysisRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
 
@@ -97,25 +96,15 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> 
     return _svg(_draw_space, ans, axes, rotors)
 
 
-def critical_values_figure(body: space.CriticalValuesRequest, settings: Settings) -> bytes:
+def critical_values_figure(body: cv_schemas.CriticalValuesRequest, settings: Settings) -> bytes:
     """The slice: curves, regions shaded and labelled with their component counts."""
     ans = jobs.critical_values(body, settings)
     return _svg(_draw_critical_values, body, ans)
 
 
-def splitting_figure(body: space.SplittingRequest, settings: Settings) -> bytes:
+def splitting_figure(body: splitting_schemas.SplittingRequest, settings: Settings) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
-    # jobs.splitting's steps, keeping the critical points (Q's eigenvalues, tangents) it finds.
-    linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    at, proj = on_constraints(linkage, tol)
-    d_l = length_change(at, body.perturbation)
-    deadline = jobs.search_deadline(body.options, settings, None)
-    search = find_critical_points(at, tol, mappers.space_options_in(body.options),
-                                  deadline=deadline)
-    crit = search.critical_points
-    splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
-    ans = mappers.splitting_out(at, splits, len(crit), tol, crit, search.search)
-    points = mappers.critical_points_out(at, search, proj, tol).critical_points
+    ans, points = jobs.splitting_with_points(body, settings)
     return _svg(_draw_splitting, body, ans, points)
 
 
@@ -402,8 +391,8 @@ def _region_raster(box: np.ndarray, curves: list[np.ndarray], n: int) -> np.ndar
     return labels
 
 
-def _draw_critical_values(body: space.CriticalValuesRequest,
-                          ans: space.CriticalValuesResponse) -> Figure:
+def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
+                          ans: cv_schemas.CriticalValuesResponse) -> Figure:
     box = np.array([[a.min, a.max] for a in body.axes])
     fig = _figure(6.0, 6.0)
     ax = fig.add_subplot()
@@ -470,7 +459,8 @@ def _coefficients(vector: dict[str, list[float]], modes: list[dict[str, list[flo
     return np.array([flat @ np.concatenate([np.asarray(m[i]) for i in ids]) for m in modes])
 
 
-def _draw_splitting(body: space.SplittingRequest, ans: space.SplittingResponse,
+def _draw_splitting(body: splitting_schemas.SplittingRequest,
+                    ans: splitting_schemas.SplittingResponse,
                     points: list[space.CriticalPointOut]) -> Figure:
     branches = ans.branch_points
     cols = min(3, max(1, len(branches)))

@@ -8,13 +8,11 @@ problem+json in :mod:`service.errors`.
 
 from __future__ import annotations
 
-import numpy as np
-
 from engine.budget import Deadline
 from engine.configuration_space import explore, find_critical_points
 from engine.constraints import on_constraints
 from engine.critical_values import critical_value_slice
-from engine.design import Target, check_request, design, verify
+from engine.design import check_request, design, verify
 from engine.errors import InvalidRequest
 from engine.rigidity import first_order
 from engine.robustness import robustness
@@ -24,21 +22,21 @@ from service import mappers
 from service.config import Settings
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest
-from service.schemas.space import (
-    CriticalPointsResponse,
+from service.schemas.critical_values import (
     CriticalValuesOptions,
     CriticalValuesRequest,
     CriticalValuesResponse,
-    DesignRequest,
-    DesignResponse,
-    RobustnessRequest,
-    RobustnessResponse,
+)
+from service.schemas.design import DesignRequest, DesignResponse
+from service.schemas.robustness import RobustnessRequest, RobustnessResponse
+from service.schemas.space import (
+    CriticalPointOut,
+    CriticalPointsResponse,
     SpaceOptions,
     SpaceRequest,
     SpaceResponse,
-    SplittingRequest,
-    SplittingResponse,
 )
+from service.schemas.splitting import SplittingRequest, SplittingResponse
 from service.workers import LIGHT_MAX_VERTICES
 
 
@@ -106,6 +104,14 @@ def configuration_space(
 def splitting(
     body: SplittingRequest, settings: Settings, deadline: Deadline | None = None
 ) -> SplittingResponse:
+    return splitting_with_points(body, settings, deadline)[0]
+
+
+def splitting_with_points(
+    body: SplittingRequest, settings: Settings, deadline: Deadline | None = None
+) -> tuple[SplittingResponse, list[CriticalPointOut]]:
+    """The splitting answer and the critical points behind it (with Q's eigenvalues and
+    tangents, which the splitting figure draws)."""
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
@@ -113,7 +119,8 @@ def splitting(
     found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
     crit = found.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]
-    return mappers.splitting_out(at, splits, len(crit), tol, crit, found.search)
+    return (mappers.splitting_out(at, splits, len(crit), tol, crit, found.search),
+            mappers.critical_list_out(at, crit))
 
 
 def robustness_margin(
@@ -122,9 +129,9 @@ def robustness_margin(
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
-    adjustable = None if body.adjustable is None else list(body.adjustable)
+    adjustable, method = mappers.robustness_in(body)
     res = robustness(at, adjustable, tol, mappers.space_options_in(body.options),
-                     method=body.method or "auto", deadline=dl)
+                     method=method, deadline=dl)
     return mappers.robustness_out(at, res, tol)
 
 
@@ -134,9 +141,7 @@ def critical_values(
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
-    opts = body.options.model_dump(exclude_none=True, exclude={"time_budget_s"}) \
-        if body.options else {}
-    axes = [(a.bar, a.min, a.max) for a in body.axes]
+    axes, opts = mappers.critical_values_in(body)
     res = critical_value_slice(at, axes, tolerances=tol, deadline=dl, **opts)
     return mappers.critical_values_out(res, tol)
 
@@ -145,14 +150,14 @@ def design_splitting(
     body: DesignRequest, settings: Settings, deadline: Deadline | None = None
 ) -> DesignResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
-    targets = [Target(t.branch_point, t.sign) for t in body.targets]
-    check_request(linkage, targets, list(body.adjustable))  # before the costly exploration
+    targets, adjustable = mappers.design_in(body)
+    check_request(linkage, targets, adjustable)  # before the costly exploration
     dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
     crit = found.critical_points
-    margin = body.margin or 1e-4 * float(np.median(at.lengths[at.active]))
-    result = design(at, crit, targets, list(body.adjustable), margin, body.max_change)
+    margin = mappers.design_margin(body, at)
+    result = design(at, crit, targets, adjustable, margin, body.max_change)
     checks = verify(at, crit, targets, result.perturbation, tol, deadline=dl) \
         if result.feasible else []
-    return mappers.design_out(at, result, list(body.adjustable), checks, tol, found.search)
+    return mappers.design_out(at, result, adjustable, checks, tol, found.search)

@@ -60,8 +60,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.dependency_overrides[get_settings] = lambda: settings
     errors.install(app)
     docs.install(app)
-    app.add_middleware(RequestContext, settings=(lambda: settings) if settings else get_settings,
-                       metrics=metrics)
+    app.add_middleware(RequestContext, metrics=metrics)
     app.include_router(health.router)
     app.include_router(presets.router)
     app.include_router(analysis.router)

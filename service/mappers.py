@@ -6,9 +6,9 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 import numpy as np
 from fastapi.exceptions import RequestValidationError
@@ -26,7 +26,7 @@ from engine.configuration_space import (
 from engine.constraints import ProjectionResult
 from engine.critical import CriticalPoint
 from engine.critical_values import Slice
-from engine.design import Check, DesignResult
+from engine.design import Check, DesignResult, Target
 from engine.errors import InvalidParameter, InvalidRequest, UnknownPreset
 from engine.linkage import Limits, build_linkage
 from engine.linkage import Linkage as EngineLinkage
@@ -55,8 +55,12 @@ from engine.trace import TraceOptions
 from engine.vectors import normalised
 from service.gcpause import gc_paused
 from service.schemas import common as c
+from service.schemas import critical_values as cv_schemas
+from service.schemas import design as design_schemas
 from service.schemas import jobs as job_schemas
+from service.schemas import robustness as robustness_schemas
 from service.schemas import space
+from service.schemas import splitting as splitting_schemas
 from service.schemas.analysis import (
     DualCertificate,
     RigidityResponse,
@@ -69,6 +73,9 @@ from service.schemas.presets import PresetInfo
 
 if TYPE_CHECKING:  # service.tasks maps its sweeps here
     from service.tasks import Job
+
+#: Default margin of ``/v1/design/splitting``, relative to the median bar length.
+DEFAULT_MARGIN = 1e-4
 
 
 def linkage_in(model: c.Linkage, limits: Limits) -> EngineLinkage:
@@ -256,6 +263,18 @@ def _second_order_flex_out(linkage: EngineLinkage, pre: PrestressResult) -> Seco
     )
 
 
+def preset_overrides_in(query: Iterable[tuple[str, str]]) -> dict[str, float]:
+    """A preset's parameters from a query string, each a number (the engine names unknown
+    parameters and values that give no valid linkage)."""
+    overrides: dict[str, float] = {}
+    for key, raw in query:
+        try:
+            overrides[key] = float(raw)
+        except ValueError:
+            raise InvalidParameter(f"not a number: {raw!r}", loc=(key,)) from None
+    return overrides
+
+
 def presets_out() -> list[PresetInfo]:
     return [
         PresetInfo(
@@ -278,13 +297,15 @@ def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
 
 @dataclass(frozen=True)
 class SweepJob:
-    """A sweep request in engine terms: the family, its points (N, P) and what to compute."""
+    """A sweep request in engine terms: the family, its points (N, P) and what to compute;
+    ``names`` are the swept bars or parameters (the columns of ``points``)."""
 
     family: Family
     points: np.ndarray
     compute: tuple[str, ...]
     tolerances: EngineTolerances
     options: SpaceOptions
+    names: tuple[str, ...]
 
 
 def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
@@ -318,7 +339,7 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
         points = sample_points([SampleAxis(k, a.mean, a.sd) for k, a in body.samples.items()],
                                body.count, body.seed)
     compute = tuple(c for c in COMPUTE if c in body.compute)
-    return SweepJob(family, points, compute, tol, space_options_in(body.options))
+    return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
 
 
 def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.SweepResult:
@@ -420,6 +441,13 @@ def _search_out(search: Mapping[str, object]) -> dict[str, object]:
     return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in search.items()}
 
 
+def critical_list_out(
+    linkage: EngineLinkage, crit: list[CriticalPoint]
+) -> list[space.CriticalPointOut]:
+    """The critical points as answered (indexed in the order found)."""
+    return [_critical_out(linkage, k, cp) for k, cp in enumerate(crit)]
+
+
 def critical_points_out(
     linkage: EngineLinkage,
     res: SpaceResult | CriticalSearch,
@@ -427,7 +455,7 @@ def critical_points_out(
     tol: EngineTolerances,
 ) -> space.CriticalPointsResponse:
     return space.CriticalPointsResponse(
-        critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
+        critical_points=critical_list_out(linkage, res.critical_points),
         near_misses=[
             space.NearMissOut(
                 configuration=positions_out(linkage, linkage.positions_of(m.u)),
@@ -469,7 +497,7 @@ def space_out(
         components = [_component_out(linkage, c) for c in res.components]
     return space.SpaceResponse(
         components=components,
-        critical_points=[_critical_out(linkage, k, cp) for k, cp in enumerate(res.critical_points)],
+        critical_points=critical_list_out(linkage, res.critical_points),
         segments=[
             space.SegmentOut.model_validate(
                 {"from": s.start, "to": s.end, "component": owner.get(k, -1),
@@ -487,10 +515,10 @@ def space_out(
 def splitting_out(
     linkage: EngineLinkage, splits: list[Split], found: int, tol: EngineTolerances,
     crit: list[CriticalPoint], search: Mapping[str, object],
-) -> space.SplittingResponse:
-    return space.SplittingResponse(
+) -> splitting_schemas.SplittingResponse:
+    return splitting_schemas.SplittingResponse(
         branch_points=[
-            space.BranchSplitOut(
+            splitting_schemas.BranchSplitOut(
                 index=s.index,
                 configuration=positions_out(linkage, linkage.positions_of(crit[s.index].u)),
                 delta=s.delta,
@@ -507,6 +535,49 @@ def splitting_out(
     )
 
 
+def robustness_in(
+    body: robustness_schemas.RobustnessRequest,
+) -> tuple[list[str] | None, Literal["auto", "closed-form", "multistart"]]:
+    """The adjustable bars (None: every bar with a free end) and the method (default auto)."""
+    adjustable = None if body.adjustable is None else list(body.adjustable)
+    return adjustable, body.method or "auto"
+
+
+class SliceOptions(TypedDict, total=False):
+    """Keyword arguments of :func:`engine.critical_values.critical_value_slice` that a request
+    may set (those it leaves out keep the engine's defaults)."""
+
+    resolution: int
+    seeds_per_axis: int
+
+
+def critical_values_in(
+    body: cv_schemas.CriticalValuesRequest,
+) -> tuple[list[tuple[str, float, float]], SliceOptions]:
+    """The slice's axes ``(bar, min, max)`` and the options the request sets; its time budget
+    goes to the deadline, not to the slice."""
+    axes = [(a.bar, a.min, a.max) for a in body.axes]
+    opts = SliceOptions()
+    if body.options is not None and body.options.resolution is not None:
+        opts["resolution"] = body.options.resolution
+    if body.options is not None and body.options.seeds_per_axis is not None:
+        opts["seeds_per_axis"] = body.options.seeds_per_axis
+    return axes, opts
+
+
+def design_in(body: design_schemas.DesignRequest) -> tuple[list[Target], list[str]]:
+    """The targets and the adjustable bars of a design request."""
+    return [Target(t.branch_point, t.sign) for t in body.targets], list(body.adjustable)
+
+
+def design_margin(body: design_schemas.DesignRequest, linkage: EngineLinkage) -> float:
+    """The required margin: the request's, else ``DEFAULT_MARGIN`` of the median bar length
+    (of the bars with a free end)."""
+    if body.margin is not None:
+        return body.margin
+    return DEFAULT_MARGIN * float(np.median(linkage.lengths[linkage.active]))
+
+
 def design_out(
     linkage: EngineLinkage,
     result: DesignResult,
@@ -514,15 +585,15 @@ def design_out(
     checks: list[Check],
     tol: EngineTolerances,
     search: Mapping[str, object],
-) -> space.DesignResponse:
-    return space.DesignResponse(
+) -> design_schemas.DesignResponse:
+    return design_schemas.DesignResponse(
         feasible=result.feasible,
         perturbation={
             bar: float(result.perturbation[linkage.bar_ids.index(bar)]) for bar in adjustable
         },
         largest_change=result.largest_change,
         predicted=[
-            space.PredictedOut(
+            design_schemas.PredictedOut(
                 branch_point=c.branch_point,
                 sign=c.sign,
                 delta=c.delta,
@@ -532,7 +603,7 @@ def design_out(
             for c in checks
         ],
         conflicts=[
-            space.ConflictOut(branch_points=c.branch_points, reason=c.reason)
+            design_schemas.ConflictOut(branch_points=c.branch_points, reason=c.reason)
             for c in result.conflicts
         ],
         verified=all(c.agrees for c in checks) if checks and not any(c.skipped for c in checks)
@@ -544,8 +615,8 @@ def design_out(
 
 def robustness_out(
     linkage: EngineLinkage, res: Margin, tol: EngineTolerances
-) -> space.RobustnessResponse:
-    return space.RobustnessResponse(
+) -> robustness_schemas.RobustnessResponse:
+    return robustness_schemas.RobustnessResponse(
         margin=res.margin if np.isfinite(res.margin) else None,
         nearest=dict(zip(linkage.bar_ids, res.nearest.tolist(), strict=True)),
         critical_configuration=positions_out(linkage, linkage.positions_of(res.critical_u)),
@@ -555,17 +626,17 @@ def robustness_out(
         message=res.message,
         method=res.method,
         guarantee=res.guarantee,
-        search=space.RobustnessSearch.model_validate(_search_out(res.search)),
+        search=robustness_schemas.RobustnessSearch.model_validate(_search_out(res.search)),
         tolerances=tolerances_out(tol),
     )
 
 
-def critical_values_out(res: Slice, tol: EngineTolerances) -> space.CriticalValuesResponse:
-    return space.CriticalValuesResponse(
+def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.CriticalValuesResponse:
+    return cv_schemas.CriticalValuesResponse(
         curves=[c.tolist() for c in res.curves],
         regions=[
-            space.RegionOut(point=list(r.point), components=r.components, signature=r.signature,
-                            cells=r.cells)
+            cv_schemas.RegionOut(point=list(r.point), components=r.components,
+                                 signature=r.signature, cells=r.cells)
             for r in res.regions
         ],
         search=_search_out(res.search),

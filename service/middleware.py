@@ -10,13 +10,12 @@ import re
 import sys
 import time
 import uuid
-from collections.abc import Callable
 from typing import Any, TextIO
 
 from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from service.config import Settings
+from service.config import app_settings
 from service.metrics import Metrics
 
 log = logging.getLogger("service.access")
@@ -88,10 +87,8 @@ class RequestContext:
     body that does not arrive within ``body_timeout_s`` gets a 408 and the connection is
     closed (a slow client holds no one else up)."""
 
-    def __init__(self, app: ASGIApp, settings: Callable[[], Settings],
-                 metrics: Metrics | None = None) -> None:
+    def __init__(self, app: ASGIApp, metrics: Metrics | None = None) -> None:
         self.app = app
-        self.settings = settings
         self.metrics = metrics
         install_access_log()
 
@@ -102,7 +99,7 @@ class RequestContext:
         headers = dict(scope.get("headers") or [])
         given = headers.get(b"x-request-id", b"").decode("latin-1")
         request_id = given if _SAFE_ID.match(given) else uuid.uuid4().hex
-        settings = self.settings()
+        settings = app_settings(scope["app"])  # the app's own, as its routes see them
         limit = settings.max_body_bytes
         original: dict[str, Any] = dict(scope)  # the router adds to scope; labels match on this
         start = time.perf_counter()

@@ -46,14 +46,12 @@ from engine.sweep import PointResult, run_points
 from service import jobs, mappers
 from service.config import Settings
 from service.schemas.common import AnalysisRequest
+from service.schemas.critical_values import CriticalValuesRequest
+from service.schemas.design import DesignRequest
 from service.schemas.jobs import SweepRequest
-from service.schemas.space import (
-    CriticalValuesRequest,
-    DesignRequest,
-    RobustnessRequest,
-    SpaceRequest,
-    SplittingRequest,
-)
+from service.schemas.robustness import RobustnessRequest
+from service.schemas.space import SpaceRequest
+from service.schemas.splitting import SplittingRequest
 from service.workers import Busy, ServiceFault
 
 log = logging.getLogger("service.tasks")

@@ -32,3 +32,18 @@ def test_dockerfile_requirements():
     assert re.search(r"^HEALTHCHECK .*\n?.*/health", text, re.M)
     assert '"--host", "0.0.0.0", "--port", "8000"' in text
     assert "service.main:app" in text
+
+
+def test_readme_and_docs_point_only_inside_the_repository():
+    """Relative links of the README and docs/ resolve to files of the repository, and nothing
+    sends readers to ../shared/ (the contract and the references live in docs/)."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    assert {"API.md", "notation.md", "methods.md", "references.md"} <= {p.name for p in pages}
+    broken = []
+    for page in pages:
+        text = page.read_text()
+        assert "../shared" not in text, f"{page.name} points at ../shared/"
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text):
+            if "://" not in target and not (page.parent / target).exists():
+                broken.append(f"{page.name}: {target}")
+    assert not broken, broken

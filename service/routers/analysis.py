@@ -1,32 +1,26 @@
-from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Request, Response
 
 from service import jobs
 from service.bodies import JsonBodyRoute
-from service.config import Settings, get_settings
+from service.config import SettingsDep
 from service.errors import problem_responses
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest
-from service.schemas.space import (
-    CriticalPointsResponse,
-    CriticalValuesRequest,
-    CriticalValuesResponse,
-    RobustnessRequest,
-    RobustnessResponse,
-    SpaceRequest,
-    SpaceResponse,
-    SplittingRequest,
-    SplittingResponse,
-)
+from service.schemas.critical_values import CriticalValuesRequest, CriticalValuesResponse
+from service.schemas.robustness import RobustnessRequest, RobustnessResponse
+from service.schemas.space import CriticalPointsResponse, SpaceRequest, SpaceResponse
+from service.schemas.splitting import SplittingRequest, SplittingResponse
 from service.workers import engine_call
 
 router = APIRouter(prefix="/v1/analysis", tags=["analysis"], route_class=JsonBodyRoute)
 _problems = problem_responses(400, 408, 413, 415, 422, 503, 504)
-SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 
-@router.post("/rigidity", response_model=RigidityResponse, responses=_problems)
+@router.post(
+    "/rigidity", operation_id="analyseRigidity",
+    response_model=RigidityResponse, responses=_problems,
+)
 async def rigidity(
     body: AnalysisRequest, request: Request, settings: SettingsDep
 ) -> Response:
@@ -34,7 +28,10 @@ async def rigidity(
     return await engine_call(request, settings, jobs.rigidity, body, light=jobs.is_light(body))
 
 
-@router.post("/second-order", response_model=SecondOrderResponse, responses=_problems)
+@router.post(
+    "/second-order", operation_id="analyseSecondOrder",
+    response_model=SecondOrderResponse, responses=_problems,
+)
 async def second_order_analysis(
     body: AnalysisRequest, request: Request, settings: SettingsDep
 ) -> Response:
@@ -44,7 +41,8 @@ async def second_order_analysis(
 
 
 @router.post(
-    "/critical-points", response_model=CriticalPointsResponse, responses=_problems
+    "/critical-points", operation_id="findCriticalPoints",
+    response_model=CriticalPointsResponse, responses=_problems
 )
 async def critical_points(
     body: SpaceRequest, request: Request, settings: SettingsDep
@@ -54,7 +52,8 @@ async def critical_points(
 
 
 @router.post(
-    "/configuration-space", response_model=SpaceResponse, responses=_problems
+    "/configuration-space", operation_id="exploreConfigurationSpace",
+    response_model=SpaceResponse, responses=_problems
 )
 async def configuration_space(
     body: SpaceRequest, request: Request, settings: SettingsDep
@@ -64,7 +63,10 @@ async def configuration_space(
     return await engine_call(request, settings, jobs.configuration_space, body)
 
 
-@router.post("/splitting", response_model=SplittingResponse, responses=_problems)
+@router.post(
+    "/splitting", operation_id="predictSplitting",
+    response_model=SplittingResponse, responses=_problems,
+)
 async def splitting(
     body: SplittingRequest, request: Request, settings: SettingsDep
 ) -> Response:
@@ -72,7 +74,10 @@ async def splitting(
     return await engine_call(request, settings, jobs.splitting, body)
 
 
-@router.post("/robustness", response_model=RobustnessResponse, responses=_problems)
+@router.post(
+    "/robustness", operation_id="computeRobustnessMargin",
+    response_model=RobustnessResponse, responses=_problems,
+)
 async def robustness_margin(
     body: RobustnessRequest, request: Request, settings: SettingsDep
 ) -> Response:
@@ -82,7 +87,8 @@ async def robustness_margin(
 
 
 @router.post(
-    "/critical-values", response_model=CriticalValuesResponse, responses=_problems
+    "/critical-values", operation_id="mapCriticalValues",
+    response_model=CriticalValuesResponse, responses=_problems
 )
 async def critical_values(
     body: CriticalValuesRequest, request: Request, settings: SettingsDep

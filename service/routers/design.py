@@ -1,12 +1,11 @@
-from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Request, Response
 
 from service import jobs
 from service.bodies import JsonBodyRoute
-from service.config import Settings, get_settings
+from service.config import SettingsDep
 from service.errors import problem_responses
-from service.schemas.space import DesignRequest, DesignResponse
+from service.schemas.design import DesignRequest, DesignResponse
 from service.workers import engine_call
 
 router = APIRouter(prefix="/v1/design", tags=["design"], route_class=JsonBodyRoute)
@@ -15,9 +14,12 @@ router = APIRouter(prefix="/v1/design", tags=["design"], route_class=JsonBodyRou
 _problems = problem_responses(400, 408, 413, 415, 422, 503, 504)
 
 
-@router.post("/splitting", response_model=DesignResponse, responses=_problems)
+@router.post(
+    "/splitting", operation_id="designSplitting",
+    response_model=DesignResponse, responses=_problems,
+)
 async def design_splitting(
-    body: DesignRequest, request: Request, settings: Annotated[Settings, Depends(get_settings)]
+    body: DesignRequest, request: Request, settings: SettingsDep
 ) -> Response:
     """Smallest largest change of the adjustable bars that splits the targeted branch points
     with the requested signs; every feasible answer is verified by re-tracing."""

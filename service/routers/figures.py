@@ -1,20 +1,20 @@
 """Figures: SVG pictures of the analyses, drawn in the engine worker pool (service.figures)."""
 
 from collections.abc import Callable
-from typing import Annotated, Any, TypeVar
+from typing import Any, TypeVar
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Request, Response
 
 from service import figures
 from service.bodies import JsonBodyRoute
-from service.config import Settings, get_settings
+from service.config import Settings, SettingsDep
 from service.errors import problem_responses
+from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
-from service.schemas.space import CriticalValuesRequest, SplittingRequest
+from service.schemas.splitting import SplittingRequest
 from service.workers import engine_pool
 
 router = APIRouter(prefix="/v1/figures", tags=["figures"], route_class=JsonBodyRoute)
-SettingsDep = Annotated[Settings, Depends(get_settings)]
 B = TypeVar("B")
 _svg: dict[int | str, dict[str, Any]] = {
     200: {"content": {figures.SVG: {"schema": {"type": "string"}}},
@@ -30,7 +30,7 @@ async def _figure(request: Request, settings: Settings,
     return Response(svg, media_type=figures.SVG)
 
 
-@router.post("/linkage", response_class=Response, responses=_svg)
+@router.post("/linkage", operation_id="drawLinkage", response_class=Response, responses=_svg)
 async def linkage(body: LinkageFigureRequest, request: Request,
                   settings: SettingsDep) -> Response:
     """The linkage at its analysed configuration: pins, sliders with their axis, bars labelled
@@ -39,7 +39,10 @@ async def linkage(body: LinkageFigureRequest, request: Request,
     return await _figure(request, settings, figures.linkage_figure, body)
 
 
-@router.post("/configuration-space", response_class=Response, responses=_svg)
+@router.post(
+    "/configuration-space", operation_id="drawConfigurationSpace",
+    response_class=Response, responses=_svg,
+)
 async def configuration_space(body: SpaceFigureRequest, request: Request,
                               settings: SettingsDep) -> Response:
     """The components of ``/v1/analysis/configuration-space`` in two rotor angles on the
@@ -47,7 +50,10 @@ async def configuration_space(body: SpaceFigureRequest, request: Request,
     return await _figure(request, settings, figures.configuration_space_figure, body)
 
 
-@router.post("/critical-values", response_class=Response, responses=_svg)
+@router.post(
+    "/critical-values", operation_id="drawCriticalValues",
+    response_class=Response, responses=_svg,
+)
 async def critical_values(body: CriticalValuesRequest, request: Request,
                           settings: SettingsDep) -> Response:
     """The slice of ``/v1/analysis/critical-values``: its curves, each region shaded and
@@ -55,7 +61,7 @@ async def critical_values(body: CriticalValuesRequest, request: Request,
     return await _figure(request, settings, figures.critical_values_figure, body)
 
 
-@router.post("/splitting", response_class=Response, responses=_svg)
+@router.post("/splitting", operation_id="drawSplitting", response_class=Response, responses=_svg)
 async def splitting(body: SplittingRequest, request: Request,
                     settings: SettingsDep) -> Response:
     """For each branch point of ``/v1/analysis/splitting``: the two crossing lines (four

@@ -7,7 +7,7 @@ from service.schemas.presets import Health
 router = APIRouter(tags=["health"])
 
 
-@router.get("/health", response_model=Health)
+@router.get("/health", operation_id="getHealth", response_model=Health)
 async def health() -> Health:
     """Liveness: answers on the event loop without touching the engine, so it stays prompt
     while every worker is busy."""
@@ -15,7 +15,7 @@ async def health() -> Health:
 
 
 @router.get(
-    "/metrics",
+    "/metrics", operation_id="getMetrics",
     response_class=Response,
     responses={200: {"content": {CONTENT_TYPE_LATEST: {}}, "description": "Prometheus text"}},
 )

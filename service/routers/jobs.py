@@ -8,13 +8,12 @@ from fastapi.responses import JSONResponse
 
 from service import mappers, tasks
 from service.bodies import JsonBodyRoute
-from service.config import Settings, get_settings
+from service.config import SettingsDep
 from service.errors import problem_responses
 from service.schemas.jobs import JobOut, JobRequest, OperationOut, SweepRequest
 from service.tasks import JobManager
 
 router = APIRouter(prefix="/v1", tags=["jobs"], route_class=JsonBodyRoute)
-SettingsDep = Annotated[Settings, Depends(get_settings)]
 _CSV = "text/csv"
 
 
@@ -31,7 +30,7 @@ def _accepted(manager: JobManager, job: tasks.Job) -> JSONResponse:
     return JSONResponse(body, status_code=202, headers={"location": f"/v1/jobs/{job.id}"})
 
 
-@router.post("/jobs", status_code=202, response_model=JobOut,
+@router.post("/jobs", operation_id="createJob", status_code=202, response_model=JobOut,
              responses=problem_responses(400, 413, 422, 503))
 def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
     """Run any analysis as a job: ``operation`` is its path (e.g.
@@ -49,20 +48,29 @@ def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> JSON
     return _accepted(manager, manager.submit(job.operation, body))
 
 
-@router.get("/jobs/operations", response_model=list[OperationOut])
+@router.get(
+    "/jobs/operations", operation_id="listJobOperations",
+    response_model=list[OperationOut],
+)
 def operations() -> list[OperationOut]:
     """The operations a job can run, with the request schema of each one's body."""
     return [OperationOut(operation=k, request=m.__name__) for k, m in tasks.REQUESTS.items()]
 
 
-@router.get("/jobs/{job_id}", response_model=JobOut, responses=problem_responses(404))
+@router.get(
+    "/jobs/{job_id}", operation_id="getJob",
+    response_model=JobOut, responses=problem_responses(404),
+)
 def get_job(job_id: str, manager: Manager) -> JobOut:
     """Status (queued, running, done, failed, cancelled), progress, and the result when done."""
     job = manager.get(job_id)
     return mappers.job_out(job, manager.expires(job))
 
 
-@router.delete("/jobs/{job_id}", response_model=JobOut, responses=problem_responses(404))
+@router.delete(
+    "/jobs/{job_id}", operation_id="cancelJob",
+    response_model=JobOut, responses=problem_responses(404),
+)
 def cancel_job(job_id: str, manager: Manager) -> JobOut:
     """Cancel a job: running tasks stop at their next check, the others never start. A job
     that has already finished is left as it is."""
@@ -71,7 +79,7 @@ def cancel_job(job_id: str, manager: Manager) -> JobOut:
 
 
 @router.get(
-    "/jobs/{job_id}/result",
+    "/jobs/{job_id}/result", operation_id="getJobResult",
     responses={**problem_responses(404, 406, 409),
                200: {"content": {"application/json": {}, _CSV: {}},
                      "description": "the result; a sweep's rows as CSV with Accept: text/csv"}},
@@ -88,11 +96,10 @@ def job_result(job_id: str, request: Request, manager: Manager) -> Response:
     return JSONResponse(job.result)
 
 
-@router.post("/sweeps", status_code=202, response_model=JobOut,
+@router.post("/sweeps", operation_id="createSweep", status_code=202, response_model=JobOut,
              responses=problem_responses(400, 413, 422, 503))
 def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) -> JSONResponse:
     """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
     result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""
     sweep = mappers.sweep_in(body, settings.limits)
-    names = tuple(body.grid or body.samples or {})
-    return _accepted(manager, manager.submit_sweep(sweep, names))
+    return _accepted(manager, manager.submit_sweep(sweep, sweep.names))

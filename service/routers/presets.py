@@ -4,24 +4,22 @@ documented here without a change), and ``/v1/presets/{name}`` for any name."""
 
 import inspect
 from collections.abc import Callable
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Depends, Query, Request
+from fastapi import APIRouter, Query, Request
 
-from engine.errors import InvalidParameter
 from engine.presets import PRESETS, Preset, build_preset
 from service import mappers
-from service.config import Settings, get_settings
+from service.config import Settings, SettingsDep
 from service.errors import problem_responses
 from service.schemas.common import Linkage
 from service.schemas.presets import PresetInfo
 
 router = APIRouter(prefix="/v1/presets", tags=["presets"])
 _problems = problem_responses(404, 422)
-SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 
-@router.get("", response_model=list[PresetInfo])
+@router.get("", operation_id="listPresets", response_model=list[PresetInfo])
 def list_presets() -> list[PresetInfo]:
     """The preset linkages with their parameters and defaults."""
     return mappers.presets_out()
@@ -30,12 +28,7 @@ def list_presets() -> list[PresetInfo]:
 def _build(name: str, request: Request, settings: Settings) -> Linkage:
     """The preset with every query parameter as an override: the engine names unknown ones,
     values out of range and values that give no valid linkage."""
-    overrides: dict[str, float] = {}
-    for key, raw in request.query_params.items():
-        try:
-            overrides[key] = float(raw)
-        except ValueError:
-            raise InvalidParameter(f"not a number: {raw!r}", loc=(key,)) from None
+    overrides = mappers.preset_overrides_in(request.query_params.items())
     return mappers.linkage_out(build_preset(name, overrides, settings.limits))
 
 
@@ -50,7 +43,9 @@ def _preset_route(preset: Preset) -> Callable[..., Linkage]:
     declared = [
         inspect.Parameter(
             f"p{i}", inspect.Parameter.KEYWORD_ONLY, annotation=float,
-            default=Query(None, alias=key,
+            # The handler reads the query string itself (_build), so this default documents
+            # the preset's default in the schema and is never used as a value.
+            default=Query(preset.parameters[key], alias=key,
                           description=f"{kinds[key]}, default {preset.parameters[key]:g}"),
         )
         for i, key in enumerate(preset.parameters)
@@ -68,15 +63,20 @@ def _preset_route(preset: Preset) -> Callable[..., Linkage]:
     return get_this_preset
 
 
+def preset_operation_id(name: str) -> str:
+    """The operationId of a preset's own route: ``four-bar`` -> ``getPresetFourBar``."""
+    return "getPreset" + "".join(part[:1].upper() + part[1:] for part in name.split("-"))
+
+
 for _preset in PRESETS.values():
     router.add_api_route(
         f"/{_preset.name}", _preset_route(_preset), methods=["GET"], response_model=Linkage,
         responses=_problems, name=f"get_preset_{_preset.name.replace('-', '_')}",
-        operation_id=f"get_preset_{_preset.name.replace('-', '_')}",
+        operation_id=preset_operation_id(_preset.name),
     )
 
 
-@router.get("/{name}", response_model=Linkage, responses=_problems)
+@router.get("/{name}", operation_id="getPreset", response_model=Linkage, responses=_problems)
 def get_preset(name: str, request: Request, settings: SettingsDep) -> Linkage:
     """Build preset ``name``; any parameter listed by ``/v1/presets`` may be given as a query
     parameter (e.g. ``/v1/presets/four-bar?L2=1.1``). Each preset also has a route of its own

@@ -1,1 +1,1 @@
-"""Pydantic request and response models (the HTTP contract, see shared API.md)."""
+"""Pydantic request and response models (the HTTP contract, see docs/API.md)."""

@@ -201,6 +201,14 @@ class Linkage(Strict):
     )
 
 
+def default_of(value: float | str) -> dict[str, Any]:
+    """``json_schema_extra`` of an optional field whose omission (or null) means the engine's
+    default ``value``: the OpenAPI schema shows that default machine-readably while the field
+    stays ``None`` here, so the engine's own default is the one applied (a test checks that
+    the two agree)."""
+    return {"default": value}
+
+
 # Relative thresholds below a few machine epsilons decide nothing (engine.tolerances).
 _RelTol = Annotated[float, Field(strict=True, ge=1e-14, lt=1, allow_inf_nan=False)]
 _AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
@@ -208,14 +216,17 @@ _AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
 
 class Tolerances(Strict):
     rank_rtol: _RelTol | None = Field(
-        None, description="singular values <= rank_rtol * s_max count as zero (default 1e-8)"
+        None, description="singular values <= rank_rtol * s_max count as zero (default 1e-8)",
+        json_schema_extra=default_of(1e-8),
     )
     residual_atol: _AbsTol | None = Field(
         None, description="largest allowed bar-length error of a configuration (default 1e-9 "
         "times the median bar length)"
     )
     q_rtol: _RelTol | None = Field(
-        None, description="eigenvalues of Q below q_rtol * ||H_sigma|| count as zero (default 1e-6)"
+        None,
+        description="eigenvalues of Q below q_rtol * ||H_sigma|| count as zero (default 1e-6)",
+        json_schema_extra=default_of(1e-6),
     )
 
 

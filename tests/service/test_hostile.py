@@ -313,7 +313,7 @@ def test_design_refuses_bad_requests_before_exploring(monkeypatch: Any, field: s
     from engine.errors import InvalidRequest
     from service import jobs
     from service.config import Settings
-    from service.schemas.space import DesignRequest
+    from service.schemas.design import DesignRequest
 
     def explore(*args: Any, **kwargs: Any) -> None:
         raise AssertionError("explored before validating the request")

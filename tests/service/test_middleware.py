@@ -69,3 +69,19 @@ def test_answer_point_limit(app, client):
     assert r.status_code == 422
     assert r.json()["errors"][0]["loc"] == ["body", "options"]
     assert "LINKAGE_MAX_POINTS" in r.json()["detail"]
+
+
+def test_the_middleware_reads_the_same_settings_dependency_as_the_routes(app, client):
+    """One settings dependency: overriding get_settings (as tests and create_app(settings) do)
+    reaches the body-size cap of the middleware too, not only the routes."""
+    before = app.dependency_overrides[config.get_settings]
+    app.dependency_overrides[config.get_settings] = lambda: before().replace(max_body_bytes=100)
+    try:
+        capped = client.post("/v1/analysis/rigidity", content=b"{" * 500,
+                             headers={"content-type": "application/json"})
+    finally:
+        app.dependency_overrides[config.get_settings] = before
+    assert capped.status_code == 413 and capped.json()["type"] == "/problems/body-too-large"
+    after = client.post("/v1/analysis/rigidity", content=b"{" * 500,
+                        headers={"content-type": "application/json"})
+    assert after.status_code == 422  # the override gone, the app's own limit again

@@ -224,7 +224,7 @@ def test_robustness_job_stopped_by_its_deadline_answers_incomplete():
     from engine.budget import Deadline
     from service import jobs
     from service.config import Settings
-    from service.schemas.space import RobustnessRequest
+    from service.schemas.robustness import RobustnessRequest
 
     body = RobustnessRequest.model_validate({"linkage": SLIDER_CRANK})
     out = jobs.robustness_margin(body, Settings(), deadline=Deadline.after(0.0))

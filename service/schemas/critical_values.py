@@ -1,0 +1,59 @@
+"""Requests and responses of ``/v1/analysis/critical-values`` (and its figure)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import (
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    TolerancesUsed,
+    default_of,
+)
+from service.schemas.space import TIME_BUDGET_DOC, TimeBudget
+
+
+class AxisIn(Strict):
+    bar: Ident
+    min: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
+    max: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
+
+
+class CriticalValuesOptions(Strict):
+    resolution: Annotated[int, Field(strict=True, ge=8, le=400)] | None = Field(
+        None, description="raster of the regions and step of the curves: box / resolution "
+        "(default 48)", json_schema_extra=default_of(48),
+    )
+    seeds_per_axis: Annotated[int, Field(strict=True, ge=2, le=20)] | None = Field(
+        None, description="sample lengths per axis where curves are seeded (default 5)",
+        json_schema_extra=default_of(5),
+    )
+    time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
+
+
+class CriticalValuesRequest(Strict):
+    linkage: Linkage
+    axes: list[AxisIn] = Field(min_length=2, max_length=2)
+    options: CriticalValuesOptions | None = None
+    tolerances: Tolerances | None = None
+
+
+class RegionOut(BaseModel):
+    point: list[float]
+    components: int | None = Field(
+        description="components of the configuration space at the point (null: not explored "
+        "within the time budget; search.complete is then false)"
+    )
+    signature: str
+    cells: int = Field(description="raster cells of the region")
+
+
+class CriticalValuesResponse(BaseModel):
+    curves: list[list[list[float]]] = Field(description="polylines [[x, y], ...] in the box")
+    regions: list[RegionOut]
+    search: dict[str, object]
+    tolerances: TolerancesUsed

@@ -1,0 +1,66 @@
+"""Requests and responses of ``/v1/design/splitting`` (``service.routers.design``)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import (
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    TolerancesUsed,
+)
+from service.schemas.space import SpaceOptions
+
+
+class TargetIn(Strict):
+    branch_point: Annotated[int, Field(strict=True, ge=0)]
+    sign: Annotated[int, Field(strict=True, ge=-1, le=1)]
+
+
+class DesignRequest(Strict):
+    linkage: Linkage
+    targets: list[TargetIn] = Field(min_length=1, max_length=1000)
+    adjustable: list[Ident] = Field(min_length=1, max_length=10_000)
+    max_change: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = None
+    margin: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = Field(
+        None, description="required sign * Delta / |dDelta/dL| (default 1e-4 of the median "
+        "bar length)"
+    )
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class PredictedOut(BaseModel):
+    branch_point: int
+    sign: int
+    delta: float
+    connects: list[list[int]]
+    traced_connects: list[list[int]] | None = Field(
+        description="ray pairs found by tracing the perturbed linkage"
+    )
+
+
+class ConflictOut(BaseModel):
+    branch_points: list[int]
+    reason: str
+
+
+class DesignResponse(BaseModel):
+    feasible: bool
+    perturbation: dict[str, float]
+    largest_change: float
+    predicted: list[PredictedOut]
+    conflicts: list[ConflictOut]
+    verified: bool | None = Field(
+        description="the perturbed linkage, re-traced, agrees (null: infeasible, or not every "
+        "target re-traced within the time budget)"
+    )
+    search: dict[str, object] = Field(
+        description="the critical-point search behind the answer (as in critical-points): "
+        "complete, reason, time_budget_s"
+    )
+    tolerances: TolerancesUsed

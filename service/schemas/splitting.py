@@ -1,0 +1,43 @@
+"""Requests and responses of ``/v1/analysis/splitting`` (and its figure)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, Field
+
+from service.schemas.common import (
+    Finite,
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    TolerancesUsed,
+    VertexVectors,
+)
+from service.schemas.space import SpaceOptions
+
+
+class SplittingRequest(Strict):
+    linkage: Linkage
+    perturbation: dict[Ident, Finite] = Field(description="{bar_id: dL}")
+    tolerances: Tolerances | None = None
+    options: SpaceOptions | None = None
+
+
+class BranchSplitOut(BaseModel):
+    index: int
+    configuration: VertexVectors
+    delta: float = Field(description="Delta of the conic (c - dc)^T Q (c - dc) = Delta")
+    delta_linear: float = Field(description="first-order Delta = 4 sum sigma_a L_a dL_a")
+    shift: list[float] = Field(description="dc, the centre shift on the zero modes")
+    sign: int
+    connects: list[list[int]] = Field(description="joined ray pairs")
+
+
+class SplittingResponse(BaseModel):
+    branch_points: list[BranchSplitOut]
+    critical_points_found: int
+    search: dict[str, object] = Field(
+        description="the critical-point search behind the answer (as in critical-points): "
+        "complete, reason, time_budget_s"
+    )
+    tolerances: TolerancesUsed
