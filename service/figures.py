@@ -363,7 +363,7 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
     n, m = len(ans.components), len(ans.critical_points)
     ax.set_title(f"Configuration space: {n} component{'s' * (n != 1)}, "
                  f"{m} critical point{'s' * (m != 1)}"
-                 + ("" if ans.search.get("complete", True) else " (search incomplete)"))
+                 + ("" if ans.search.complete else f" (search incomplete: {ans.search.reason})"))
     if handles:
         fig.legend(handles=handles, loc="outside lower center", ncols=2)
     return fig

@@ -467,7 +467,7 @@ def critical_points_out(
             for m in res.near_misses
         ],
         degenerate=res.degenerate,
-        search=_search_out(res.search),
+        search=c.SearchReport.model_validate(_search_out(res.search)),
         tolerances=tolerances_out(tol),
         **_projection_fields(linkage, proj),  # type: ignore[arg-type]
     )
@@ -506,7 +506,7 @@ def space_out(
             for k, s in enumerate(res.segments)
         ],
         degenerate=res.degenerate,
-        search=_search_out(res.search),
+        search=c.SearchReport.model_validate(_search_out(res.search)),
         tolerances=tolerances_out(tol),
         **_projection_fields(linkage, proj),  # type: ignore[arg-type]
     )
@@ -530,7 +530,7 @@ def splitting_out(
             for s in splits
         ],
         critical_points_found=found,
-        search=_search_out(search),
+        search=c.SearchReport.model_validate(_search_out(search)),
         tolerances=tolerances_out(tol),
     )
 
@@ -608,7 +608,7 @@ def design_out(
         ],
         verified=all(c.agrees for c in checks) if checks and not any(c.skipped for c in checks)
         else None,
-        search=_search_out(search),
+        search=c.SearchReport.model_validate(_search_out(search)),
         tolerances=tolerances_out(tol),
     )
 
@@ -639,6 +639,6 @@ def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.Critica
                                  signature=r.signature, cells=r.cells)
             for r in res.regions
         ],
-        search=_search_out(res.search),
+        search=cv_schemas.SliceSearch.model_validate(_search_out(res.search)),
         tolerances=tolerances_out(tol),
     )

@@ -254,3 +254,28 @@ class Problem(BaseModel):
     status: int
     detail: str
     errors: list[ProblemItem] = Field(default_factory=list)
+
+
+#: Why a search is incomplete (``search.reason``).
+SearchReason = Literal["time", "budget", "degenerate", "unresolved"]
+
+
+class SearchReport(BaseModel):
+    """What a search did and whether its answer is complete (``engine.report.SearchReport``).
+    ``complete`` and ``reason`` are always there; the method's own counts (``method``,
+    ``seeds``, ``curves_traced``, ``open_curves``, ``critical_candidates``,
+    ``components_total``, ``closed_form_*``, ...) are further properties."""
+
+    model_config = ConfigDict(extra="allow")
+
+    complete: bool = Field(description="the search ran to its end: nothing was cut short")
+    reason: SearchReason | None = Field(
+        description="why it is incomplete: time (the deadline stopped it), budget (a count ran "
+        "out: components, assemblies, points of a curve), degenerate (a critical point that "
+        "is not isolated), unresolved (a curve or segment stopped open for a numerical "
+        "reason); null when complete"
+    )
+    time_budget_s: float | None = Field(
+        None, description="seconds the search was given (options.time_budget_s or "
+        "LINKAGE_SEARCH_TIME_S; a job's own time limit)"
+    )

@@ -9,6 +9,7 @@ from pydantic import BaseModel, Field
 from service.schemas.common import (
     Ident,
     Linkage,
+    SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
@@ -52,8 +53,16 @@ class RegionOut(BaseModel):
     cells: int = Field(description="raster cells of the region")
 
 
+class SliceSearch(SearchReport):
+    """The search of a slice: complete unless the deadline stopped it (``reason`` time)."""
+
+    regions_explored: int = Field(description="regions whose components were counted")
+    curves: int = Field(description="curves of the critical value set traced")
+    resolution: int
+
+
 class CriticalValuesResponse(BaseModel):
     curves: list[list[list[float]]] = Field(description="polylines [[x, y], ...] in the box")
     regions: list[RegionOut]
-    search: dict[str, object]
+    search: SliceSearch
     tolerances: TolerancesUsed

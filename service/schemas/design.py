@@ -9,6 +9,7 @@ from pydantic import BaseModel, Field
 from service.schemas.common import (
     Ident,
     Linkage,
+    SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
@@ -59,7 +60,7 @@ class DesignResponse(BaseModel):
         description="the perturbed linkage, re-traced, agrees (null: infeasible, or not every "
         "target re-traced within the time budget)"
     )
-    search: dict[str, object] = Field(
+    search: SearchReport = Field(
         description="the critical-point search behind the answer (as in critical-points): "
         "complete, reason, time_budget_s"
     )

@@ -11,6 +11,7 @@ from service.schemas.analysis import Projection
 from service.schemas.common import (
     BarValues,
     Linkage,
+    SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
@@ -94,7 +95,7 @@ class CriticalPointsResponse(Projection):
     critical_points: list[CriticalPointOut]
     near_misses: list[NearMissOut]
     degenerate: bool = Field(description="a critical point is degenerate (e.g. non-isolated)")
-    search: dict[str, object]
+    search: SearchReport
     tolerances: TolerancesUsed
 
 
@@ -127,5 +128,5 @@ class SpaceResponse(Projection):
         description="at critical lengths: which critical points each branch joins"
     )
     degenerate: bool
-    search: dict[str, object]
+    search: SearchReport
     tolerances: TolerancesUsed

@@ -8,6 +8,7 @@ from service.schemas.common import (
     Finite,
     Ident,
     Linkage,
+    SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
@@ -36,7 +37,7 @@ class BranchSplitOut(BaseModel):
 class SplittingResponse(BaseModel):
     branch_points: list[BranchSplitOut]
     critical_points_found: int
-    search: dict[str, object] = Field(
+    search: SearchReport = Field(
         description="the critical-point search behind the answer (as in critical-points): "
         "complete, reason, time_budget_s"
     )
