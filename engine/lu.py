@@ -12,6 +12,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+#: Double-precision LU and solve of LAPACK (what ``scipy.linalg.lu_factor``/``lu_solve`` call).
+_GETRF, _GETRS = sla.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+
 
 def parity(perm: np.ndarray) -> int:
     """+1 for an even permutation, -1 for an odd one (``n - cycles`` transpositions).
@@ -55,9 +58,15 @@ class Factor:
                 diag = self._lu.U.diagonal()
                 perm = parity(self._lu.perm_r) * parity(self._lu.perm_c)
             else:
-                self._lu_piv = sla.lu_factor(mat, check_finite=False)
-                diag = np.diag(self._lu_piv[0])
-                perm = -1 if np.sum(self._lu_piv[1] != np.arange(len(diag))) % 2 else 1
+                # LAPACK directly: scipy.linalg.lu_factor/lu_solve validate and convert their
+                # arguments on every call, which costs more than the factorisation itself for
+                # the small systems of the tracer (the same getrf/getrs underneath)
+                lu, piv, info = _GETRF(np.asarray(mat, dtype=float))
+                if info < 0:
+                    raise ValueError(f"getrf: illegal argument {-info}")
+                self._lu_piv = (lu, piv)
+                diag = np.diag(lu)
+                perm = -1 if np.sum(piv != np.arange(len(diag))) % 2 else 1
         except (RuntimeError, ValueError, sla.LinAlgError):
             self.ok = False
             return
@@ -70,7 +79,10 @@ class Factor:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.sparse:
             return self._lu.solve(rhs)
-        return sla.lu_solve(self._lu_piv, rhs, check_finite=False)
+        x, info = _GETRS(*self._lu_piv, rhs)
+        if info != 0:
+            raise ValueError(f"getrs: illegal argument {-info}")
+        return np.asarray(x)
 
     def solve_first(self) -> np.ndarray:
         """``A^{-1} e_1``."""
