@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -162,9 +163,51 @@ class Curve:
     stop: str = ""
     stop_index: int | None = None
 
+    def append(self, u: np.ndarray, t: np.ndarray, sign: int, logdet: float) -> None:
+        self.points.append(u)
+        self.tangents.append(t)
+        self.signs.append(sign)
+        self.logdets.append(logdet)
+
 
 StopCheck = Callable[[np.ndarray, np.ndarray, np.ndarray], str | None]
 """``check(u_prev, u_new, t_new)`` returns a reason to stop after accepting ``u_new``."""
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """The step bounds of one trace: largest step, smallest (the scale's resolution), steps
+    that may cross a sign change of the augmented determinant, and the loop's pass budget."""
+
+    h_max: float
+    h_min: float
+    h_cross: float
+    passes: int
+
+
+def _limits(cons: Constraints, u0: np.ndarray, options: TraceOptions) -> _Limits:
+    h_max = options.resolved_step_max(cons)
+    # Below ~1e-12 of the linkage's scale a step no longer moves u in floating point: the
+    # smallest step is bounded there whatever step_max is, and every pass of the loop (kept
+    # or halved) counts against a budget, so no option can make a trace run forever.
+    scale = max(float(np.max(np.abs(u0), initial=0.0)),
+                float(np.median(cons.linkage.lengths[cons.bars])))
+    return _Limits(h_max, max(1e-9 * h_max, 1e-12 * scale), 1e-5 * h_max,
+                   40 * options.max_points + 1000)
+
+
+class _Step(NamedTuple):
+    """An accepted step: the new point, its tangent information, the corrector's iterations,
+    and the critical point crossed on the way (None for a regular step)."""
+
+    w: np.ndarray
+    info: TangentInfo
+    iters: int
+    crossed: np.ndarray | None = None
+
+
+#: What a step attempt gives: a step, SHRINK (halve the step and try again) or a reason to stop.
+SHRINK = "shrink"
 
 
 def trace_curve(
@@ -184,125 +227,105 @@ def trace_curve(
 
     The step is halved when the predictor's strain exceeds ``strain_tol``, the corrector
     fails, or the tangent turns by more than ``max_turn``; it grows by 1.5 after easy steps.
+    Critical points on the way are crossed along the incoming tangent (:func:`_attempt`,
+    :func:`_cross_ahead`).
     """
-    h_max = options.resolved_step_max(cons)
-    lengths = cons.linkage.lengths[cons.bars]
-    # Below ~1e-12 of the linkage's scale a step no longer moves u in floating point: the
-    # smallest step is bounded there whatever step_max is, and every pass of the loop (kept
-    # or halved) counts against a budget, so no option can make a trace run forever.
-    scale = max(float(np.max(np.abs(u0), initial=0.0)), float(np.median(lengths)))
-    h_min = max(1e-9 * h_max, 1e-12 * scale)
-    budget = 40 * options.max_points + 1000
-    h_cross = 1e-5 * h_max  # steps allowed to change the sign of the augmented determinant
+    lim = _limits(cons, u0, options)
     curve = Curve()
     info = tangent_at(cons, u0, t0 / np.linalg.norm(t0))
     if info is None:
-        curve.points, curve.tangents = [u0], [t0 / np.linalg.norm(t0)]
-        curve.signs, curve.logdets = [0], [-np.inf]
+        curve.append(u0, t0 / np.linalg.norm(t0), 0, -np.inf)
         curve.stop = "singular start"
         return curve
-    u, t, sign = u0, info.tangent, info.sign
-    curve.points.append(u)
-    curve.tangents.append(t)
-    curve.signs.append(info.sign)
-    curve.logdets.append(info.logdet)
-    h = 0.25 * h_max
-    arc = 0.0
-    close_after = 4 * h_max if min_arc_to_close is None else min_arc_to_close
-    fac = info.factor
+    u, t, sign, fac = u0, info.tangent, info.sign, info.factor
+    curve.append(u, t, info.sign, info.logdet)
+    h, arc, budget = 0.25 * lim.h_max, 0.0, lim.passes
+    close_after = 4 * lim.h_max if min_arc_to_close is None else min_arc_to_close
     tried_at_u = False  # whether a collapsed step looked for a critical point ahead of u
     while len(curve.points) < options.max_points:
         budget -= 1
-        if budget < 0:
-            curve.stop = "step budget"
+        ended = ("step budget" if budget < 0
+                 else STOP_TIME if budget % DEADLINE_EVERY == 0 and deadline.expired()
+                 else "step underflow" if h < lim.h_min else None)
+        if ended is not None:
+            curve.stop = ended
             return curve
-        if budget % DEADLINE_EVERY == 0 and deadline.expired():
-            curve.stop = STOP_TIME
-            return curve
-        if h < h_min:
-            curve.stop = "step underflow"
-            return curve
-        crossed = None
-        if h < STEP_COLLAPSE * h_max and not tried_at_u and cons.n_free <= 600:
-            # The step collapsed: near an exact branch point the corrector's own residual acts
-            # as a length perturbation of ~residual_atol, which splits the crossing into a tiny
-            # hyperbola (~sqrt(residual_atol * L) across) whose arc turns onto the other
-            # branch in steps that each pass the turn test. If a critical point lies just
-            # ahead, locate it and cross it; otherwise go on shrinking (a near miss).
+        step: _Step | str | None = None
+        if h < STEP_COLLAPSE * lim.h_max and not tried_at_u and cons.n_free <= 600:
             tried_at_u = True
-            crossed = _cross_ahead(cons, u, t, tol, h_max, options.max_turn, h_cross)
-        if crossed is not None:
-            crossing, (w, nxt) = crossed
-            _append_crossing(curve, crossing, t, nxt.sign)
-            arc += float(np.linalg.norm(crossing - u))
-            u, iters = crossing, 0
-            h = float(np.linalg.norm(w - u))
-        else:
-            v = u + h * t
-            strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths)
-                                  / lengths))
-            if strain > options.strain_tol:
-                h *= 0.5
-                continue
-            w, ok, iters = correct(cons, v, t, tol, factor=fac)
-            if not ok:
-                w, ok, iters = correct(cons, v, t, tol)
-            if not ok or np.linalg.norm(w - v) > 0.5 * h:
-                h *= 0.5
-                continue
-            at_w = tangent_at(cons, w, t)
-            if at_w is None or at_w.tangent @ t < np.cos(options.max_turn):
-                h *= 0.5
-                continue
-            nxt = at_w
-            if nxt.sign != sign and sign != 0:
-                # The tangent form never vanishes along a regular curve, so its sign relative
-                # to the direction of travel cannot change between neighbours: a change means
-                # the corrector landed on another branch (near a split branch point the arcs
-                # are ~sqrt(dL) apart), or the step crosses a true critical point. Shrink
-                # until the step is tiny; then accept the crossing only at a truly critical
-                # point (exact branch points at critical lengths), else stop: the curve stays
-                # open and the search incomplete.
-                if h > h_cross:
-                    h *= 0.5
-                    continue
-                # (no dense SVD for large linkages: their crossings are accepted as critical)
-                if cons.n_free <= 600 and singular_gap(cons, w) > 1e-5:
-                    curve.stop = "unresolved near-critical point"
-                    return curve
-                # ``w`` sits on the critical point, where the tangent of ``[t; J]`` is any
-                # vector of the two-dimensional kernel: keep it with the incoming tangent and
-                # jump clear of it along that tangent (see ``_jump``).
-                past = _jump(cons, w, t, tol, h_max, options.max_turn, h_cross)
-                if past is None:
-                    curve.stop = "unresolved branch crossing"
-                    return curve
-                _append_crossing(curve, w, t, past[1].sign)
-                arc += float(np.linalg.norm(w - u))
-                u, (w, nxt) = w, past
-                h = float(np.linalg.norm(w - u))
-        step = float(np.linalg.norm(w - u))
-        if step > h_max:
+            step = _cross_ahead(cons, u, t, tol, lim.h_max, options.max_turn, lim.h_cross)
+        if step is None:
+            step = _attempt(cons, u, t, h, fac, sign, tol, options, lim)
+        if step == SHRINK or (isinstance(step, _Step)
+                              and np.linalg.norm(step.w - u) > lim.h_max):
             h *= 0.5
             continue
-        arc += step
-        curve.points.append(w)
-        curve.tangents.append(nxt.tangent)
-        curve.signs.append(nxt.sign)
-        curve.logdets.append(nxt.logdet)
+        if isinstance(step, str):
+            curve.stop = step
+            return curve
+        if step.crossed is not None:  # keep the critical point, with the incoming tangent
+            _append_crossing(curve, step.crossed, t, step.info.sign)
+            arc += float(np.linalg.norm(step.crossed - u))
+            u = step.crossed
+            h = float(np.linalg.norm(step.w - u))
+        w, nxt = step.w, step.info
+        arc += float(np.linalg.norm(w - u))
+        curve.append(w, nxt.tangent, nxt.sign, nxt.logdet)
         reason = stop(u, w, nxt.tangent) if stop is not None else None
+        if reason is None and close and arc > close_after and \
+                segment_distance(u, w, u0) <= 0.5 * lim.h_max and \
+                _lands_on(cons, u, w, nxt.tangent, u0, tol, 1e-5 * lim.h_max):
+            reason = "closed"
         if reason is not None:
             curve.stop = reason
             return curve
-        if close and arc > close_after and segment_distance(u, w, u0) <= 0.5 * h_max and \
-                _lands_on(cons, u, w, nxt.tangent, u0, tol, 1e-5 * h_max):
-            curve.stop = "closed"
-            return curve
         u, t, fac, sign = w, nxt.tangent, nxt.factor, nxt.sign
         tried_at_u = False
-        h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
+        h = min(lim.h_max, h * (1.5 if step.iters <= 3 else 1.0))
     curve.stop = "max points"
     return curve
+
+
+def _attempt(
+    cons: Constraints, u: np.ndarray, t: np.ndarray, h: float,
+    fac: Factor | BorderedFactor, sign: int, tol: Tolerances, options: TraceOptions,
+    lim: _Limits,
+) -> _Step | str:
+    """One predictor-corrector step of size ``h`` from ``u`` along ``t``: the step,
+    :data:`SHRINK`, or a reason to stop.
+
+    A sign change of ``det([t; J])`` between neighbours means the corrector landed on another
+    branch (near a split branch point the arcs are ``~sqrt(dL)`` apart), or the step crosses a
+    true critical point: the step shrinks until it is tiny; then the crossing is accepted only
+    at a truly critical point (exact branch points at critical lengths), else the trace stops
+    open (the search is then incomplete)."""
+    lengths = cons.linkage.lengths[cons.bars]
+    v = u + h * t
+    strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths) / lengths))
+    if strain > options.strain_tol:
+        return SHRINK
+    w, ok, iters = correct(cons, v, t, tol, factor=fac)
+    if not ok:
+        w, ok, iters = correct(cons, v, t, tol)
+    if not ok or np.linalg.norm(w - v) > 0.5 * h:
+        return SHRINK
+    at_w = tangent_at(cons, w, t)
+    if at_w is None or at_w.tangent @ t < np.cos(options.max_turn):
+        return SHRINK
+    if at_w.sign == sign or sign == 0:
+        return _Step(w, at_w, iters)
+    if h > lim.h_cross:
+        return SHRINK
+    # (no dense SVD for large linkages: their crossings are accepted as critical)
+    if cons.n_free <= 600 and singular_gap(cons, w) > 1e-5:
+        return "unresolved near-critical point"
+    # ``w`` sits on the critical point, where the tangent of ``[t; J]`` is any vector of the
+    # two-dimensional kernel: keep it with the incoming tangent and jump clear of it along
+    # that tangent (see ``_jump``).
+    past = _jump(cons, w, t, tol, lim.h_max, options.max_turn, lim.h_cross)
+    if past is None:
+        return "unresolved branch crossing"
+    return _Step(past[0], past[1], 0, crossed=w)
 
 
 def _append_crossing(curve: Curve, c: np.ndarray, t: np.ndarray, sign: int) -> None:
@@ -322,17 +345,24 @@ def _cross_ahead(
     h_max: float,
     max_turn: float,
     h_min: float,
-) -> tuple[np.ndarray, tuple[np.ndarray, TangentInfo]] | None:
-    """The critical point just ahead of ``u`` (within ``10 STEP_COLLAPSE h_max``, in the
-    direction of ``t``) and the point beyond it on the same branch, or None (no critical point
-    there: a near miss, which the tracer passes with small steps)."""
+) -> _Step | None:
+    """After the step collapsed: the critical point just ahead of ``u`` (within
+    ``10 STEP_COLLAPSE h_max``, in the direction of ``t``) crossed to the point beyond it on
+    the same branch, or None (no critical point there: a near miss, which the tracer passes
+    with small steps).
+
+    Near an exact branch point the corrector's own residual acts as a length perturbation of
+    ``~residual_atol``, which splits the crossing into a tiny hyperbola
+    (``~sqrt(residual_atol L)`` across) whose arc turns onto the other branch in steps that
+    each pass the turn test: locating the critical point and jumping across it keeps the
+    branch."""
     ref = refine_critical(cons, u, tol)
     ahead = ref.u - u
     dist = float(np.linalg.norm(ahead))
     if not ref.critical or dist > 10 * STEP_COLLAPSE * h_max or ahead @ t < 0.5 * dist:
         return None
     past = _jump(cons, ref.u, t, tol, h_max, max_turn, h_min)
-    return None if past is None else (ref.u, past)
+    return None if past is None else _Step(past[0], past[1], 0, crossed=ref.u)
 
 
 def _jump(
