@@ -260,77 +260,28 @@ def critical_value_slice(
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions(angles=24, random_starts=4)
     dl = deadline or NEVER
-    timed_out = False
     ax = _validate(linkage, axes)
-    sys = _System(linkage, ax)
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
     span = box[:, 1] - box[:, 0]
-    h_max = float(min(span)) / resolution
-    curves_x: list[np.ndarray] = []
-    seeds_tried = seeds_used = 0
-    # A seed exploration need not be complete (it only has to reach critical configurations
-    # near its lengths), so its curves get a point budget: one that fails to close (as near a
-    # branch point at critical lengths) must not cost a full trace budget.
-    seed_opt = replace(
-        opt, max_components=min(opt.max_components, 8), near_misses_closed_form=True,
-        trace=replace(opt.trace, max_points=min(opt.trace.max_points, SEED_MAX_POINTS)),
-    )
-
-    def known(x: np.ndarray) -> bool:
-        """The seed's lengths lie on a curve already traced (other assemblies of the same
-        critical sheet project onto the same curve of the slice)."""
-        p = x[-2:][None, :]
-        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * float(max(span))
-                   for c in curves_x)
-
+    tracing = _CurveTracing(linkage, ax, box, float(min(span)) / resolution, tol, opt,
+                            max_curve_points, dl)
     grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
             for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
     for k, p0 in enumerate(grid):
         if dl.expired():
-            timed_out = True
+            tracing.timed_out = True
             break
         dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
-        lengths = linkage.lengths.copy()
-        lengths[ax[0].bar], lengths[ax[1].bar] = p0
-        at = linkage.with_lengths(lengths)
-        # Only the critical configurations are needed here: no segments, no components.
-        res = find_critical_points(at, tol, seed_opt, start_on_space=False, deadline=dl)
-        cons = Constraints(at)
-        starts: list[tuple[np.ndarray, np.ndarray | None]] = (
-            [(cp.u, None) for cp in res.critical_points]
-            + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
-        )
-        for u0, s0 in starts:
-            seeds_tried += 1
-            if s0 is None:  # (a near miss's configuration is refined already, with its stress)
-                ref = refine_critical(cons, u0, tol)
-                u0, s0 = ref.u, ref.sigma
-            x = _onto_solutions(sys, np.concatenate([u0, s0, p0]))
-            if np.max(np.abs(sys.g(x))) > 1e-9 or known(x):
-                continue
-            if np.any(x[-2:] < box[:, 0] - h_max) or np.any(x[-2:] > box[:, 1] + h_max):
-                continue
-            seeds_used += 1
-            t = _tangent(sys, x, np.random.default_rng(seeds_used).normal(size=sys.n))
-            if t is None:
-                continue
-            fwd, stop_f = _continue(sys, x, t, box, h_max, max_curve_points, dl)
-            if stop_f == "closed":
-                curve = np.array(fwd + [fwd[0]])
-            else:
-                back, stop_b = _continue(sys, x, -t, box, h_max, max_curve_points, dl)
-                curve = np.array(back[::-1] + fwd[1:])
-                timed_out = timed_out or REASON_TIME in (stop_f, stop_b)
-            curves_x.append(curve)
-    curves = [_clip(c[:, -2:], box) for c in curves_x]
+        tracing.seed_at(p0)
+    curves = [_clip(c[:, -2:], box) for c in tracing.curves]
     curves = _merge_coincident([c for c in curves if len(c) >= 2], 1e-7 * float(max(span)))
     regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
-    timed_out = timed_out or any(r.components is None for r in regions)
+    timed_out = tracing.timed_out or any(r.components is None for r in regions)
     search: dict[str, object] = {
         "seed_lengths": len(grid),
-        "seed_configurations": seeds_tried,
+        "seed_configurations": tracing.seeds_tried,
         "curves": len(curves),
-        "step": h_max,
+        "step": tracing.h_max,
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
         "complete": not timed_out,
@@ -339,6 +290,77 @@ def critical_value_slice(
     if (seconds := granted(dl)) is not None:
         search["time_budget_s"] = seconds
     return Slice(curves, regions, search)
+
+
+class _CurveTracing:
+    """The curves of a slice traced so far (in ``(u, sigma, p)`` space), and how they are
+    seeded: from the critical points and near misses of a seed's lengths, each moved onto the
+    solution set ``G = 0`` and followed both ways unless a curve already traced has it."""
+
+    def __init__(self, linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, h_max: float,
+                 tol: Tolerances, opt: SpaceOptions, max_curve_points: int,
+                 deadline: Deadline) -> None:
+        self.linkage, self.ax, self.box, self.h_max = linkage, ax, box, h_max
+        self.tol, self.max_curve_points, self.deadline = tol, max_curve_points, deadline
+        self.sys = _System(linkage, ax)
+        self.span = float(max(box[:, 1] - box[:, 0]))
+        self.curves: list[np.ndarray] = []
+        self.seeds_tried = self.seeds_used = 0
+        self.timed_out = False
+        # A seed exploration need not be complete (it only has to reach critical configurations
+        # near its lengths), so its curves get a point budget: one that fails to close (as near
+        # a branch point at critical lengths) must not cost a full trace budget.
+        self.seed_opt = replace(
+            opt, max_components=min(opt.max_components, 8), near_misses_closed_form=True,
+            trace=replace(opt.trace, max_points=min(opt.trace.max_points, SEED_MAX_POINTS)),
+        )
+
+    def known(self, x: np.ndarray) -> bool:
+        """The seed's lengths lie on a curve already traced (other assemblies of the same
+        critical sheet project onto the same curve of the slice)."""
+        p = x[-2:][None, :]
+        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves)
+
+    def seed_at(self, p0: np.ndarray) -> None:
+        """Trace every new curve through the critical configurations near lengths ``p0``."""
+        lengths = self.linkage.lengths.copy()
+        lengths[self.ax[0].bar], lengths[self.ax[1].bar] = p0
+        at = self.linkage.with_lengths(lengths)
+        # Only the critical configurations are needed here: no segments, no components.
+        res = find_critical_points(at, self.tol, self.seed_opt, start_on_space=False,
+                                   deadline=self.deadline)
+        cons = Constraints(at)
+        starts: list[tuple[np.ndarray, np.ndarray | None]] = (
+            [(cp.u, None) for cp in res.critical_points]
+            + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
+        )
+        for u0, s0 in starts:
+            self.seeds_tried += 1
+            if s0 is None:  # (a near miss's configuration is refined already, with its stress)
+                ref = refine_critical(cons, u0, self.tol)
+                u0, s0 = ref.u, ref.sigma
+            x = _onto_solutions(self.sys, np.concatenate([u0, s0, p0]))
+            if np.max(np.abs(self.sys.g(x))) > 1e-9 or self.known(x):
+                continue
+            if np.any(x[-2:] < self.box[:, 0] - self.h_max) or \
+                    np.any(x[-2:] > self.box[:, 1] + self.h_max):
+                continue
+            self.seeds_used += 1
+            self.follow(x)
+
+    def follow(self, x: np.ndarray) -> None:
+        """The curve through ``x``, both ways (closed: once round)."""
+        t = _tangent(self.sys, x, np.random.default_rng(self.seeds_used).normal(size=self.sys.n))
+        if t is None:
+            return
+        args = (self.box, self.h_max, self.max_curve_points, self.deadline)
+        fwd, stop_f = _continue(self.sys, x, t, *args)
+        if stop_f == "closed":
+            self.curves.append(np.array(fwd + [fwd[0]]))
+            return
+        back, stop_b = _continue(self.sys, x, -t, *args)
+        self.curves.append(np.array(back[::-1] + fwd[1:]))
+        self.timed_out = self.timed_out or REASON_TIME in (stop_f, stop_b)
 
 
 def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:

@@ -4,6 +4,7 @@ zero, doubtful folds, dyads whose centres coincide), refined by the caller."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -317,7 +318,19 @@ def _circle_candidates(
                     vtx = p[r, ch.a[i]] + ch.ra[i] * np.array([np.cos(phi), np.sin(phi)])
                     pc, _, _ = at(where[near][r:r + 1], None, {i: vtx[None, :]})
                     out.append(pc[:, free])
-    # folds of the later dyads along the circle: J decides at the fold point itself
+    return out + _circle_folds(at, grid, dps, pos_nu, k, free, ends, tol)
+
+
+def _circle_folds(
+    at: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], grid: np.ndarray,
+    dps: float, pos_nu: np.ndarray, k: int, free: np.ndarray, ends: np.ndarray,
+    tol: Tolerances,
+) -> list[np.ndarray]:
+    """Folds of the later dyads along the circle (``at(psi, flat)`` places the chain there):
+    ``J`` decides at the fold point itself (a gap between ``rank_rtol`` and ``1e-3``
+    declines)."""
+    n = len(grid)
+    out: list[np.ndarray] = []
     valid = np.all(pos_nu, axis=1)
     up = np.flatnonzero(valid & ~np.roll(valid, 1))
     down = np.flatnonzero(valid & ~np.roll(valid, -1))
