@@ -384,6 +384,30 @@ def build_linkage(
     (2, 1.0)
     """
     limits = limits or Limits()
+    _check_sizes(dimension, vertices, bars, limits)
+
+    fast = _build_vectorised(dimension, vertices, bars, length_atol)
+    if fast is not None:
+        return fast
+
+    index, positions, fixed = _checked_vertices(dimension, vertices)
+    ends, lengths = _checked_bars(bars, index, positions, fixed, length_atol)
+    _check_no_tiny_bar(bars, lengths)
+    return Linkage(
+        dimension=dimension,
+        vertex_ids=tuple(v.id for v in vertices),
+        positions=positions,
+        fixed=fixed,
+        bar_ids=tuple(b.id for b in bars),
+        ends=ends,
+        lengths=lengths,
+    )
+
+
+def _check_sizes(
+    dimension: int, vertices: Sequence[VertexLike], bars: Sequence[BarLike], limits: Limits
+) -> None:
+    """Raise on a bad dimension, no vertices, or more vertices or bars than ``limits`` allow."""
     if dimension not in (2, 3):
         raise InvalidLinkage(f"dimension must be 2 or 3, got {dimension!r}", loc=("dimension",))
     if len(vertices) == 0:
@@ -398,10 +422,12 @@ def build_linkage(
             f"{len(bars)} bars exceed the limit of {limits.max_bars}", loc=("bars",)
         )
 
-    fast = _build_vectorised(dimension, vertices, bars, length_atol)
-    if fast is not None:
-        return fast
 
+def _checked_vertices(
+    dimension: int, vertices: Sequence[VertexLike]
+) -> tuple[dict[str, int], np.ndarray, np.ndarray]:
+    """Vertex index by id, positions ``(V, d)`` and fixed mask ``(V, d)``, checking each
+    vertex in order (the first fault raises, with ``loc`` naming it)."""
     index: dict[str, int] = {}
     positions = np.empty((len(vertices), dimension))
     fixed = np.empty((len(vertices), dimension), dtype=bool)
@@ -427,7 +453,18 @@ def build_linkage(
             )
         positions[k] = pos
         fixed[k] = _fixed_mask(v.fixed, dimension, k)
+    return index, positions, fixed
 
+
+def _checked_bars(
+    bars: Sequence[BarLike],
+    index: dict[str, int],
+    positions: np.ndarray,
+    fixed: np.ndarray,
+    length_atol: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ends ``(E, 2)`` int64 and lengths ``(E,)``, checking each bar in order (the first
+    fault raises, with ``loc`` naming it); a bar without a length keeps its current one."""
     bar_index: dict[str, int] = {}
     ends = np.empty((len(bars), 2), dtype=np.int64)
     lengths = np.empty(len(bars))
@@ -436,18 +473,7 @@ def build_linkage(
         if b.id in bar_index:
             raise InvalidLinkage(f"duplicate bar id {b.id!r}", loc=("bars", k, "id"))
         bar_index[b.id] = k
-        if len(b.ends) != 2:
-            raise InvalidLinkage("a bar has exactly two ends", loc=("bars", k, "ends"))
-        for j, end in enumerate(b.ends):
-            if end not in index:
-                raise InvalidLinkage(
-                    f"bar {b.id!r} names unknown vertex {end!r}", loc=("bars", k, "ends", j)
-                )
-        i0, i1 = index[b.ends[0]], index[b.ends[1]]
-        if i0 == i1:
-            raise InvalidLinkage(
-                f"bar {b.id!r} joins vertex {b.ends[0]!r} to itself", loc=("bars", k, "ends")
-            )
+        i0, i1 = _checked_ends(b, k, index)
         ends[k] = (i0, i1)
         current = float(np.linalg.norm(positions[i0] - positions[i1]))
         if b.length is None:
@@ -458,27 +484,55 @@ def build_linkage(
                 )
             lengths[k] = current
             continue
-        length = float(b.length)
-        if not np.isfinite(length) or length > 2 * MAX_COORDINATE:
-            raise InvalidLinkage(
-                f"length of {b.id!r} is not finite or beyond {2 * MAX_COORDINATE:g}",
-                loc=("bars", k, "length"),
-            )
-        if length <= 0.0:
-            raise InvalidLinkage(
-                f"length of {b.id!r} must be positive, got {length!r}",
-                loc=("bars", k, "length"),
-            )
-        if fully_fixed[i0] and fully_fixed[i1] and abs(current - length) > length_atol * max(
-            1.0, length
-        ):
-            raise InvalidLinkage(
-                f"bar {b.id!r} joins two fixed vertices {current!r} apart but asks for length "
-                f"{length!r}",
-                loc=("bars", k, "length"),
-            )
-        lengths[k] = length
+        pinned = bool(fully_fixed[i0] and fully_fixed[i1])
+        lengths[k] = _checked_length(b.id, k, float(b.length), current, pinned, length_atol)
+    return ends, lengths
 
+
+def _checked_ends(b: BarLike, k: int, index: dict[str, int]) -> tuple[int, int]:
+    """Vertex indices of the two ends of bar ``b`` (number ``k``): two known, distinct ids."""
+    if len(b.ends) != 2:
+        raise InvalidLinkage("a bar has exactly two ends", loc=("bars", k, "ends"))
+    for j, end in enumerate(b.ends):
+        if end not in index:
+            raise InvalidLinkage(
+                f"bar {b.id!r} names unknown vertex {end!r}", loc=("bars", k, "ends", j)
+            )
+    i0, i1 = index[b.ends[0]], index[b.ends[1]]
+    if i0 == i1:
+        raise InvalidLinkage(
+            f"bar {b.id!r} joins vertex {b.ends[0]!r} to itself", loc=("bars", k, "ends")
+        )
+    return i0, i1
+
+
+def _checked_length(
+    bar_id: str, k: int, length: float, current: float, pinned: bool, length_atol: float
+) -> float:
+    """The given ``length`` of bar ``bar_id`` (number ``k``): finite, positive, bounded, and,
+    when both ends are fully fixed (``pinned``), within ``length_atol`` of their distance
+    ``current``."""
+    if not np.isfinite(length) or length > 2 * MAX_COORDINATE:
+        raise InvalidLinkage(
+            f"length of {bar_id!r} is not finite or beyond {2 * MAX_COORDINATE:g}",
+            loc=("bars", k, "length"),
+        )
+    if length <= 0.0:
+        raise InvalidLinkage(
+            f"length of {bar_id!r} must be positive, got {length!r}",
+            loc=("bars", k, "length"),
+        )
+    if pinned and abs(current - length) > length_atol * max(1.0, length):
+        raise InvalidLinkage(
+            f"bar {bar_id!r} joins two fixed vertices {current!r} apart but asks for length "
+            f"{length!r}",
+            loc=("bars", k, "length"),
+        )
+    return length
+
+
+def _check_no_tiny_bar(bars: Sequence[BarLike], lengths: np.ndarray) -> None:
+    """Raise on the shortest bar when it is below ``MIN_LENGTH_RATIO`` of the longest."""
     if len(bars):
         # A bar many orders of magnitude shorter than the rest is zero-length geometry in
         # float64: its direction, Jacobian row and stress are noise.
@@ -489,15 +543,6 @@ def build_linkage(
                 f"the longest bar ({float(np.max(lengths)):.3g}): treat its ends as one vertex",
                 loc=("bars", k, "length"),
             )
-    return Linkage(
-        dimension=dimension,
-        vertex_ids=tuple(v.id for v in vertices),
-        positions=positions,
-        fixed=fixed,
-        bar_ids=tuple(b.id for b in bars),
-        ends=ends,
-        lengths=lengths,
-    )
 
 
 def changeable_bar(linkage: Linkage, bar: str, loc: tuple[str | int, ...]) -> int:

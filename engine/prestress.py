@@ -281,7 +281,6 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
     (False, True)
     """
     s, k, _ = q.shape
-    thr = tol.q_rtol * scales  # (s,)
     if k == 1 or s == 1:
         return _closed_form(q, scales, tol)
     if k > MAX_FLEXES or s > MAX_STRESSES:
@@ -321,6 +320,22 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
             f"{residual:.3g} exceeds q_rtol = {tol.q_rtol:g}: undecided",
             None, None, dual, residual, None, "sdp", False, "borderline",
         )
+    return _not_stable(q, scales, tol, dual, residual, lam, vec)
+
+
+def _not_stable(
+    q: np.ndarray,
+    scales: np.ndarray,
+    tol: Tolerances,
+    dual: np.ndarray,
+    residual: float,
+    lam: np.ndarray,
+    vec: np.ndarray,
+) -> _Decision:
+    """Not prestress stable (``dual`` (k, k) is a checked certificate, ``lam`` and ``vec`` the
+    eigen-decomposition it was built from): is there a second-order flex?"""
+    s, k, _ = q.shape
+    thr = tol.q_rtol * scales  # (s,)
     if k == 2:
         found, witness = _binary_common_zero(q, thr)
         rigid_reason = (

@@ -497,6 +497,32 @@ def plan_first_order(linkage: Linkage, sparse: bool | None = None) -> FirstOrder
     )
 
 
+def _null_spaces(
+    linkage: Linkage, cons: Constraints, u: np.ndarray, plan: FirstOrderPlan, tol: Tolerances
+) -> tuple[
+    np.ndarray | sp.csr_matrix, bool, str, tuple[int, np.ndarray, np.ndarray, np.ndarray]
+]:
+    """``J`` at ``u``, whether it is sparse, the method used, and (rank, singular values, right
+    null basis (k, M), left null basis (s, Ea)) by the ``plan``'s method; a sparse search that
+    fails falls back to the dense SVD where that is allowed (its memory checked first)."""
+    use_sparse, method = plan.sparse, plan.method
+    jac = cons.jacobian(u, sparse=use_sparse)
+    if use_sparse:
+        try:
+            return jac, use_sparse, method, _sparse_null_spaces(jac, tol.rank_rtol)
+        except NumericalFailure as err:
+            if cons.n_free > DENSE_FALLBACK_MAX_FREE:
+                raise NumericalFailure(
+                    f"{err}; the linkage is too large for the dense fallback "
+                    f"({cons.n_free} > {DENSE_FALLBACK_MAX_FREE} free coordinates)"
+                ) from err
+            use_sparse, method = False, "dense-svd (sparse fallback)"
+            plan = plan_first_order(linkage, sparse=False)
+            check_memory(plan.memory, plan.what)
+            jac = cons.jacobian(u, sparse=False)
+    return jac, use_sparse, method, _dense_null_spaces(np.asarray(jac), tol.rank_rtol)
+
+
 def first_order(
     linkage: Linkage,
     tolerances: Tolerances | None = None,
@@ -534,23 +560,9 @@ def first_order(
     u = linkage.coordinates()
     plan = plan_first_order(linkage, sparse)
     check_memory(plan.memory, plan.what)
-    use_sparse, method = plan.sparse, plan.method
-    jac = cons.jacobian(u, sparse=use_sparse)
-    if use_sparse:
-        try:
-            rank, svals, right, left = _sparse_null_spaces(jac, tol.rank_rtol)
-        except NumericalFailure as err:
-            if cons.n_free > DENSE_FALLBACK_MAX_FREE:
-                raise NumericalFailure(
-                    f"{err}; the linkage is too large for the dense fallback "
-                    f"({cons.n_free} > {DENSE_FALLBACK_MAX_FREE} free coordinates)"
-                ) from err
-            use_sparse, method = False, "dense-svd (sparse fallback)"
-            plan = plan_first_order(linkage, sparse=False)
-            check_memory(plan.memory, plan.what)
-            jac = cons.jacobian(u, sparse=False)
-    if not use_sparse:
-        rank, svals, right, left = _dense_null_spaces(np.asarray(jac), tol.rank_rtol)
+    jac, use_sparse, method, (rank, svals, right, left) = _null_spaces(
+        linkage, cons, u, plan, tol
+    )
 
     trivial = trivial_motions(linkage)
     zero_modes = _orthonormal_complement(trivial, right)

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import OptimizeResult, least_squares, minimize
 
 from engine.assembly import iter_projected_random_starts
 from engine.budget import NEVER, REASON_TIME, Deadline, granted
@@ -94,64 +94,102 @@ def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarr
     return mask
 
 
-def _local(
-    cons: Constraints, adj: np.ndarray, u0: np.ndarray, s0: np.ndarray, tol: Tolerances,
-    deadline: Deadline = NEVER,
-) -> tuple[float, np.ndarray, np.ndarray] | None:
-    m, e = cons.n_free, cons.n_constraints
-    target = cons.linkage.lengths[cons.bars]
-    scale = float(np.median(target))
-    shortest = min_critical_length(tol)
+class _MarginProblem:
+    """The local margin problem over ``x = (u, sigma)`` (M + E,): the objective, the equality
+    and inequality constraints and their Jacobians, for SLSQP and the least-squares step.
 
-    # SLSQP asks for the objective, the constraints and their Jacobians at the same point:
-    # lengths and J are computed once per point
-    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    ``adj`` (E,) bool marks the adjustable bars among the active ones."""
 
-    def at(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def __init__(self, cons: Constraints, adj: np.ndarray, tol: Tolerances) -> None:
+        self.cons = cons
+        self.adj = adj
+        self.m, self.e = cons.n_free, cons.n_constraints
+        self.target = cons.linkage.lengths[cons.bars]
+        self.scale = float(np.median(self.target))
+        self.shortest = min_critical_length(tol)
+        # SLSQP asks for the objective, the constraints and their Jacobians at the same point:
+        # lengths and J are computed once per point
+        self._memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        memo = self._memo
         key = u.tobytes()
         if key not in memo:
             memo.clear()
-            memo[key] = (np.sqrt(np.maximum(cons.squared_lengths(u), NORM_FLOOR)),
-                         cons.jacobian(u, sparse=False))
+            memo[key] = (np.sqrt(np.maximum(self.cons.squared_lengths(u), NORM_FLOOR)),
+                         self.cons.jacobian(u, sparse=False))
         return memo[key]
 
-    def lengths(u: np.ndarray) -> np.ndarray:
-        return at(u)[0]
+    def lengths(self, u: np.ndarray) -> np.ndarray:
+        return self.at(u)[0]
 
-    def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
+    def objective(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        m, adj = self.m, self.adj
         u = x[:m]
-        ln, jac = at(u)
-        diff = (ln - target)[adj]
+        ln, jac = self.at(u)
+        diff = (ln - self.target)[adj]
         grad_u = ((diff / ln[adj])[:, None] * jac[adj]).sum(axis=0)  # d l / du = J / (2 l)
-        return float(diff @ diff), np.concatenate([grad_u, np.zeros(e)])
+        return float(diff @ diff), np.concatenate([grad_u, np.zeros(self.e)])
 
     # The stress is normalised by the forces it exerts, sum_i (sigma_i l_i)^2 = scale^2, not by
     # |sigma| = 1: a unit stress on a bar of length zero would balance trivially (its row of J
     # vanishes), which made every zero-length bar a spurious critical configuration; with
     # the forces normalised a vanishing bar would need an unbounded stress, so degenerate
     # configurations are no solutions at all.
-    def eq(x: np.ndarray) -> np.ndarray:
+    def eq(self, x: np.ndarray) -> np.ndarray:
+        m, adj, scale = self.m, self.adj, self.scale
         u, s = x[:m], x[m:]
-        ln, jac = at(u)
+        ln, jac = self.at(u)
         force = float((s * ln) @ (s * ln)) / scale**2
-        return np.concatenate([(ln - target)[~adj], jac.T @ s / (2 * scale), [force - 1]])
+        return np.concatenate([(ln - self.target)[~adj], jac.T @ s / (2 * scale), [force - 1]])
 
-    def eq_jac(x: np.ndarray) -> np.ndarray:
+    def eq_jac(self, x: np.ndarray) -> np.ndarray:
+        m, e, adj, scale = self.m, self.e, self.adj, self.scale
         u, s = x[:m], x[m:]
-        ln, jac = at(u)
+        ln, jac = self.at(u)
         fixed_rows = np.hstack([jac[~adj] / (2 * ln[~adj])[:, None], np.zeros(((~adj).sum(), e))])
-        stress_rows = np.hstack([dense_stress_hessian(cons, s), jac.T]) / (2 * scale)
+        stress_rows = np.hstack([dense_stress_hessian(self.cons, s), jac.T]) / (2 * scale)
         norm_row = np.concatenate([(s * s) @ jac, 2 * s * ln * ln])[None, :] / scale**2
         return np.vstack([fixed_rows, stress_rows, norm_row])
 
     # adjustable bars stay longer than the shortest critical bar (the others keep their length)
-    def ineq(x: np.ndarray) -> np.ndarray:
-        return (lengths(x[:m]) - shortest)[adj] / scale
+    def ineq(self, x: np.ndarray) -> np.ndarray:
+        return (self.lengths(x[:self.m]) - self.shortest)[self.adj] / self.scale
 
-    def ineq_jac(x: np.ndarray) -> np.ndarray:
-        ln, jac = at(x[:m])
-        rows = jac[adj] / (2 * ln[adj])[:, None] / scale
-        return np.hstack([rows, np.zeros((int(adj.sum()), e))])
+    def ineq_jac(self, x: np.ndarray) -> np.ndarray:
+        adj = self.adj
+        ln, jac = self.at(x[:self.m])
+        rows = jac[adj] / (2 * ln[adj])[:, None] / self.scale
+        return np.hstack([rows, np.zeros((int(adj.sum()), self.e))])
+
+
+def _slsqp(problem: _MarginProblem, x0: np.ndarray, deadline: Deadline) -> OptimizeResult:
+    """SLSQP on ``problem`` from ``x0``, ended early by the deadline or a stalled objective."""
+    scale = problem.scale
+    history: list[float] = []
+
+    def stop(xk: np.ndarray) -> None:
+        # the deadline ends a run too (its iterate is checked like any other); so does a
+        # run whose objective has stopped changing (SLSQP can cycle there to its limit)
+        history.append(problem.objective(xk)[0])
+        if deadline.expired() or (len(history) > STALL_ITERATIONS and np.ptp(
+                history[-STALL_ITERATIONS:]) <= 1e-15 * scale**2):
+            raise StopIteration
+
+    return minimize(
+        problem.objective, x0, jac=True, method="SLSQP", callback=stop,
+        constraints=[{"type": "eq", "fun": problem.eq, "jac": problem.eq_jac},
+                     {"type": "ineq", "fun": problem.ineq, "jac": problem.ineq_jac}],
+        options={"maxiter": 150, "ftol": 1e-14 * scale**2},
+    )
+
+
+def _local(
+    cons: Constraints, adj: np.ndarray, u0: np.ndarray, s0: np.ndarray, tol: Tolerances,
+    deadline: Deadline = NEVER,
+) -> tuple[float, np.ndarray, np.ndarray] | None:
+    problem = _MarginProblem(cons, adj, tol)
+    m, scale, lengths, eq = problem.m, problem.scale, problem.lengths, problem.eq
 
     # Onto the critical set first (least squares, the adjustable lengths free): cheap, and a
     # start that lands on a degenerate configuration (a bar shrunk to nearly nothing) is in
@@ -160,34 +198,19 @@ def _local(
     # a run that diverges (the stress growing without bound) overflows; it is rejected below
     with np.errstate(over="ignore", invalid="ignore"):
         try:
-            pre = least_squares(eq, np.concatenate([u0, s0]), jac=eq_jac, method="trf",
+            pre = least_squares(eq, np.concatenate([u0, s0]), jac=problem.eq_jac, method="trf",
                                 xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=15)
         except ValueError:  # not finite at the start
             return None
         if not np.all(np.isfinite(pre.x)) or (
                 np.min(lengths(pre.x[:m])) < DEGENERATE_START_REL * scale):
             return None
-        history: list[float] = []
-
-        def stop(xk: np.ndarray) -> None:
-            # the deadline ends a run too (its iterate is checked like any other); so does a
-            # run whose objective has stopped changing (SLSQP can cycle there to its limit)
-            history.append(objective(xk)[0])
-            if deadline.expired() or (len(history) > STALL_ITERATIONS and np.ptp(
-                    history[-STALL_ITERATIONS:]) <= 1e-15 * scale**2):
-                raise StopIteration
-
-        res = minimize(
-            objective, pre.x, jac=True, method="SLSQP", callback=stop,
-            constraints=[{"type": "eq", "fun": eq, "jac": eq_jac},
-                         {"type": "ineq", "fun": ineq, "jac": ineq_jac}],
-            options={"maxiter": 150, "ftol": 1e-14 * scale**2},
-        )
+        res = _slsqp(problem, pre.x, deadline)
         if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)) or not (
                 np.max(np.abs(eq(res.x))) <= 1e3 * tol.residual_atol):
             return None
     u = res.x[:m]
-    if np.min(lengths(u)) < shortest:
+    if np.min(lengths(u)) < problem.shortest:
         return None  # a degenerate configuration, not a critical one
     return float(np.sqrt(max(res.fun, 0.0))), lengths(u), u
 

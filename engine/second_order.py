@@ -141,36 +141,74 @@ def second_order(
     check_memory(*second_order_memory(linkage, sparse))
     rig = first_order(linkage, tol, sparse=sparse)
     pre = prestress(linkage, rig, tol)
-    empty = np.zeros((0, rig.n_free))
-
-    def result(kind: Kind, reason: str | None = None, **kw: object) -> SecondOrderResult:
-        base: dict[str, object] = {
-            "self_stress": None,
-            "zero_modes": normalise_sign(rig.zero_modes),
-            "q": None,
-            "q_eigenvalues": None,
-            "tangents": empty,
-            "tangent_coefficients": np.zeros((0, rig.dof)),
-        }
-        base.update(kw)
-        return SecondOrderResult(
-            kind=kind, reason=reason, rigidity=rig, prestress=pre, **base  # type: ignore[arg-type]
-        )
 
     if not rig.critical:
-        return result("regular")
+        return _result(rig, pre, "regular")
     n_stress = rig.self_stresses.shape[0]
     if n_stress != 1:
-        return result(
+        return _result(
+            rig,
+            pre,
             "degenerate",
             f"{n_stress} self-stresses: the second-order condition is a system of "
             f"{n_stress} quadratic equations, not classified by kind (see prestress_stable and "
             "second_order_rigid)",
         )
     if rig.dof == 0:
-        return result("degenerate", "critical with no nontrivial zero mode")
+        return _result(rig, pre, "degenerate", "critical with no nontrivial zero mode")
 
     cons = Constraints(linkage)
+    sigma_full, modes, q_diag, lam = _q_eigenbasis(cons, rig, sparse)
+    fields = {"self_stress": sigma_full, "zero_modes": modes, "q": q_diag, "q_eigenvalues": lam}
+
+    # ||Hess(l_a^2)||_2 = 4, so 4 sum|sigma_a| bounds ||H_sigma|| without the cancellation a
+    # norm of H_sigma itself would suffer (e.g. sigma = (1, -1)/sqrt(2) on a doubled bar).
+    q_scale = 4.0 * float(np.abs(sigma_full).sum())
+    singular = np.abs(lam) <= tol.q_rtol * q_scale
+    if singular.any():
+        reason = _singular_reason(linkage, cons, modes, singular, tol, sparse)
+        return _result(rig, pre, "degenerate", reason, **fields)
+    if np.all(lam > 0) or np.all(lam < 0):
+        return _result(rig, pre, "rigid", **fields)
+    coeffs = branch_coefficients(lam)
+    tangents = coeffs @ modes
+    flips = np.sign(np.sum(normalise_sign(tangents) * tangents, axis=1))
+    return _result(
+        rig,
+        pre,
+        "branch",
+        tangents=tangents * flips[:, None],
+        tangent_coefficients=coeffs * flips[:, None],
+        **fields,
+    )
+
+
+def _result(
+    rig: RigidityResult, pre: PrestressResult, kind: Kind, reason: str | None = None, /,
+    **kw: object,
+) -> SecondOrderResult:
+    """A :class:`SecondOrderResult` of ``kind``: the fields in ``kw`` over the defaults (no
+    stress, no ``Q``, no tangents, the first-order zero modes)."""
+    base: dict[str, object] = {
+        "self_stress": None,
+        "zero_modes": normalise_sign(rig.zero_modes),
+        "q": None,
+        "q_eigenvalues": None,
+        "tangents": np.zeros((0, rig.n_free)),
+        "tangent_coefficients": np.zeros((0, rig.dof)),
+    }
+    base.update(kw)
+    return SecondOrderResult(
+        kind=kind, reason=reason, rigidity=rig, prestress=pre, **base  # type: ignore[arg-type]
+    )
+
+
+def _q_eigenbasis(
+    cons: Constraints, rig: RigidityResult, sparse: bool | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """At a critical point with one self-stress: the unit stress ``sigma`` (E,), the zero
+    modes in ``Q``'s eigenbasis (k, M), ``Q`` in that basis (k, k) and its diagonal (k,),
+    ordered by decreasing eigenvalue."""
     sigma_full = normalise_sign(rig.self_stresses)[0]
     hess = cons.stress_hessian(sigma_full[cons.bars], sparse=sparse)
     z = rig.zero_modes  # (k, M)
@@ -184,33 +222,25 @@ def second_order(
     q_diag = modes @ (hess @ modes.T)
     q_diag = 0.5 * (q_diag + q_diag.T)
     lam = np.diag(q_diag).copy()
-    fields = {"self_stress": sigma_full, "zero_modes": modes, "q": q_diag, "q_eigenvalues": lam}
+    return sigma_full, modes, q_diag, lam
 
-    # ||Hess(l_a^2)||_2 = 4, so 4 sum|sigma_a| bounds ||H_sigma|| without the cancellation a
-    # norm of H_sigma itself would suffer (e.g. sigma = (1, -1)/sqrt(2) on a doubled bar).
-    q_scale = 4.0 * float(np.abs(sigma_full).sum())
-    singular = np.abs(lam) <= tol.q_rtol * q_scale
-    if singular.any():
-        scale = float(np.median(linkage.lengths[cons.bars]))
-        if any(
-            _stays_critical(linkage, modes[k], tol, scale, sparse)
-            for k in np.flatnonzero(singular)
-        ):
-            reason = (
-                "non-isolated critical set: the configuration stays critical along a zero mode "
-                "on which Q vanishes"
-            )
-        else:
-            reason = "Q is singular on the zero modes: higher-order analysis is needed"
-        return result("degenerate", reason, **fields)
-    if np.all(lam > 0) or np.all(lam < 0):
-        return result("rigid", **fields)
-    coeffs = branch_coefficients(lam)
-    tangents = coeffs @ modes
-    flips = np.sign(np.sum(normalise_sign(tangents) * tangents, axis=1))
-    return result(
-        "branch",
-        tangents=tangents * flips[:, None],
-        tangent_coefficients=coeffs * flips[:, None],
-        **fields,
-    )
+
+def _singular_reason(
+    linkage: Linkage,
+    cons: Constraints,
+    modes: np.ndarray,
+    singular: np.ndarray,
+    tol: Tolerances,
+    sparse: bool | None,
+) -> str:
+    """Why a ``Q`` singular on the ``modes`` marked ``singular`` leaves the point degenerate."""
+    scale = float(np.median(linkage.lengths[cons.bars]))
+    if any(
+        _stays_critical(linkage, modes[k], tol, scale, sparse)
+        for k in np.flatnonzero(singular)
+    ):
+        return (
+            "non-isolated critical set: the configuration stays critical along a zero mode "
+            "on which Q vanishes"
+        )
+    return "Q is singular on the zero modes: higher-order analysis is needed"
