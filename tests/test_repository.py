@@ -32,3 +32,14 @@ def test_dockerfile_requirements():
     assert re.search(r"^HEALTHCHECK .*\n?.*/health", text, re.M)
     assert '"--host", "0.0.0.0", "--port", "8000"' in text
     assert "service.main:app" in text
+
+
+def test_readme_gives_the_quick_command_and_its_markers_are_registered():
+    import tomllib
+
+    readme = (ROOT / "README.md").read_text()
+    assert '.venv/bin/python -m pytest -q -m "not slow"' in readme
+    pytest_ini = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]
+    registered = {m.split(":", 1)[0] for m in pytest_ini["ini_options"]["markers"]}
+    assert {"slow", "process", "browser", "dask", "fuzz", "lint"} <= registered
+    assert "--strict-markers" in pytest_ini["ini_options"]["addopts"]
