@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import os
 from collections.abc import Iterator
 from typing import Any
 
@@ -12,12 +13,32 @@ import pytest
 from service.config import Settings
 from service.main import create_app
 
+#: Markers that make a test slow by their nature (registered in pyproject.toml).
+SLOW_KINDS = ("process", "browser", "dask", "fuzz", "lint")
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m selects
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every test marked with one of ``SLOW_KINDS`` is also ``slow``, so that the README's quick
+    command (``-m "not slow"``) leaves it out without each module having to say it twice."""
+    for item in items:
+        if any(item.get_closest_marker(kind) for kind in SLOW_KINDS) \
+                and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
+
+
+# Fuzzing (tests/service/test_fuzz_openapi.py): examples per operation, fewer for the costly
+# operations, and one seed for the whole run, drawn here unless the environment gives one and
+# put back into it, so that every process of the run fuzzes with the seed the header prints.
+FUZZ_EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "300"))
+FUZZ_COSTLY_EXAMPLES = int(os.environ.get("FUZZ_COSTLY_EXAMPLES", "60"))
+FUZZ_SEED = int(os.environ.get("FUZZ_SEED") or int.from_bytes(os.urandom(4), "little"))
+os.environ["FUZZ_SEED"] = str(FUZZ_SEED)
+
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
-    from tests.service.test_fuzz_openapi import FUZZ_EXAMPLES, FUZZ_SEED
-
-    return [f"schemathesis: {FUZZ_EXAMPLES} examples per operation, seed {FUZZ_SEED} "
-            f"(replay with FUZZ_SEED={FUZZ_SEED})"]
+    return [f"schemathesis: {FUZZ_EXAMPLES} examples per operation ({FUZZ_COSTLY_EXAMPLES} for "
+            f"the costly ones), seed {FUZZ_SEED} (replay with FUZZ_SEED={FUZZ_SEED})"]
 
 
 class ApiClient:

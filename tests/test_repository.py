@@ -47,3 +47,14 @@ def test_readme_and_docs_point_only_inside_the_repository():
             if "://" not in target and not (page.parent / target).exists():
                 broken.append(f"{page.name}: {target}")
     assert not broken, broken
+
+
+def test_readme_gives_the_quick_command_and_its_markers_are_registered():
+    import tomllib
+
+    readme = (ROOT / "README.md").read_text()
+    assert '.venv/bin/python -m pytest -q -m "not slow"' in readme
+    pytest_ini = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]
+    registered = {m.split(":", 1)[0] for m in pytest_ini["ini_options"]["markers"]}
+    assert {"slow", "process", "browser", "dask", "fuzz", "lint"} <= registered
+    assert "--strict-markers" in pytest_ini["ini_options"]["addopts"]

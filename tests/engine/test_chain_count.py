@@ -117,6 +117,7 @@ def test_four_bar_rule_matches_grashof_on_random_lengths() -> None:
 
 
 @pytest.mark.parametrize("n", [3, 5])
+@pytest.mark.slow
 def test_search_skipped_where_the_rules_prove_smoothness(n: int) -> None:
     """Without near misses, a chain the rules count skips the critical-point search: the same
     components, windings and (no) critical points as the full search."""

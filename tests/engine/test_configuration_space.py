@@ -136,6 +136,7 @@ def independent_critical_points(lk, starts: int, seed: int) -> list[np.ndarray]:
     return found
 
 
+@pytest.mark.slow
 def test_three_rotor_twelve_branch_points_cross_checked():
     lk = build_preset("three-rotor")
     res = explore(lk, TOL, FAST)
@@ -149,6 +150,7 @@ def test_three_rotor_twelve_branch_points_cross_checked():
     assert len(res.segments) == 24
 
 
+@pytest.mark.slow
 def test_collinear_three_rotor_is_degenerate():
     lk = build_preset("three-rotor", {"phi": 0.0})
     res = explore(lk, TOL, FAST)
@@ -196,6 +198,7 @@ def test_near_critical_four_bar_does_not_jump_branches(eps, sign, count):
 
 
 @pytest.mark.parametrize("eps", [1e-7, 1e-8])
+@pytest.mark.slow
 def test_very_near_critical_four_bar_is_right_or_flagged(eps):
     """Closer still, the tracer may not resolve the split: then the search must say it is not
     complete; a count it calls complete must be the right one."""

@@ -84,6 +84,7 @@ def gate_turns(l2: float, d: float, r: float = 1.5, l1: float = 2.0) -> int:
     return int(grashof and min(links, key=links.get) in ("r", "D"))
 
 
+@pytest.mark.slow
 def test_gate_slice_matches_the_gate_four_bar():
     """Paper: r = l = 3a/2, L1 = 2a; slice in (L2, D)."""
     lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})

@@ -55,6 +55,7 @@ def test_an_expired_deadline_ends_an_exploration_at_once_marked_time():
     assert res.search["complete"] is False and res.search["reason"] == "time"
 
 
+@pytest.mark.slow
 def test_a_deadline_mid_exploration_keeps_what_was_traced():
     lk = build_preset("kl-chain", {"n": 6})
     stop = StopAfter(40, "components")

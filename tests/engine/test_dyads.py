@@ -111,6 +111,7 @@ def test_crank_rocker_dense_sampling_and_no_near_miss_search():
     cross_check(lk, replace(opt, trace=replace(opt.trace, step_max=1e-2)))
 
 
+@pytest.mark.slow
 def test_max_points_and_max_components_budgets():
     lk = build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0})
     tiny = replace(FAST, trace=replace(FAST.trace, step_max=1e-4, max_points=1000))
@@ -136,6 +137,7 @@ def test_equilateral_four_bar_declines_and_tracer_finds_three_branch_points():
 
 @pytest.mark.parametrize("eps", [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10])
 @pytest.mark.parametrize(("sign", "count"), [(1, 1), (-1, 2)])
+@pytest.mark.slow
 def test_near_critical_equilateral_closed_form_right_or_declines(eps, sign, count):
     """Near critical lengths the closed form either answers right (and agrees with the tracer)
     or declines. Well away from them it answers; within its margin (``nu = sin^2`` of a dyad's

@@ -65,6 +65,7 @@ def test_batched_constraints_and_correction_match_the_scalar_ones(name):
 
 
 @pytest.mark.parametrize("name", ["four-bar", "three-rotor", "gated chain"])
+@pytest.mark.slow
 def test_batched_seed_test_agrees_with_on_traced(name):
     """Every seed the batch marks as on a curve is on it by the one-at-a-time test too, and
     the seeds the batch leaves are (almost all) off every traced curve."""
@@ -84,6 +85,7 @@ def test_batched_seed_test_agrees_with_on_traced(name):
 
 @pytest.mark.parametrize("name", ["four-bar", "equilateral four-bar", "three-rotor",
                                   "gated chain"])
+@pytest.mark.slow
 def test_find_critical_points_equals_explore(name):
     lk = build_preset(*LINKAGES[name])
     # explore's closed form (engine.dyads) searches along its own walks; the tracer's curves

@@ -169,6 +169,7 @@ def _run(case: tuple[str, int, str, str], share: float) -> str:
 
 
 @pytest.mark.parametrize("case", CASES, ids=["-".join(map(str, c)) for c in CASES])
+@pytest.mark.slow
 def test_the_estimate_is_enough_and_less_is_refused_before_allocating(case):
     assert _run(case, 1.0) == "answered"
     assert _run(case, 0.5) == "refused"

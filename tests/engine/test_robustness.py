@@ -286,6 +286,7 @@ def offset_slider_margin(crank: float, rod: float, offset: float, adjustable: li
 @pytest.mark.parametrize("offset", [0.3, -0.3])
 @pytest.mark.parametrize("adjustable", [None, ["rod"], ["crank"]],
                          ids=lambda a: "+".join(a or ["both"]))
+@pytest.mark.slow
 def test_offset_slider_crank_margin(offset, adjustable):
     lk = offset_slider_crank(0.7, 1.6, offset)
     index = [0, 1] if adjustable is None else [["crank", "rod"].index(b) for b in adjustable]

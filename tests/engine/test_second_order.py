@@ -53,6 +53,7 @@ def test_equilateral_four_bar_has_three_collinear_critical_configurations():
 
 
 @pytest.mark.parametrize("config", CRITICAL, ids=[f"A={a[0]:+g},B={b[0]:+g}" for a, b in CRITICAL])
+@pytest.mark.slow
 def test_equilateral_four_bar_critical_points_are_branch_points(config):
     lk = at(EQUILATERAL, A=config[0], B=config[1])
     res = second_order(lk)

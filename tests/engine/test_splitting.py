@@ -33,6 +33,7 @@ def perturbations(linkage, count: int, seed: int):
     ("name", "linkage", "count", "seed"),
     [("four-bar", FOUR_BAR, 40, 11), ("three-rotor", THREE_ROTOR, 10, 12)],
 )
+@pytest.mark.slow
 def test_predicted_pairings_agree_with_retracing(name, linkage, count, seed):
     """50 random small perturbations in all (40 x 3 + 10 x 12 branch-point checks)."""
     crit = CRIT[name]

@@ -118,6 +118,7 @@ def _summary(lk, res) -> list[tuple]:  # noqa: ANN001
 
 
 @pytest.mark.parametrize(("name", "params"), CATALOGUE)
+@pytest.mark.slow
 def test_exploration_matches_direct_lu_and_upfront_seeds(
     name: str, params: dict, monkeypatch: pytest.MonkeyPatch
 ) -> None:

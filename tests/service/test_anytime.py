@@ -42,6 +42,7 @@ def timed_post(api: ApiClient, path: str, body: dict[str, Any]) -> tuple[Any, fl
     return r, time.monotonic() - t0
 
 
+@pytest.mark.slow
 def test_a_huge_exploration_answers_200_incomplete_before_the_limit(api):
     body = {"linkage": huge_chain(api), "options": {"max_components": 1000}}
     r, took = timed_post(api, "/v1/analysis/configuration-space", body)

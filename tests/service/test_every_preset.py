@@ -17,6 +17,9 @@ from service.main import create_app
 from tests.conftest import ApiClient
 from tests.service.preset_matrix import preset_cases
 
+# Every preset through every endpoint: the longest single test of the service's.
+pytestmark = pytest.mark.slow
+
 REASONS = {"time", "budget", "degenerate", "unresolved"}
 
 

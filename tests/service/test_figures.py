@@ -137,6 +137,7 @@ def test_configuration_space_figure_of_a_3d_linkage_is_a_422_not_a_500(client: A
 # -- critical values and splitting ---------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_critical_values_figure_draws_every_curve_and_region(client: Any) -> None:
     body = {"linkage": preset(client, "four-bar"),
             "axes": [{"bar": "L2", "min": 0.4, "max": 2.5}, {"bar": "L3", "min": 0.4, "max": 2.5}]}

@@ -1,16 +1,20 @@
 """Property-based fuzzing of every operation in the OpenAPI schema (schemathesis).
 
-Each operation gets ``FUZZ_EXAMPLES`` generated requests (300 unless the environment says
-otherwise), valid and invalid, with the seed printed in the pytest header (``FUZZ_SEED`` to
-replay one). Every response must be a non-5xx whose status code, content type and body
-conform to the schema.
+Each operation gets generated requests, valid and invalid, with the seed printed in the pytest
+header (``FUZZ_SEED`` to replay one). Every response must be a non-5xx whose status code,
+content type and body conform to the schema.
+
+How many requests an operation gets follows what one answer costs (``COSTLY_PATHS``): the
+operations that only read, validate or do first- and second-order linear algebra get
+``FUZZ_EXAMPLES`` (300 unless the environment says otherwise); those that explore a
+configuration space, draw a figure or start a Dask job get ``FUZZ_COSTLY_EXAMPLES`` (60 unless
+the environment says otherwise). ``FUZZ_EXAMPLES=300 FUZZ_COSTLY_EXAMPLES=300`` is the deep run.
 """
 
 from __future__ import annotations
 
-import os
-
 import hypothesis
+import pytest
 import schemathesis
 from schemathesis.checks import not_a_server_error
 from schemathesis.specs.openapi.checks import (
@@ -21,22 +25,52 @@ from schemathesis.specs.openapi.checks import (
 
 from service.config import Settings
 from service.main import create_app
+from tests.conftest import FUZZ_COSTLY_EXAMPLES, FUZZ_EXAMPLES, FUZZ_SEED
 
-FUZZ_EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "300"))
-FUZZ_SEED = int(os.environ.get("FUZZ_SEED") or int.from_bytes(os.urandom(4), "little"))
+pytestmark = pytest.mark.fuzz
+
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
           response_schema_conformance]
+
+#: The operations whose valid requests are costly: they explore a configuration space or
+#: search for critical points (seconds for a random linkage), draw a figure (matplotlib), or
+#: start a job on a Dask cluster. Every one of them is POST-only.
+COSTLY_PATHS = (r"^/v1/(analysis/(configuration-space|critical-points|critical-values|robustness"
+                r"|splitting)|design/|figures/|jobs$|sweeps$)")
 
 # Small linkages only (the fuzzer's linkages are random; a valid one can be costly to explore)
 # and a generous time limit: the test is about answers, not about the limit.
 app = create_app(Settings(max_vertices=12, max_bars=24, time_limit_s=120.0, workers=2))
 schema = schemathesis.openapi.from_asgi("/openapi.json", app)
+cheap = schema.exclude(path_regex=COSTLY_PATHS)
+costly = schema.include(path_regex=COSTLY_PATHS)
 
 
-@schema.parametrize()
-@hypothesis.settings(max_examples=FUZZ_EXAMPLES, deadline=None, derandomize=False,
-                     suppress_health_check=list(hypothesis.HealthCheck),
-                     database=None)
+def fuzz_settings(examples: int) -> hypothesis.settings:
+    return hypothesis.settings(max_examples=examples, deadline=None, derandomize=False,
+                               suppress_health_check=list(hypothesis.HealthCheck),
+                               database=None)
+
+
+@cheap.parametrize()
+@fuzz_settings(FUZZ_EXAMPLES)
 @hypothesis.seed(FUZZ_SEED)
 def test_fuzz_operation(case: schemathesis.Case) -> None:
     case.call_and_validate(checks=CHECKS)
+
+
+@costly.parametrize()
+@fuzz_settings(FUZZ_COSTLY_EXAMPLES)
+@hypothesis.seed(FUZZ_SEED)
+def test_fuzz_costly_operation(case: schemathesis.Case) -> None:
+    case.call_and_validate(checks=CHECKS)
+
+
+def test_every_operation_is_fuzzed_once() -> None:
+    def labels(s: schemathesis.schemas.BaseSchema) -> set[str]:
+        return {result.ok().label for result in s.get_all_operations()}
+
+    both = labels(cheap) | labels(costly)
+    assert labels(cheap).isdisjoint(labels(costly))
+    assert both == labels(schema) and len(both) >= 30
+    assert all(label.startswith("POST ") for label in labels(costly))

@@ -26,6 +26,9 @@ from service.config import Settings
 from service.main import create_app
 from tests.service.test_uvicorn_process import HOST, ROOT, free_port, stop, wait_until_ready
 
+# Time limits, faults and queues: seconds each by nature.
+pytestmark = pytest.mark.slow
+
 # A spinner chain of n rotors has 2^(n-1) components: exploring this one with a budget of a
 # thousand components takes minutes however fast tracing gets, so it always meets the limits.
 SLOW_CHAIN = 300
@@ -238,6 +241,7 @@ def test_settings_from_the_environment(monkeypatch):
         monkeypatch.delenv(name)
 
 
+@pytest.mark.process
 def test_graceful_shutdown_finishes_the_request_in_flight(kl_chain):
     """SIGTERM while an engine request runs: the request is answered, then the server exits."""
     port = free_port()

@@ -26,6 +26,8 @@ from service.config import Settings
 from service.main import create_app
 from service.tasks import Job, JobManager
 
+pytestmark = pytest.mark.dask
+
 #: Generous: the machine is shared; a finished job answers at once.
 WAIT_S = 120.0
 #: The gated chain small enough for tests (as in tests/engine/test_gate.py).
@@ -203,6 +205,7 @@ def external_scheduler() -> Iterator[str]:
                 p.kill()
 
 
+@pytest.mark.process
 def test_external_cluster_gives_the_same_result(external_scheduler, embedded_gated):
     with TestClient(create_app(settings(dask_scheduler=external_scheduler))) as ext:
         result = run_sweep(ext, gated_sweep(seed=7, count=6))["result"]
@@ -379,6 +382,7 @@ def test_job_whose_worker_dies_fails_and_the_service_keeps_answering(api):
     assert [r["components"] for r in run_sweep(api, small)["result"]["rows"]] == [2, 1]
 
 
+@pytest.mark.process
 def test_command_line_preset_sweep_to_csv(tmp_path: Path):
     out = tmp_path / "sweep.csv"
     script = Path(sys.executable).with_name("linkage-topology")

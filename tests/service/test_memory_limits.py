@@ -22,6 +22,9 @@ from service.main import create_app
 from service.workers import EnginePool, MemoryLimit
 from tests.service.test_hardening import assert_problem, client_for
 
+# An application with its own worker process per test: seconds each.
+pytestmark = pytest.mark.slow
+
 # A warm worker's data segment is about 230 MB: this leaves it a few hundred MB to work with.
 SMALL_WORKER_MB = 640
 

@@ -30,6 +30,8 @@ import pytest
 
 from tests.service.test_uvicorn_process import HOST, ROOT, free_port, stop, wait_until_ready
 
+pytestmark = pytest.mark.process
+
 HEADER_TIMEOUT = 1.0
 BODY_TIMEOUT = 1.5
 SLOW_CLIENTS = 20

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 FAST = {"angles": 24, "random_starts": 4}
 
@@ -168,6 +169,7 @@ SLIDER_CRANK = {
 }
 
 
+@pytest.mark.slow
 def test_robustness_of_a_slider_crank_is_its_branch_point(client):
     """crank = rod is the branch point: (1.6 - 0.7) / sqrt(2) with both bars, 0.9 with the
     rod; never the zero-length crank (a bar the service refuses as input)."""
