@@ -90,8 +90,9 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> 
                     f"{', '.join(rotors) or 'none'}", loc=("axes", k))
         if axes[0] == axes[1]:
             raise InvalidRequest("the two axes must be different rotors", loc=("axes", 1))
-    req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances,
-                             options=body.options)
+    # the figure reads the per-vertex lists: the compact form is for clients of the JSON
+    options = None if body.options is None else body.options.model_copy(update={"points": None})
+    req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances, options=options)
     ans = jobs.configuration_space(req, settings)
     return _svg(_draw_space, ans, axes, rotors)
 
@@ -321,6 +322,8 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
     labelled = 0
     for k, comp in enumerate(ans.components):
         colour = colours[k % len(colours)]
+        # the figure asks for the per-vertex lists (never options.points = "compact")
+        assert isinstance(comp.angles, dict) and isinstance(comp.positions, dict)
         x, y = np.asarray(comp.angles[axes[0]]), np.asarray(comp.angles[axes[1]])
         for p, (px, py) in enumerate(_torus_pieces(x, y)):
             ax.plot(px, py, color=colour, lw=1.8, zorder=2, gid=f"component-{k}-{p}")

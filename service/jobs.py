@@ -98,7 +98,8 @@ def configuration_space(
             f"{settings.max_points}: raise options.step_max or lower options.max_components",
             loc=("options",),
         )
-    return mappers.space_out(at, res, proj, tol)
+    return mappers.space_out(at, res, proj, tol,
+                             points=body.options.points if body.options else None)
 
 
 def splitting(

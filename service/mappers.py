@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import csv
 import io
 import json
@@ -289,7 +290,9 @@ def presets_out() -> list[PresetInfo]:
 
 
 def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
-    given = model.model_dump(exclude_none=True, exclude={"time_budget_s"}) if model else {}
+    # the time budget goes to the deadline, ``points`` to the answer's mapping (space_out)
+    given = model.model_dump(exclude_none=True, exclude={"time_budget_s", "points"}) \
+        if model else {}
     trace_keys = {"max_points", "strain_tol", "step_max"}
     trace = TraceOptions(**{k: v for k, v in given.items() if k in trace_keys})
     return SpaceOptions(trace=trace, **{k: v for k, v in given.items() if k not in trace_keys})
@@ -473,28 +476,51 @@ def critical_points_out(
     )
 
 
-def _component_out(linkage: EngineLinkage, comp: Component) -> space.ComponentOut:
+def packed_array(ids: list[str], values: np.ndarray) -> space.PackedArray:
+    """``values`` (n, len(ids), ...) as a PackedArray: little-endian float64, C order, base64."""
+    data = np.ascontiguousarray(values, dtype="<f8")
+    return space.PackedArray.model_construct(
+        ids=list(ids), shape=list(data.shape), dtype="<f8",
+        base64=base64.b64encode(data.data).decode("ascii"))
+
+
+def _component_out(
+    linkage: EngineLinkage, comp: Component, compact: bool = False
+) -> space.ComponentOut:
     pos = positions_along(linkage, comp.points)  # (n, V, d), all points at once
-    angles = rotor_angles(linkage, comp.points)
+    angles = rotor_angles(linkage, comp.points)  # {bar: (n,)}
+    positions: dict[str, list[list[float]]] | space.PackedArray
+    angles_out: dict[str, list[float]] | space.PackedArray
+    if compact:
+        positions = packed_array(list(linkage.vertex_ids), pos)
+        walk = np.stack(list(angles.values()), axis=1) if angles else np.empty((len(pos), 0))
+        angles_out = packed_array(list(angles), walk)  # (n, R)
+    else:
+        positions = {vid: pos[:, k].tolist() for k, vid in enumerate(linkage.vertex_ids)}
+        angles_out = {bar: a.tolist() for bar, a in angles.items()}
     # Built without validation: every field is already of its exact type (bools, ints and
     # Python floats from ``tolist``), and validating ~10^6 floats would cost more than the
     # engine's answer (see bench/bench_points.py).
     return space.ComponentOut.model_construct(
         closed=comp.closed,
         through_start=comp.through_start,
-        positions={vid: pos[:, k].tolist() for k, vid in enumerate(linkage.vertex_ids)},
-        angles={bar: a.tolist() for bar, a in angles.items()},
+        positions=positions,
+        angles=angles_out,
         winding={bar: winding(a, comp.closed) for bar, a in angles.items()},
         critical_points=[int(k) for k in comp.critical_points],
     )
 
 
 def space_out(
-    linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances
+    linkage: EngineLinkage, res: SpaceResult, proj: ProjectionResult, tol: EngineTolerances,
+    points: str | None = None,
 ) -> space.SpaceResponse:
+    """The configuration-space answer; ``points`` is ``options.points`` ("compact": each
+    component's positions and angles as PackedArrays)."""
     owner = {s: k for k, comp in enumerate(res.components) for s in comp.segments}
+    compact = points == "compact"
     with gc_paused():  # ~10^6 floats and lists for 10^5 points
-        components = [_component_out(linkage, c) for c in res.components]
+        components = [_component_out(linkage, c, compact) for c in res.components]
     return space.SpaceResponse(
         components=components,
         critical_points=critical_list_out(linkage, res.critical_points),

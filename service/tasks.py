@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
-import json
 import logging
 import math
 import threading
@@ -43,7 +42,7 @@ from pydantic import BaseModel
 from engine.budget import Deadline, ProgressSink
 from engine.errors import EngineError, NumericalFailure
 from engine.sweep import PointResult, run_points
-from service import jobs, mappers
+from service import jobs, mappers, serialise
 from service.config import Settings
 from service.schemas.common import AnalysisRequest
 from service.schemas.critical_values import CriticalValuesRequest
@@ -162,7 +161,7 @@ def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settin
     deadline = _task_deadline(job_id, 0, end_wall)
     # the engine searches take the deadline as they gain one (engine/budget.py)
     kwargs = {"deadline": deadline} if "deadline" in inspect.signature(fn).parameters else {}
-    payload = fn(body, settings, **kwargs).model_dump_json(by_alias=True).encode()
+    payload = serialise.dumps(fn(body, settings, **kwargs))
     deadline.report(1.0, "done")
     return payload
 
@@ -376,7 +375,7 @@ class JobManager:
                 return
             result = mappers.sweep_out(job.names, rows).model_dump(mode="json")
         else:
-            result = json.loads(job.parts[0])
+            result = serialise.loads(job.parts[0])
         with self._lock:
             job.result, job.parts = result, {}
             job.status, job.message, job.finished = "done", "done", time.time()

@@ -40,6 +40,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import Response
 
+from service import serialise
 from service.config import Settings
 
 T = TypeVar("T")
@@ -207,7 +208,7 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop)."""
-    return fn(body, settings).model_dump_json(by_alias=True).encode()
+    return serialise.dumps(fn(body, settings))
 
 
 async def engine_call(request: Request, settings: Settings,

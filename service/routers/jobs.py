@@ -11,6 +11,7 @@ from service.bodies import JsonBodyRoute
 from service.config import SettingsDep
 from service.errors import problem_responses
 from service.schemas.jobs import JobOut, JobRequest, OperationOut, SweepRequest
+from service.serialise import FastJSONResponse
 from service.tasks import JobManager
 
 router = APIRouter(prefix="/v1", tags=["jobs"], route_class=JsonBodyRoute)
@@ -61,10 +62,10 @@ def operations() -> list[OperationOut]:
     "/jobs/{job_id}", operation_id="getJob",
     response_model=JobOut, responses=problem_responses(404),
 )
-def get_job(job_id: str, manager: Manager) -> JobOut:
+def get_job(job_id: str, manager: Manager) -> Response:
     """Status (queued, running, done, failed, cancelled), progress, and the result when done."""
     job = manager.get(job_id)
-    return mappers.job_out(job, manager.expires(job))
+    return FastJSONResponse(mappers.job_out(job, manager.expires(job)))
 
 
 @router.delete(
@@ -93,7 +94,7 @@ def job_result(job_id: str, request: Request, manager: Manager) -> Response:
         if job.operation != tasks.SWEEPS:
             raise tasks.NotAcceptable("CSV is offered for sweeps only; ask for application/json")
         return Response(mappers.sweep_csv(job.result), media_type=_CSV)
-    return JSONResponse(job.result)
+    return FastJSONResponse(job.result)
 
 
 @router.post("/sweeps", operation_id="createSweep", status_code=202, response_model=JobOut,

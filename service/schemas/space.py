@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field
 
@@ -61,6 +61,14 @@ class SpaceOptions(Strict):
         json_schema_extra=default_of(0),
     )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
+    points: Literal["objects", "compact"] | None = Field(
+        None, description="how configuration-space components carry their points: \"objects\" "
+        "(default), per-vertex lists of [x, y]; \"compact\", each of positions and angles as "
+        "one little-endian float64 array in base64 (PackedArray), much faster to send and to "
+        "parse. Only /v1/analysis/configuration-space answers with points; the other searches "
+        "ignore it",
+        json_schema_extra=default_of("objects"),
+    )
 
 
 class SpaceRequest(Strict):
@@ -99,14 +107,30 @@ class CriticalPointsResponse(Projection):
     tolerances: TolerancesUsed
 
 
+class PackedArray(BaseModel):
+    """An array of float64 packed for speed (``options.points = "compact"``): decode with
+    ``numpy.frombuffer(base64.b64decode(base64_), "<f8").reshape(shape)``."""
+
+    ids: list[str] = Field(description="what indexes the array's second axis: the vertex ids "
+                           "(positions) or the rotor bar ids (angles), in order")
+    shape: list[int] = Field(description="(points, vertices, d) for positions, (points, rotors) "
+                             "for angles")
+    dtype: Literal["<f8"] = Field(description="little-endian IEEE 754 float64, C order")
+    base64: str = Field(description="the array's bytes in base64 (RFC 4648, with padding)")
+
+
 class ComponentOut(BaseModel):
     closed: bool
     through_start: bool
-    positions: dict[str, list[list[float]]] = Field(
+    positions: dict[str, list[list[float]]] | PackedArray = Field(
         description="per vertex, the walk along the component (closed ones repeat the first "
-        "point at the end)"
+        "point at the end); with options.points = \"compact\" one PackedArray of shape "
+        "(points, vertices, d)"
     )
-    angles: dict[str, list[float]] = Field(description="unwrapped rotor angles along the walk")
+    angles: dict[str, list[float]] | PackedArray = Field(
+        description="unwrapped rotor angles along the walk; with options.points = \"compact\" "
+        "one PackedArray of shape (points, rotors)"
+    )
     winding: dict[str, int | None] = Field(description="net turns of each rotor (closed only)")
     critical_points: list[int]
 
