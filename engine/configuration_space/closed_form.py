@@ -12,7 +12,6 @@ from engine.chain_count import chain_components
 from engine.configuration_space.critical_search import critical_points, resolve
 from engine.configuration_space.explorer import Explorer
 from engine.configuration_space.results import Component, CriticalSearch, SpaceResult
-from engine.configuration_space.segments import mark_through_start
 from engine.constraints import Constraints
 from engine.critical import NearMiss
 from engine.dyads import closed_form_space, critical_candidates
@@ -61,6 +60,33 @@ def walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
                  logdets=np.log(np.maximum(norm, NORM_FLOOR)).tolist(), stop="closed")
 
 
+def walk_distance(walk: np.ndarray, target: np.ndarray, gap: float) -> float:
+    """:func:`engine.trace.polyline_distance` for a walk (n, M) whose consecutive points are at
+    most ``gap`` apart (the closed form's step bound), from the segments that can be nearest.
+
+    A point of a segment is within half its length of one of its ends, so no segment whose ends
+    are both farther than ``d + gap / 2`` (``d`` the distance to the nearest point, a bound of
+    the answer) comes nearer than ``d``: only the others are measured, with the same formula."""
+    if len(walk) < 2:
+        return polyline_distance(walk, target)
+    off = walk - target
+    d2 = np.einsum("ij,ij->i", off, off)  # (n,) squared distances to the points
+    reach = (np.sqrt(d2.min()) + 0.5 * gap) * (1.0 + 1e-9)
+    near = d2 <= reach * reach
+    seg = np.flatnonzero(near[:-1] | near[1:])  # segment k joins points k and k + 1
+    return _segments_distance(walk[seg], walk[seg + 1], target)
+
+
+def _segments_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the nearest of the segments ``[a_k, b_k]`` (K, M)."""
+    ab = b - a
+    denom = np.einsum("ij,ij->i", ab, ab)
+    num = np.einsum("ij,ij->i", target - a, ab)
+    s = np.clip(np.divide(num, denom, out=np.zeros_like(num), where=denom > 0), 0.0, 1.0)
+    gap = a + s[:, None] * ab - target
+    return float(np.sqrt(np.min(np.einsum("ij,ij->i", gap, gap))))
+
+
 def closed_form_answer(
     ex: Explorer, start: np.ndarray | None, near_misses: bool
 ) -> SpaceResult | None:
@@ -83,10 +109,13 @@ def closed_form_answer(
         return None
     free = ~np.asarray(lk.fixed)
     walks = [c[:, free] for c in cf.components]
-    if start is not None:  # as the tracer, which starts there: the given one first
-        walks.sort(key=lambda w: polyline_distance(w, start) > ex.h_max)
+    # distances to the start, once (they order the walks and mark the one through the start)
+    dist = [] if start is None else [walk_distance(w, start, ex.h_max) for w in walks]
+    if dist:  # as the tracer, which starts there: the given one first (a stable sort)
+        order = sorted(range(len(walks)), key=lambda k: dist[k] > ex.h_max)
+        walks, dist = [walks[k] for k in order], [dist[k] for k in order]
     truncated = len(walks) > opt.max_components
-    walks = walks[: opt.max_components]
+    walks, dist = walks[: opt.max_components], dist[: opt.max_components]
     report: dict[str, object] = {
         "method": "closed form",
         "closed_form": "used",
@@ -122,8 +151,9 @@ def closed_form_answer(
     else:
         report["critical_multistart"] = 0
         report["critical_candidates"] = 0
-    components = [Component(w, True, False, [], []) for w in walks]
-    mark_through_start(components, start, ex.h_max)
+    # through the start: the nearest walk within h_max (as segments.mark_through_start)
+    through = int(np.argmin(dist)) if dist and min(dist) <= ex.h_max else -1
+    components = [Component(w, True, k == through, [], []) for k, w in enumerate(walks)]
     count = chain_components(lk)
     if count is not None:  # as in the general path
         report["components_total"] = count.components

@@ -43,6 +43,7 @@ class Chain:
     ra: np.ndarray
     rb: np.ndarray
     base: np.ndarray  # (V, 2) positions of the pins (free vertices overwritten)
+    pins: np.ndarray  # (P,) the vertices that no step places (neither the tip nor a dyad's)
 
     @property
     def k(self) -> int:
@@ -79,8 +80,15 @@ def chain_of(linkage: Linkage) -> Chain | None:
             b=np.array([s.b for s in plan], dtype=int),
             ra=np.array([s.ra for s in plan]), rb=np.array([s.rb for s in plan]),
             base=np.array(linkage.positions, dtype=float),
+            pins=np.setdiff1d(np.arange(linkage.n_vertices),
+                              [tip, *(s.vertex for s in plan)]),
         )
     return None
+
+
+#: Samples placed per block: every temporary of a block (64 KB per array) stays in the cache,
+#: where arrays of all the samples at once (a dense walk: 10^5) would each be fresh memory.
+PLACE_BLOCK = 8192
 
 
 def place(
@@ -88,43 +96,73 @@ def place(
     given: dict[int, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (n, V, 2), ``nu`` (n, k) and squared centre distances (n, k) at angles
-    ``theta`` (n,) on sheets ``signs`` (n, k) of +-1.
+    ``theta`` (n,) on sheets ``signs`` (n, k) of +-1 (or (1, k): one sheet for every angle).
 
     ``flat`` (n, k) bool forces a dyad's vertex onto its centres' line (its fold point, so that
     the two sheets that meet there give bitwise the same configuration). ``given = {j: v}``
     puts dyad ``j``'s vertex at ``v`` (n, 2) instead (a point of the circle it is free on where
     its centres coincide). Where ``nu < 0`` the
     vertex is put on the line too; the caller masks those samples (the loop runs over the ``k``
-    dyads, at most :data:`MAX_DYADS`, each vectorised over all samples).
+    dyads, at most :data:`MAX_DYADS`, each vectorised over the samples of a block of
+    :data:`PLACE_BLOCK`: every operation is elementwise, so blocks change no bit).
     """
     n = len(theta)
-    pos = np.empty((n, *ch.base.shape))
-    pos[:] = ch.base
-    pos[:, ch.tip, 0] = ch.base[ch.pin, 0] + ch.radius * np.cos(theta)
-    pos[:, ch.tip, 1] = ch.base[ch.pin, 1] + ch.radius * np.sin(theta)
+    if n <= PLACE_BLOCK:
+        return _place(ch, theta, signs, flat, given)
+    pos = np.empty((n, len(ch.base), 2))
     nu = np.empty((n, ch.k))
     d2 = np.empty((n, ch.k))
-    for j in range(ch.k):
-        ra, rb = ch.ra[j], ch.rb[j]
-        c0 = pos[:, ch.a[j]]
-        delta = pos[:, ch.b[j]] - c0
-        dd = delta[:, 0] ** 2 + delta[:, 1] ** 2
-        # 4 d^2 h^2 = ((ra + rb)^2 - d^2)(d^2 - (ra - rb)^2) = 4 ra^2 rb^2 sin^2(angle at v):
-        # a product of differences (no cancellation in the quartic) and no division.
-        quad = ((ra + rb) ** 2 - dd) * (dd - (ra - rb) ** 2)
-        with np.errstate(divide="ignore", invalid="ignore"):
+    per_sample = len(signs) == n
+    for lo in range(0, n, PLACE_BLOCK):
+        part = slice(lo, lo + PLACE_BLOCK)
+        pos[part], nu[part], d2[part] = _place(
+            ch, theta[part], signs[part] if per_sample else signs,
+            None if flat is None else flat[part],
+            None if given is None else {j: v[part] for j, v in given.items()})
+    return pos, nu, d2
+
+
+def _place(
+    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None,
+    given: dict[int, np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`place` on one block."""
+    n = len(theta)
+    # Coordinates as two (V, n) planes: every dyad step reads and writes contiguous rows (the
+    # (n, V, 2) layout strides by V * 16 bytes); interleaved once at the end. The arithmetic
+    # is the same, term by term, so the positions are bitwise those of the interleaved layout.
+    xs = np.empty((len(ch.base), n))
+    ys = np.empty((len(ch.base), n))
+    xs[ch.pins] = ch.base[ch.pins, :1]  # every other row is written below
+    ys[ch.pins] = ch.base[ch.pins, 1:]
+    xs[ch.tip] = ch.base[ch.pin, 0] + ch.radius * np.cos(theta)
+    ys[ch.tip] = ch.base[ch.pin, 1] + ch.radius * np.sin(theta)
+    nu = np.empty((n, ch.k))
+    d2 = np.empty((n, ch.k))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j in range(ch.k):
+            ra, rb = ch.ra[j], ch.rb[j]
+            cx, cy = xs[ch.a[j]], ys[ch.a[j]]
+            dx = xs[ch.b[j]] - cx
+            dy = ys[ch.b[j]] - cy
+            dd = dx**2 + dy**2
+            # 4 d^2 h^2 = ((ra + rb)^2 - d^2)(d^2 - (ra - rb)^2) = 4 ra^2 rb^2 sin^2(angle at
+            # v): a product of differences (no cancellation in the quartic) and no division.
+            quad = ((ra + rb) ** 2 - dd) * (dd - (ra - rb) ** 2)
             inv = 0.5 / dd
             along = (dd + ra * ra - rb * rb) * inv
             hh = np.sqrt(np.maximum(quad, 0.0)) * inv * signs[:, j]
-        if flat is not None:
-            hh = np.where(flat[:, j], 0.0, hh)
-        if given is not None and j in given:
-            pos[:, ch.vertex[j]] = given[j]
-        else:
-            pos[:, ch.vertex[j], 0] = c0[:, 0] + along * delta[:, 0] - hh * delta[:, 1]
-            pos[:, ch.vertex[j], 1] = c0[:, 1] + along * delta[:, 1] + hh * delta[:, 0]
-        nu[:, j] = quad / (4.0 * ra * ra * rb * rb)
-        d2[:, j] = dd
+            if flat is not None:
+                hh = np.where(flat[:, j], 0.0, hh)
+            if given is not None and j in given:
+                xs[ch.vertex[j]] = given[j][:, 0]
+                ys[ch.vertex[j]] = given[j][:, 1]
+            else:
+                xs[ch.vertex[j]] = cx + along * dx - hh * dy
+                ys[ch.vertex[j]] = cy + along * dy + hh * dx
+            nu[:, j] = quad / (4.0 * ra * ra * rb * rb)
+            d2[:, j] = dd
+    pos = np.stack((xs.T, ys.T), axis=2)  # (n, V, 2), C order: one interleaving pass
     return pos, nu, d2
 
 

@@ -193,12 +193,14 @@ class _ArcSampler:
             th = t0 + (t1 - t0) * sig
         else:  # theta - theta* ~ sig^2 at both ends: the vertex moves like sqrt there
             th = t0 + (t1 - t0) * 0.5 * (1.0 - np.cos(np.pi * sig))
-        fl = np.zeros((len(sig), self.ch.k), bool)
+        fl = None
         if k0 is not None and k1 is not None:
             th = np.where(sig == 0.0, t0, np.where(sig == 1.0, t1, th))
+            fl = np.zeros((len(sig), self.ch.k), bool)
             fl[sig == 0.0, self.dyad_of[k0]] = True
             fl[sig == 1.0, self.dyad_of[k1]] = True
-        p, _, _ = place(self.ch, th, np.repeat(self.sheets[s][None, :], len(sig), axis=0), fl)
+        # one sheet along the arc: its signs (1, k) broadcast over the samples
+        p, _, _ = place(self.ch, th, self.sheets[s][None, :], fl)
         if k0 is None and sig[-1] == 1.0 and sig[0] == 0.0:
             p[-1] = p[0]
         return p
@@ -266,8 +268,15 @@ def _check_lengths(linkage: Linkage, components: list[np.ndarray], tol: Toleranc
         raise Decline(f"a component needs more than max_points = {max_points} points")
     ends = linkage.ends[linkage.active]
     lengths = linkage.lengths[linkage.active]
+    atol = tol.residual_atol
     for c in components:
-        diff = c[:, ends[:, 0]] - c[:, ends[:, 1]]
-        res = np.abs(np.sqrt(np.einsum("nbd,nbd->nb", diff, diff)) - lengths)
-        if res.size and float(res.max()) > tol.residual_atol:
-            raise Decline("a point misses the lengths by more than residual_atol")
+        for (i, j), length in zip(ends, lengths, strict=True):
+            # | |p_i - p_j| - L | <= atol  <=>  (L - atol)^2 <= |p_i - p_j|^2 <= (L + atol)^2:
+            # no square root per point, one pass per bar over views of the walk; a non-finite
+            # point fails the comparison
+            dx = c[:, i, 0] - c[:, j, 0]
+            dy = c[:, i, 1] - c[:, j, 1]
+            d2 = dx * dx + dy * dy
+            low = max(length - atol, 0.0) ** 2
+            if len(d2) and not (low <= d2.min() and d2.max() <= (length + atol) ** 2):
+                raise Decline("a point misses the lengths by more than residual_atol")
