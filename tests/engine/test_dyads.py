@@ -244,3 +244,48 @@ def test_linkages_that_are_not_dyad_chains_are_declined():
         [BarSpec("a1", ("P1", "A")), BarSpec("a2", ("P2", "A"))],
     )
     assert chain_of(lk) is None
+
+
+def test_placing_in_blocks_changes_no_bit(monkeypatch):
+    """:func:`engine.dyads.chain.place` works in blocks of PLACE_BLOCK samples; every operation
+    is elementwise, so the positions, ``nu`` and ``d2`` are bitwise those of one block."""
+    from engine.dyads import chain as chain_module
+
+    rng = np.random.default_rng(3)
+    for lk in (build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),
+               six_bar(*six_bars(1)[0])):
+        ch = chain_of(lk)
+        n = 5000
+        theta = rng.uniform(-np.pi, np.pi, n)
+        signs = rng.choice([-1, 1], size=(n, ch.k))
+        flat = rng.random((n, ch.k)) < 0.01
+        whole = chain_module.place(ch, theta, signs, flat)
+        monkeypatch.setattr(chain_module, "PLACE_BLOCK", 777)
+        blocks = chain_module.place(ch, theta, signs, flat)
+        one_sheet = chain_module.place(ch, theta, signs[:1])
+        monkeypatch.undo()
+        for a, b in zip(whole, blocks, strict=True):
+            assert np.array_equal(a, b, equal_nan=True)
+        same = chain_module.place(ch, theta, np.repeat(signs[:1], n, axis=0))
+        for a, b in zip(same, one_sheet, strict=True):
+            assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_walk_distance_is_the_polyline_distance():
+    """The distance from the start to a closed-form walk, measured on the segments near it only,
+    is the distance to the whole polyline (engine.trace.polyline_distance), on random walks
+    with their step bound and targets near and far."""
+    from engine.configuration_space.closed_form import walk_distance
+    from engine.trace import polyline_distance
+
+    rng = np.random.default_rng(8)
+    for _ in range(200):
+        m = int(rng.integers(2, 7))
+        n = int(rng.integers(2, 400))
+        steps = rng.normal(size=(n - 1, m))
+        steps *= rng.uniform(0.0, 1.0, (n - 1, 1)) / np.linalg.norm(steps, axis=1, keepdims=True)
+        walk = np.concatenate([rng.normal(size=(1, m)), steps]).cumsum(axis=0)
+        gap = float(np.max(np.linalg.norm(np.diff(walk, axis=0), axis=1)))
+        target = walk[int(rng.integers(n))] + rng.normal(size=m) * rng.choice([1e-3, 0.3, 10.0])
+        exact = polyline_distance(walk, target)
+        assert abs(walk_distance(walk, target, gap) - exact) <= 1e-12 * max(1.0, exact)
