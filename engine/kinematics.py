@@ -8,14 +8,18 @@ from engine.assembly import rotors
 from engine.linkage import Linkage
 
 
-def rotor_angles(linkage: Linkage, points: np.ndarray) -> dict[str, np.ndarray]:
+def rotor_angles(
+    linkage: Linkage, points: np.ndarray, positions: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """Unwrapped angle of every rotor (bar with exactly one fully fixed end) along ``points``
-    (n, M): ``atan2`` of the vector from the fixed end to the moving end (planar only)."""
+    (n, M): ``atan2`` of the vector from the fixed end to the moving end (planar only).
+    ``positions`` (n, V, d), when the caller has them, are ``positions_along(linkage, points)``
+    (not computed again)."""
     if linkage.dimension != 2:
         return {}
     out: dict[str, np.ndarray] = {}
     full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
-    pos = positions_along(linkage, points)
+    pos = positions_along(linkage, points) if positions is None else positions
     for k in rotors(linkage):
         i, j = (int(x) for x in linkage.ends[k])
         pin, tip = (i, j) if full[i] else (j, i)

@@ -488,7 +488,7 @@ def _component_out(
     linkage: EngineLinkage, comp: Component, compact: bool = False
 ) -> space.ComponentOut:
     pos = positions_along(linkage, comp.points)  # (n, V, d), all points at once
-    angles = rotor_angles(linkage, comp.points)  # {bar: (n,)}
+    angles = rotor_angles(linkage, comp.points, pos)  # {bar: (n,)}
     positions: dict[str, list[list[float]]] | space.PackedArray
     angles_out: dict[str, list[float]] | space.PackedArray
     if compact:
