@@ -145,3 +145,91 @@ def test_regions_need_no_near_misses(name, params):
     for a, b in zip(with_misses.components, without.components, strict=True):
         assert a.closed == b.closed
         assert _hausdorff([a.points], [b.points]) <= 1e-9 * float(np.max(np.abs(a.points)))
+
+
+# -- the sparse Levenberg-Marquardt of the critical-point refinement against MINPACK's -------
+
+def _starts(lk, count: int, seed: int) -> list[np.ndarray]:
+    """Candidates of the critical-point search and seeded projected random starts."""
+    from engine.assembly import projected_random_starts
+    from engine.configuration_space import Explorer
+    from engine.configuration_space.critical_search import candidates
+    from engine.tolerances import Tolerances
+
+    ex = Explorer(lk, Tolerances(), SpaceOptions(max_components=4, random_starts=0))
+    ex.trace_all(lk.coordinates())
+    rng = np.random.default_rng(seed)
+    return candidates(ex)[:count] + projected_random_starts(lk, Tolerances(), 3, rng)
+
+
+@pytest.mark.parametrize(("name", "params"), [
+    ("three-rotor", {}), ("four-bar", {}), ("four-bar", {"L2": 1.2}), ("kl-chain", {"n": 6}),
+    ("gated-kl-chain", {"n": 4, "gate": 2}), ("kl-chain", {"n": 12, "l": 1.4, "r": 1.3}),
+])
+def test_sparse_refinement_is_minpacks(name, params):
+    """From the same starts both land on the same critical point (critical lengths), or on
+    near misses with the same residuals: the same verdict, the same point where it is one."""
+    from scipy.optimize import least_squares
+
+    from engine.constraints import Constraints
+    from engine.critical import AugmentedSystem, SparseAugmentedSystem, refine_critical
+    from engine.tolerances import Tolerances
+
+    lk = build_preset(name, params)
+    cons, tol = Constraints(lk), Tolerances()
+    scale = float(np.median(lk.lengths))
+    agree = 0
+    for u0 in _starts(lk, 8, 3):
+        dense = refine_critical(cons, u0, tol, method="minpack")
+        sparse = refine_critical(cons, u0, tol, method="sparse")
+        assert dense.critical == sparse.critical
+        if dense.critical:
+            assert np.linalg.norm(dense.u - sparse.u) <= 1e-6 * scale
+            assert sparse.length_residual <= tol.residual_atol
+        else:
+            # A near miss: within the budget of 100 evaluations both may still creep along a
+            # flat valley of |F| (a floppy chain); run to convergence, both reach the same
+            # local minimum.
+            x0 = np.concatenate([u0, _start_stress(cons, u0)])
+            far = SparseAugmentedSystem(cons).solve(x0, max_nfev=3000)
+            ref = least_squares(AugmentedSystem(cons).residual, x0,
+                                jac=AugmentedSystem(cons).jacobian, method="lm", xtol=1e-15,
+                                ftol=1e-15, gtol=1e-15, max_nfev=3000).x
+            m = cons.n_free
+            assert np.linalg.norm(far[:m] - ref[:m]) <= 1e-5 * scale
+            assert min(np.linalg.norm(far[m:] - ref[m:]), np.linalg.norm(far[m:] + ref[m:])) \
+                <= 1e-5
+        agree += np.linalg.norm(dense.u - sparse.u) <= 1e-6 * scale
+    assert agree >= 1
+
+
+def _start_stress(cons, u0: np.ndarray) -> np.ndarray:
+    """The start stress of :func:`engine.critical.refine_critical`."""
+    return np.linalg.svd(cons.jacobian(u0, sparse=False))[0][:, -1]
+
+
+def test_critical_search_through_the_sparse_refinement(monkeypatch):
+    """The whole critical-point search with every refinement sparse: the same critical points
+    (three-rotor: twelve branch points) in the same order, the same kinds."""
+    import engine.critical as critical
+    from engine.configuration_space import find_critical_points
+
+    lk = build_preset("three-rotor")
+    opt = SpaceOptions(critical_closed_form=False)
+    dense = find_critical_points(lk, options=opt)
+    monkeypatch.setattr(critical, "SPARSE_REFINE_MIN_UNKNOWNS", 0)
+    sparse = find_critical_points(lk, options=opt)
+    assert len(dense.critical_points) == len(sparse.critical_points) == 12
+    for a, b in zip(dense.critical_points, sparse.critical_points, strict=True):
+        assert a.kind == b.kind
+        assert np.linalg.norm(a.u - b.u) <= 1e-7
+
+
+def test_unknown_refine_method():
+    from engine.constraints import Constraints
+    from engine.critical import refine_critical
+    from engine.tolerances import Tolerances
+
+    lk = build_preset("four-bar")
+    with pytest.raises(ValueError, match="unknown method"):
+        refine_critical(Constraints(lk), lk.coordinates(), Tolerances(), method="qr")
