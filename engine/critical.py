@@ -15,7 +15,9 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.optimize import least_squares
+from scipy.sparse.linalg import splu
 
 from engine.constraints import Constraints
 from engine.linkage import Linkage
@@ -157,21 +159,151 @@ class AugmentedSystem:
 _SYSTEMS: weakref.WeakKeyDictionary[Constraints, AugmentedSystem] = weakref.WeakKeyDictionary()
 
 
+#: From this many unknowns ``M + E`` on, :func:`refine_critical` runs the sparse
+#: Levenberg-Marquardt of :class:`SparseAugmentedSystem` (MINPACK's dense QR below it).
+SPARSE_REFINE_MIN_UNKNOWNS = 160
+
+#: Residual evaluations of one refinement (either method).
+REFINE_MAX_NFEV = 100
+
+#: Methods of :func:`refine_critical`: ``"auto"`` chooses by size.
+REFINE_METHODS = ("auto", "minpack", "sparse")
+
+
+class SparseAugmentedSystem:
+    """``dF/dx`` of :class:`AugmentedSystem` as a sparse matrix, and a Levenberg-Marquardt
+    iteration on it (:meth:`solve`) for large linkages.
+
+    Every block but the last row (``2 sigma``, dense over the stresses) is sparse with a fixed
+    pattern: ``J / 2L`` (4 entries per planar bar), ``H_sigma / s`` and ``J^T / s``. The pattern
+    is merged into CSR order once; each Jacobian is one weighted ``bincount`` into it. A step
+    solves ``(A0^T A0 + lam D^2 + a a^T) dx = -A^T F`` (``A0`` the sparse rows, ``a`` the dense
+    last row) by one sparse LU of ``A0^T A0 + lam D^2`` and the Sherman-Morrison correction for
+    ``a a^T``; ``D`` are the largest column norms seen (MINPACK's scaling)."""
+
+    def __init__(self, cons: Constraints) -> None:
+        system = _SYSTEMS.get(cons)
+        if system is None:
+            system = _SYSTEMS[cons] = AugmentedSystem(cons)
+        hess = _HESSIANS.get(cons)
+        if hess is None:
+            hess = _HESSIANS[cons] = DenseStressHessian(cons)
+        self.system, self.hess = system, hess
+        m, e = system.m, system.e
+        self.m, self.e = m, e
+        r, c = system.rows, system.cols
+        rows = np.concatenate([r, e + hess._flat // m, e + c])
+        cols = np.concatenate([c, hess._flat % m, m + r])
+        key = rows * (m + e) + cols
+        uniq, self._slot = np.unique(key, return_inverse=True)
+        self._nnz = len(uniq)
+        self._indices = (uniq % (m + e)).astype(np.int32)
+        self._indptr = np.searchsorted(uniq // (m + e), np.arange(e + m + 1)).astype(np.int32)
+        self._inv_2l = 1.0 / (2.0 * system.lengths[r])
+
+    def sparse_rows(self, x: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """``A0`` (E + M, M + E) sparse and the dense last row ``a`` (M + E,) of ``dF/dx``."""
+        sysm, m, e = self.system, self.m, self.e
+        u, s = x[:m], x[m:]
+        _, jac = sysm._at(u)
+        jv = jac[sysm.rows, sysm.cols]
+        vals = np.concatenate([jv * self._inv_2l, self.hess._sign * s[self.hess._bar] / sysm.scale,
+                               jv / sysm.scale])
+        data = np.bincount(self._slot, weights=vals, minlength=self._nnz)
+        a0 = sp.csr_matrix((data, self._indices, self._indptr), shape=(e + m, m + e))
+        last = np.zeros(m + e)
+        last[m:] = 2.0 * s
+        return a0, last
+
+    def solve(self, x0: np.ndarray, max_nfev: int = REFINE_MAX_NFEV,
+              xtol: float = 1e-15, ftol: float = 1e-15) -> np.ndarray:
+        """Levenberg-Marquardt from ``x0`` (Nielsen's damping update); stops when a step or
+        the predicted and actual reductions fall below ``xtol`` / ``ftol`` (relative), or after
+        ``max_nfev`` residual evaluations, as MINPACK's ``lmder``. Returns the last accepted
+        ``x``."""
+        residual = self.system.residual
+        x = np.array(x0, dtype=float)
+        f = residual(x)
+        cost = float(f @ f)
+        nfev = 1
+        a0, last = self.sparse_rows(x)
+        diag = np.maximum(np.sqrt(np.asarray(a0.multiply(a0).sum(axis=0)).ravel() + last**2),
+                          NORM_FLOOR)
+        normal0 = (a0.T @ a0).tocsc()
+        lam, nu = 1e-3 * float(np.max(diag**2)), 2.0
+        while nfev < max_nfev and cost > 0.0:
+            grad = a0.T @ f[:-1] + last * f[-1]
+            try:
+                lu = splu((normal0 + sp.diags(lam * diag**2, format="csc")).tocsc())
+            except RuntimeError:  # exactly singular: damp harder
+                lam, nu = lam * nu, 2.0 * nu
+                continue
+            y, z = lu.solve(-grad), lu.solve(last)
+            step = y - (last @ y) / (1.0 + last @ z) * z
+            if not np.all(np.isfinite(step)):
+                break
+            x_new = x + step
+            f_new = residual(x_new)
+            nfev += 1
+            cost_new = float(f_new @ f_new)
+            lin = a0 @ step + f[:-1]
+            pred = cost - float(lin @ lin + (f[-1] + last @ step) ** 2)
+            actual = cost - cost_new
+            rho = actual / pred if pred > 0 else -1.0
+            small = float(np.linalg.norm(diag * step)) <= xtol * float(np.linalg.norm(diag * x))
+            if rho > 1e-4 and np.isfinite(cost_new):
+                x, f, cost = x_new, f_new, cost_new
+                a0, last = self.sparse_rows(x)
+                diag = np.maximum(diag, np.sqrt(
+                    np.asarray(a0.multiply(a0).sum(axis=0)).ravel() + last**2))
+                normal0 = (a0.T @ a0).tocsc()
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
+                if small or (abs(actual) <= ftol * cost and pred <= ftol * cost):
+                    break
+            else:
+                lam, nu = lam * nu, 2.0 * nu
+                if small:
+                    break
+        return x
+
+
+_SPARSE_SYSTEMS: weakref.WeakKeyDictionary[Constraints, SparseAugmentedSystem] = (
+    weakref.WeakKeyDictionary()
+)
+
+
 def refine_critical(
-    cons: Constraints, u0: np.ndarray, tol: Tolerances, sigma0: np.ndarray | None = None
+    cons: Constraints, u0: np.ndarray, tol: Tolerances, sigma0: np.ndarray | None = None,
+    *, method: str = "auto",
 ) -> Refined:
-    """Solve the augmented system in least squares (Levenberg-Marquardt) from ``u0``."""
+    """Solve the augmented system in least squares (Levenberg-Marquardt) from ``u0``.
+
+    ``method="auto"`` runs MINPACK's ``lmder`` (dense QR) below
+    :data:`SPARSE_REFINE_MIN_UNKNOWNS` unknowns and the sparse iteration of
+    :class:`SparseAugmentedSystem` from there on (the tests check the two against each
+    other); ``"minpack"`` or ``"sparse"`` force one."""
+    if method not in REFINE_METHODS:
+        raise ValueError(f"unknown method {method!r}: one of {', '.join(REFINE_METHODS)}")
     m = cons.n_free
     system = _SYSTEMS.get(cons)
     if system is None:
         system = _SYSTEMS[cons] = AugmentedSystem(cons)
     jac0 = cons.jacobian(u0, sparse=False)
     s0 = _smallest_left_singular(jac0) if sigma0 is None else sigma0 / np.linalg.norm(sigma0)
-    res = least_squares(
-        system.residual, np.concatenate([u0, s0]), jac=system.jacobian, method="lm",
-        xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=100,
-    )
-    u, s = res.x[:m], res.x[m:]
+    x0 = np.concatenate([u0, s0])
+    if method == "sparse" or (method == "auto"
+                              and m + cons.n_constraints >= SPARSE_REFINE_MIN_UNKNOWNS):
+        sparse = _SPARSE_SYSTEMS.get(cons)
+        if sparse is None:
+            sparse = _SPARSE_SYSTEMS[cons] = SparseAugmentedSystem(cons)
+        x = sparse.solve(x0)
+    else:
+        x = least_squares(
+            system.residual, x0, jac=system.jacobian, method="lm",
+            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=REFINE_MAX_NFEV,
+        ).x
+    u, s = x[:m], x[m:]
     s = s / np.linalg.norm(s)
     jac = cons.jacobian(u, sparse=False)
     length_res = cons.max_residual(u)

@@ -37,9 +37,10 @@ from engine.configuration_space import (
 )
 from engine.constraints import Constraints
 from engine.critical import dense_stress_hessian, refine_critical
+from engine.dyad_margin import critical_planes
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
-from engine.tolerances import NORM_FLOOR, Tolerances
+from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -49,6 +50,11 @@ GRID_OFFSET = np.array([0.5 + (np.sqrt(2.0) - 1.0) / 10.0, 0.5 - (np.sqrt(5.0) -
 
 #: Point budget of one curve in a seed exploration.
 SEED_MAX_POINTS = 2000
+
+#: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
+#: chains (the four-bar family) from their closed-form critical lines and traces the rest;
+#: ``"traced"`` always seeds and traces (the tests cross-check the two).
+SLICE_METHODS = ("auto", "traced")
 
 
 @dataclass(frozen=True)
@@ -222,7 +228,9 @@ def _validate(linkage: Linkage, axes: list[tuple[str, float, float]]) -> tuple[A
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
                tol: Tolerances, deadline: Deadline = NEVER) -> tuple[int, str]:
     at = linkage.with_lengths(lengths)
-    res = explore(at, tol, options, start_on_space=False, deadline=deadline)
+    # the components only: no near misses (where the closed form or the chain rules certify
+    # that there is no critical point, the critical-point search is then skipped)
+    res = explore(at, tol, options, start_on_space=False, near_misses=False, deadline=deadline)
     patterns = set()
     for comp in res.components:
         angles = rotor_angles(at, comp.points)
@@ -243,11 +251,18 @@ def critical_value_slice(
     options: SpaceOptions | None = None,
     max_curve_points: int = 4000,
     deadline: Deadline | None = None,
+    *,
+    method: str = "auto",
 ) -> Slice:
     """Curves of the critical value set in the plane of two lengths, and its regions.
 
     Once ``deadline`` has passed the seeding and tracing stop, and regions not yet explored
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
+
+    ``method="auto"`` takes the curves of a one-dyad planar chain (the four-bar family) from
+    its closed-form critical lines (:func:`engine.dyad_margin.critical_planes`), sampled at the
+    tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
+    ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
     --------
@@ -257,31 +272,41 @@ def critical_value_slice(
     >>> len(s.regions) >= 2
     True
     """
+    if method not in SLICE_METHODS:
+        raise InvalidRequest(f"unknown method {method!r}: one of {', '.join(SLICE_METHODS)}",
+                             loc=("method",))
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions(angles=24, random_starts=4)
     dl = deadline or NEVER
     ax = _validate(linkage, axes)
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
     span = box[:, 1] - box[:, 0]
-    tracing = _CurveTracing(linkage, ax, box, float(min(span)) / resolution, tol, opt,
-                            max_curve_points, dl)
-    grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
-            for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
-    for k, p0 in enumerate(grid):
-        if dl.expired():
-            tracing.timed_out = True
-            break
-        dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
-        tracing.seed_at(p0)
-    curves = [_clip(c[:, -2:], box) for c in tracing.curves]
-    curves = _merge_coincident([c for c in curves if len(c) >= 2], 1e-7 * float(max(span)))
+    h_max = float(min(span)) / resolution
+    lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
+    if lines is not None:
+        raw, seeds, timed_out = lines, 0, False
+        grid: list[np.ndarray] = []
+    else:
+        tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
+        grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
+                for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
+        for k, p0 in enumerate(grid):
+            if dl.expired():
+                tracing.timed_out = True
+                break
+            dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
+            tracing.seed_at(p0)
+        raw = [_clip(c[:, -2:], box) for c in tracing.curves]
+        seeds, timed_out = tracing.seeds_tried, tracing.timed_out
+    curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
     regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
-    timed_out = tracing.timed_out or any(r.components is None for r in regions)
+    timed_out = timed_out or any(r.components is None for r in regions)
     search: dict[str, object] = {
+        "method": "closed form" if lines is not None else "traced",
         "seed_lengths": len(grid),
-        "seed_configurations": tracing.seeds_tried,
+        "seed_configurations": seeds,
         "curves": len(curves),
-        "step": tracing.h_max,
+        "step": h_max,
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
         "complete": not timed_out,
@@ -290,6 +315,50 @@ def critical_value_slice(
     if (seconds := granted(dl)) is not None:
         search["time_budget_s"] = seconds
     return Slice(curves, regions, search)
+
+
+def _closed_form_curves(
+    linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, step: float, tol: Tolerances,
+) -> list[np.ndarray] | None:
+    """The slice's curves of a one-dyad planar chain: every critical hyperplane
+    ``n . (r, ra, rb) = D`` of :func:`engine.dyad_margin.critical_planes` met with the plane of
+    the two axes (the other length as given) is a line; its piece inside the box (lengths at
+    least the shortest critical bar) sampled at most ``step`` apart. None when the linkage is
+    not such a chain or an axis is none of its three bars."""
+    found = critical_planes(linkage)
+    if found is None:
+        return None
+    _, pl = found
+    cols = [np.flatnonzero(pl.bars == a.bar) for a in ax]
+    if any(len(c) != 1 for c in cols):
+        return None
+    i, j = int(cols[0][0]), int(cols[1][0])
+    k = 3 - i - j  # the third bar keeps its length
+    other = float(linkage.lengths[pl.bars[k]])
+    shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
+    lo = np.maximum(box[:, 0], shortest)
+    curves = []
+    for normal in pl.normals:  # at most 8 planes
+        if normal[k] != 0 and other < shortest:
+            continue  # the third bar would be degenerate: no critical configuration there
+        n = normal[[i, j]]
+        # the line n . p = c, as p0 + t d with |d| = 1, cut to the box (slab by slab)
+        c = pl.dist - normal[k] * other
+        p0 = n * c / float(n @ n)
+        d = np.array([-n[1], n[0]]) / float(np.hypot(*n))
+        t_lo, t_hi = -np.inf, np.inf
+        for m in range(2):  # the two axes of the box
+            if d[m] == 0.0:
+                if not lo[m] <= p0[m] <= box[m, 1]:
+                    t_lo, t_hi = np.inf, -np.inf
+                continue
+            ta, tb = sorted(((lo[m] - p0[m]) / d[m], (box[m, 1] - p0[m]) / d[m]))
+            t_lo, t_hi = max(t_lo, ta), min(t_hi, tb)
+        if not t_hi > t_lo:
+            continue
+        t = np.linspace(t_lo, t_hi, int(np.ceil((t_hi - t_lo) / step)) + 1)
+        curves.append(np.clip(p0[None, :] + t[:, None] * d[None, :], lo, box[:, 1]))
+    return curves
 
 
 class _CurveTracing:
@@ -416,6 +485,25 @@ def _clip(points: np.ndarray, box: np.ndarray) -> np.ndarray:
     return np.array(out).reshape(-1, 2)
 
 
+def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndarray:
+    """The (n, n) raster cells the curves cross: every segment sampled at a quarter of a cell
+    (``steps + 1`` points ``a + s (b - a)``, ``s = 0, 1/steps, .., 1``), all segments at once."""
+    blocked = np.zeros((n, n), dtype=bool)
+    if not curves:
+        return blocked
+    span = box[:, 1] - box[:, 0]
+    a = np.concatenate([c[:-1] for c in curves])  # (S, 2) segment starts
+    b = np.concatenate([c[1:] for c in curves])
+    steps = (np.ceil(4 * np.max(np.abs(b - a) / span, axis=1) * n)).astype(int) + 1  # (S,)
+    seg = np.repeat(np.arange(len(a)), steps + 1)
+    first = np.concatenate([[0], np.cumsum(steps + 1)[:-1]])
+    s = (np.arange(len(seg)) - first[seg]) / steps[seg]  # (N,) in [0, 1] per segment
+    q = (a[seg] + s[:, None] * (b[seg] - a[seg]) - box[:, 0]) / span * n
+    ij = np.clip(q.astype(int), 0, n - 1)
+    blocked[ij[:, 0], ij[:, 1]] = True
+    return blocked
+
+
 def _regions(
     linkage: Linkage,
     ax: tuple[Axis, Axis],
@@ -428,14 +516,7 @@ def _regions(
 ) -> list[Region]:
     n = resolution
     span = box[:, 1] - box[:, 0]
-    blocked = np.zeros((n, n), dtype=bool)
-    for c in curves:
-        for a, b in zip(c[:-1], c[1:], strict=True):
-            steps = int(np.ceil(4 * np.max(np.abs(b - a) / span) * n)) + 1
-            for s in np.linspace(0.0, 1.0, steps + 1):
-                q = (a + s * (b - a) - box[:, 0]) / span * n
-                i, j = np.clip(q.astype(int), 0, n - 1)
-                blocked[i, j] = True
+    blocked = _blocked_cells(curves, box, n)
     labels, count = ndimage.label(~blocked)
     dist = ndimage.distance_transform_edt(~blocked)
     out = []

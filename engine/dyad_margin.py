@@ -56,6 +56,45 @@ def _bar(linkage: Linkage, i: int, j: int) -> int:
     return int(hit[0])
 
 
+@dataclass(frozen=True)
+class CriticalPlanes:
+    """The critical value set of a one-dyad planar chain: the pieces
+    ``normals[p] . lengths[bars] = dist`` (every length at least the shortest critical bar).
+
+    ``bars`` (3,) are the rotor and the dyad's two bars ``(r, ra, rb)``; ``normals`` (P, 3) of
+    +-1 (0 for the rotor where the dyad's centres are both pins: P = 4, else 8)."""
+
+    bars: np.ndarray
+    normals: np.ndarray
+    dist: float
+
+
+def critical_planes(linkage: Linkage) -> tuple[Chain, CriticalPlanes] | None:
+    """The chain and the critical hyperplanes of a one-dyad planar chain (see the module
+    docstring), or None when the linkage is not one.
+
+    >>> from engine.presets import build_preset
+    >>> _, pl = critical_planes(build_preset("four-bar"))
+    >>> pl.normals.shape, pl.dist
+    ((8, 3), 1.0)
+    """
+    ch = chain_of(linkage)
+    if ch is None or ch.k != 1:
+        return None
+    v, a, b = int(ch.vertex[0]), int(ch.a[0]), int(ch.b[0])
+    bars = np.array([ch.rotor, _bar(linkage, v, a), _bar(linkage, v, b)])  # r, ra, rb
+    pins = np.asarray(linkage.positions, dtype=float)
+    if ch.tip in (a, b):
+        c = b if a == ch.tip else a
+        dist = float(np.linalg.norm(pins[c] - pins[ch.pin]))
+        signs_r: tuple[float, ...] = (1.0, -1.0)
+    else:  # both centres pins: d is their distance, the rotor plays no part
+        dist = float(np.linalg.norm(pins[a] - pins[b]))
+        signs_r = (0.0,)
+    normals = np.array(list(itertools.product(signs_r, (1.0, -1.0), (1.0, -1.0))))
+    return ch, CriticalPlanes(bars, normals, dist)
+
+
 def project_on_plane(
     x0: np.ndarray, normal: np.ndarray, rhs: float, lower: np.ndarray
 ) -> np.ndarray | None:
@@ -115,27 +154,17 @@ def exact_margin(
     ExactMargin or None
         ``margin`` is ``inf`` (with ``nearest`` the given lengths) when no piece is reachable.
     """
-    ch = chain_of(linkage)
-    if ch is None or ch.k != 1:
+    found = critical_planes(linkage)
+    if found is None:
         return None
-    v, a, b = int(ch.vertex[0]), int(ch.a[0]), int(ch.b[0])
-    bars = np.array([ch.rotor, _bar(linkage, v, a), _bar(linkage, v, b)])  # r, ra, rb
+    ch, pl = found
+    bars, dist = pl.bars, pl.dist
     x_now = linkage.lengths[bars].astype(float)
     adj = np.asarray(adjustable, dtype=bool)[bars]
-    on_tip = ch.tip in (a, b)
-    pins = np.asarray(linkage.positions, dtype=float)
-    if on_tip:
-        c = b if a == ch.tip else a
-        dist = float(np.linalg.norm(pins[c] - pins[ch.pin]))
-        signs_r: tuple[float, ...] = (1.0, -1.0)
-    else:  # both centres pins: d is their distance, the rotor plays no part
-        dist = float(np.linalg.norm(pins[a] - pins[b]))
-        signs_r = (0.0,)
     best: tuple[float, np.ndarray, np.ndarray] | None = None
     planes = 0
-    for s_r, s_a, s_b in itertools.product(signs_r, (1.0, -1.0), (1.0, -1.0)):
+    for normal in pl.normals:  # at most 8 planes
         planes += 1
-        normal = np.array([s_r, s_a, s_b])
         rhs = dist - float(normal[~adj] @ x_now[~adj])
         lower = np.full(int(adj.sum()), min_length)
         if np.any(x_now[~adj & (normal != 0)] < min_length):
