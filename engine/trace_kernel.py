@@ -1,0 +1,176 @@
+"""The tracer's regular steps compiled (numba), with the Python loop of :mod:`engine.trace` as
+the fallback and the reference.
+
+:func:`engine.trace.trace_curve` spends almost all of its time in the per-step overhead of
+small numpy and LAPACK calls (a four-bar's ``[t; J]`` is 4 x 4; a chain's is a narrow band).
+:func:`advance` runs the same predictor-corrector passes in compiled code: predictor, strain
+test, chord Newton with the factorisation of the previous point, full Newton when the chord
+fails, tangent and ``det([t; J])`` at the new point, turn test, step control. It commits only
+passes that it can finish exactly as the Python loop would, and hands every other pass back
+(a sign change of the determinant, a collapsed step, a possible closing, an exhausted budget,
+a due deadline check, a band too wide for the band LU or a singular bordered system): the
+Python loop then runs that one pass with its own code (``_cross_ahead``, ``_jump``,
+``_lands_on``, the stop reasons) and calls the kernel again.
+
+Linear algebra: an LU with partial pivoting in LAPACK band storage (as ``gbtrf``/``gbtrs``),
+used with full bandwidth for the dense ``[t; J]`` of small linkages and on the band reordering
+of ``[e_k; J]`` with the rank-one update of :class:`engine.lu.BorderedFactor` for large ones
+(the same systems as :func:`engine.trace.factor_augmented`, so the same signs and ``log|det|``).
+
+The choice: environment variable ``LINKAGE_TRACER_KERNEL`` = ``numba`` (default; the Python
+loop when numba cannot be imported) or ``numpy`` (always the Python loop).
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from engine.constraints import Constraints
+
+#: Environment variable choosing the tracer's path: ``numba`` or ``numpy``.
+KERNEL_ENV = "LINKAGE_TRACER_KERNEL"
+
+#: What :func:`advance` reports when it returns.
+EV_FULL = 0  # the output buffer (or the point budget) is full
+EV_PASS = 1  # the next pass must run in Python
+EV_DEADLINE = 2  # the next pass checks the deadline (the caller does, then calls again)
+
+#: Points per call at most: buffers of about this many floats (a chain's rows are long).
+BUFFER_FLOATS = 1 << 18
+
+_kernel: Callable[..., Any] | None = None
+_import_failed = False
+
+
+def enabled() -> bool:
+    """True when the compiled path is chosen and numba is importable."""
+    if os.environ.get(KERNEL_ENV, "numba").strip().lower() == "numpy":
+        return False
+    return _load() is not None
+
+
+def _load() -> Callable[..., Any] | None:
+    global _kernel, _import_failed
+    if _kernel is None and not _import_failed:
+        try:
+            from engine._trace_numba import run
+        except ImportError:  # numba missing: the Python loop is the tracer
+            _import_failed = True
+            return None
+        _kernel = run
+    return _kernel
+
+
+class KernelData(NamedTuple):
+    """Arrays the kernel reads (computed once per :class:`Constraints`)."""
+
+    fixed_values: np.ndarray  # (F,) fixed coordinates, after u in the gathers
+    gather_i: np.ndarray  # (Ea, d) index into [u, fixed] of each bar's first end
+    gather_j: np.ndarray  # (Ea, d)
+    lengths: np.ndarray  # (Ea,)
+    targets: np.ndarray  # (Ea,) L^2
+    rows: np.ndarray  # (nnz,) pattern of J
+    cols: np.ndarray
+    sign: np.ndarray
+    axes: np.ndarray
+    col_pos: np.ndarray  # (M,) band column of each column (band path only, else empty)
+    entry_rank: np.ndarray  # (nnz,) band row of each entry's bar before the unit row
+    entry_col: np.ndarray  # (nnz,) band column of each entry
+    keys: np.ndarray  # (Ea,) sorted row keys
+    row_rank: np.ndarray  # (Ea,) band row of each bar before the unit row
+    sign_perm: int  # sign of the band reordering
+
+
+_DATA: weakref.WeakKeyDictionary[Constraints, KernelData] = weakref.WeakKeyDictionary()
+
+
+def kernel_data(cons: Constraints, dense: bool) -> KernelData:
+    """The kernel's view of ``cons`` (cached; the band layout only for the sparse path)."""
+    data = _DATA.get(cons)
+    if data is not None and (dense or len(data.col_pos)):
+        return data
+    p = cons.pattern
+    empty_i = np.zeros(0, dtype=np.int64)
+    if dense:
+        band: tuple[np.ndarray, ...] = (empty_i, empty_i, empty_i, np.zeros(0), empty_i)
+        sign_perm = 1
+    else:
+        col_pos, entry_rank, entry_col, keys, sign_perm = cons._band_layout
+        band = (col_pos, entry_rank, entry_col, keys, cons._band_row_rank)
+    i64 = [np.ascontiguousarray(a, dtype=np.int64) for a in band if a.dtype.kind in "iu"]
+    col_pos, entry_rank, entry_col, row_rank = i64
+    data = KernelData(
+        np.ascontiguousarray(cons._fixed_values, dtype=float),
+        np.ascontiguousarray(cons._gather_i, dtype=np.int64),
+        np.ascontiguousarray(cons._gather_j, dtype=np.int64),
+        np.ascontiguousarray(cons.linkage.lengths[cons.bars], dtype=float),
+        np.ascontiguousarray(cons.targets, dtype=float),
+        np.ascontiguousarray(p.rows, dtype=np.int64),
+        np.ascontiguousarray(p.cols, dtype=np.int64),
+        np.ascontiguousarray(p.sign, dtype=float),
+        np.ascontiguousarray(p.axes, dtype=np.int64),
+        col_pos, entry_rank, entry_col,
+        np.ascontiguousarray(band[3], dtype=float), row_rank, int(sign_perm),
+    )
+    _DATA[cons] = data
+    return data
+
+
+class Advance(NamedTuple):
+    """What one call of the kernel did: the committed points (n, M), tangents, signs and
+    ``log|det|``, why it returned, and the tracer's state after the last committed pass."""
+
+    points: np.ndarray
+    tangents: np.ndarray
+    signs: np.ndarray
+    logdets: np.ndarray
+    event: int
+    u: np.ndarray
+    t: np.ndarray
+    t_in: np.ndarray
+    sign: int
+    h: float
+    arc: float
+    budget: int
+    tried: bool
+
+
+def advance(
+    cons: Constraints, dense: bool, u: np.ndarray, t: np.ndarray, t_in: np.ndarray, sign: int,
+    h: float, arc: float, budget: int, tried: bool, room: int, *, u0: np.ndarray, close: bool,
+    close_after: float, h_max: float, h_min: float, collapse: float, strain_tol: float,
+    residual_atol: float, cos_turn: float, h_cross: float, band_max_work: int, deadline_every: int,
+    checked: int, cross_ahead: bool,
+) -> Advance:
+    """Run committed passes of the tracer from the state ``(u, t, t_in, sign, h, arc, budget,
+    tried)`` (``t_in`` is the row of the factorisation at ``u``: the tangent before it), at
+    most ``room`` points. ``deadline_every`` 0 never hands back for the deadline; ``checked``
+    is the budget value whose deadline check the caller has just made."""
+    run = _load()
+    assert run is not None
+    m = len(u)
+    cap = max(1, min(room, BUFFER_FLOATS // max(m, 1)))
+    pts = np.empty((cap, m))
+    tans = np.empty((cap, m))
+    signs = np.empty(cap, dtype=np.int64)
+    logd = np.empty(cap)
+    state_u = np.array(u, dtype=float)
+    state_t = np.array(t, dtype=float)
+    state_tin = np.array(t_in, dtype=float)
+    fp = np.array([h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol,
+                   cos_turn, h_cross])
+    ip = np.array([sign, budget, int(tried), int(close), int(dense), band_max_work,
+                   deadline_every, checked, int(cross_ahead)], dtype=np.int64)
+    d = kernel_data(cons, dense)
+    n, event = run(state_u, state_t, state_tin, np.asarray(u0, dtype=float), fp, ip,
+                   d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
+                   d.cols, d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys,
+                   d.row_rank, d.sign_perm, pts, tans, signs, logd)
+    return Advance(pts[:n], tans[:n], signs[:n], logd[:n], int(event), state_u, state_t,
+                   state_tin, int(ip[0]), float(fp[0]), float(fp[1]), int(ip[1]),
+                   bool(ip[2]))
