@@ -53,6 +53,30 @@ def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
 
 
 @njit(cache=True)
+def _log_abs_det(ab, off, n):
+    """``sum log|ab[off, j]|`` (finite, nonzero entries) with one logarithm per block of the
+    product instead of one per entry (which costs about what the band LU of a chain does)."""
+    out = 0.0
+    prod = 1.0
+    for j in range(n):
+        a = abs(ab[off, j])
+        if a > 1e100 or a < 1e-100:
+            out += math.log(a)
+            continue
+        prod *= a
+        if prod > 1e100 or prod < 1e-100:
+            out += math.log(prod)
+            prod = 1.0
+    return out + math.log(prod)
+
+
+@njit(cache=True)
+def _invert_diagonal(ab, off, n):
+    for j in range(n):
+        ab[off, j] = 1.0 / ab[off, j]
+
+
+@njit(cache=True)
 def _band_lu(ab, n, kl, ku, piv):
     """gbtrf without blocking: True unless a pivot is exactly zero."""
     off = kl + ku
@@ -74,9 +98,9 @@ def _band_lu(ab, n, kl, ku, piv):
                 tmp = ab[off + j - c, c]
                 ab[off + j - c, c] = ab[off + p - c, c]
                 ab[off + p - c, c] = tmp
-        pivot = ab[off, j]
+        rpiv = 1.0 / ab[off, j]  # as gbtf2: scaled by the reciprocal of the pivot
         for i in range(1, km + 1):
-            ab[off + i, j] /= pivot
+            ab[off + i, j] *= rpiv
         for c in range(j + 1, last + 1):
             f = ab[off + j - c, c]
             if f != 0.0:
@@ -87,7 +111,9 @@ def _band_lu(ab, n, kl, ku, piv):
 
 @njit(cache=True)
 def _band_solve(ab, n, kl, ku, piv, b):
-    """gbtrs (in place)."""
+    """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
+    pivots (:func:`_invert_diagonal`): multiplications on the back substitution's chain of
+    dependencies instead of divisions."""
     off = kl + ku
     for j in range(n):
         km = min(kl, n - 1 - j)
@@ -101,7 +127,7 @@ def _band_solve(ab, n, kl, ku, piv, b):
             for i in range(1, km + 1):
                 b[j + i] -= ab[off + i, j] * bj
     for j in range(n - 1, -1, -1):
-        b[j] /= ab[off, j]
+        b[j] *= ab[off, j]
         bj = b[j]
         if bj != 0.0:
             for i in range(max(0, j - off), j):
@@ -110,11 +136,15 @@ def _band_solve(ab, n, kl, ku, piv, b):
 
 @njit(cache=True)
 def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-            entry_rank, entry_col, keys, row_rank, sign_perm, vals):
+            entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp):
     """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
     logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
     otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
-    (engine.lu.BorderedFactor)."""
+    (engine.lu.BorderedFactor).
+
+    The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
+    [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
+    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with)."""
     m = u.shape[0]
     _jac_values(u, fixed, gi, gj, rows, sign, axes, vals)
     empty_i = np.zeros(0, dtype=np.int64)
@@ -134,7 +164,6 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
         if not _band_lu(ab, m, kl, ku, piv):
             return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
         sgn = 1
-        logdet = 0.0
         for j in range(m):
             dj = ab[off, j]
             if not np.isfinite(dj):
@@ -143,7 +172,8 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
                 sgn = -sgn
             if piv[j] != j:
                 sgn = -sgn
-            logdet += math.log(abs(dj))
+        logdet = _log_abs_det(ab, off, m)
+        _invert_diagonal(ab, off, m)
         return _OK, ab, piv, kl, ku, sgn, logdet, empty_i, empty_f, empty_f, 1.0
     # k = argmax |row| (the first largest, as np.argmax)
     k = 0
@@ -153,37 +183,47 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             big = abs(row[c])
             k = c
     ck = col_pos[k]
-    ins = np.searchsorted(keys, ck, side="right")
-    kl = max(ins - ck, 0)
-    ku = max(ck - ins, 0)
     nnz = rows.shape[0]
-    for e in range(nnz):
-        r = entry_rank[e]
-        diff = r + (1 if r >= ins else 0) - entry_col[e]
-        if diff > kl:
-            kl = diff
-        if -diff > ku:
-            ku = -diff
+    if lay[0] == k:
+        kl = lay[1]
+        ku = lay[2]
+        ins = lay[3]
+        row_pos = lay_rp
+    else:
+        ins = np.searchsorted(keys, ck, side="right")
+        kl = max(ins - ck, 0)
+        ku = max(ck - ins, 0)
+        for e in range(nnz):
+            r = entry_rank[e]
+            diff = r + (1 if r >= ins else 0) - entry_col[e]
+            if diff > kl:
+                kl = diff
+            if -diff > ku:
+                ku = -diff
+        for e in range(nnz):
+            r = entry_rank[e]
+            lay_pos[e] = kl + ku + r + (1 if r >= ins else 0) - entry_col[e]
+        row_pos = np.empty(m, dtype=np.int64)
+        row_pos[0] = ins
+        for a in range(row_rank.shape[0]):
+            r = row_rank[a]
+            row_pos[a + 1] = r + (1 if r >= ins else 0)
+        lay[0] = k
+        lay[1] = kl
+        lay[2] = ku
+        lay[3] = ins
     if kl * (kl + ku) > band_max_work:
-        return _DECLINE, np.zeros((1, 1)), empty_i, kl, ku, 0, -np.inf, empty_i, empty_f, \
+        return _DECLINE, np.zeros((1, 1)), empty_i, kl, ku, 0, -np.inf, row_pos, empty_f, \
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
     for e in range(nnz):
-        r = entry_rank[e]
-        diff = r + (1 if r >= ins else 0) - entry_col[e]
-        ab[off + diff, entry_col[e]] = vals[e]
+        ab[lay_pos[e], entry_col[e]] = vals[e]
     ab[off + ins - ck, ck] = 1.0
-    row_pos = np.empty(m, dtype=np.int64)
-    row_pos[0] = ins
-    for a in range(row_rank.shape[0]):
-        r = row_rank[a]
-        row_pos[a + 1] = r + (1 if r >= ins else 0)
     piv = np.empty(m, dtype=np.int64)
     if not _band_lu(ab, m, kl, ku, piv):
         return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
     flips = 0
-    logdet = 0.0
     for j in range(m):
         dj = ab[off, j]
         if not np.isfinite(dj):
@@ -192,7 +232,8 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             flips += 1
         if piv[j] != j:
             flips += 1
-        logdet += math.log(abs(dj))
+    logdet = _log_abs_det(ab, off, m)
+    _invert_diagonal(ab, off, m)
     base_sign = (-1 if flips % 2 else 1) * sign_perm * (-1 if ins % 2 else 1)
     # y0 = B0^{-1} e_1 (in the original order), d = row - e_k, gamma = 1 + d.y0
     b = np.zeros(m)
@@ -310,6 +351,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     ea = lengths.shape[0]
     cap = out_pts.shape[0]
     vals = np.empty(rows.shape[0])
+    lay = np.full(4, -1, dtype=np.int64)
+    lay_pos = np.empty(rows.shape[0], dtype=np.int64)
+    lay_rp = np.zeros(0, dtype=np.int64)
     sq = np.empty(ea)
     e1 = np.zeros(m)
     e1[0] = 1.0
@@ -321,7 +365,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     step = 0.0
     st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor(
         u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-        entry_rank, entry_col, keys, row_rank, sign_perm, vals)
+        entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+    lay_rp = rp
     ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
     if st != _OK:
         event = _EV_PASS
@@ -352,7 +398,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             if not ok:
                 st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                    col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals)
+                    col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+                lay_rp = rp2
                 if st2 == _DECLINE:
                     decline = True
                 elif st2 == _SINGULAR:
@@ -373,14 +421,19 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         if not shrink:
             st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor(
                 w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-                entry_rank, entry_col, keys, row_rank, sign_perm, vals)
+                entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+            lay_rp = rp3
             if st3 == _DECLINE:
                 event = _EV_PASS
                 break
             if st3 == _SINGULAR:
                 shrink = True
             else:
-                y = _solve(ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3, dense, e1)
+                if dense:
+                    y = _solve(ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3, dense, e1)
+                else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
+                    y = y03 / gam3
                 ny = 0.0
                 for c in range(m):
                     ny += y[c] * y[c]
