@@ -23,33 +23,36 @@ _EV_DEADLINE = 2
 
 
 @njit(cache=True)
+def _extended(u, fixed):
+    """``[u, fixed coordinates]``: the gathers of a bar's ends index into it."""
+    m = u.shape[0]
+    ext = np.empty(m + fixed.shape[0])
+    ext[:m] = u
+    ext[m:] = fixed
+    return ext
+
+
+@njit(cache=True)
 def _squared_lengths(u, fixed, gi, gj, out):
     """Constraints.squared_lengths."""
-    m = u.shape[0]
+    ext = _extended(u, fixed)
     ea, dim = gi.shape
     for a in range(ea):
         s = 0.0
         for x in range(dim):
-            p = gi[a, x]
-            q = gj[a, x]
-            vi = u[p] if p < m else fixed[p - m]
-            vj = u[q] if q < m else fixed[q - m]
-            s += (vi - vj) * (vi - vj)
+            df = ext[gi[a, x]] - ext[gj[a, x]]
+            s += df * df
         out[a] = s
 
 
 @njit(cache=True)
 def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
     """Constraints.jacobian_values."""
-    m = u.shape[0]
+    ext = _extended(u, fixed)
     for e in range(rows.shape[0]):
         a = rows[e]
         x = axes[e]
-        p = gi[a, x]
-        q = gj[a, x]
-        vi = u[p] if p < m else fixed[p - m]
-        vj = u[q] if q < m else fixed[q - m]
-        out[e] = 2.0 * sign[e] * (vi - vj)
+        out[e] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
 
 
 @njit(cache=True)

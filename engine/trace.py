@@ -262,15 +262,22 @@ def trace_curve(
                     h_cross=lim.h_cross, band_max_work=BAND_MAX_WORK,
                     deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
                     cross_ahead=cons.n_free <= 600)
-                prev = u
-                for k in range(len(adv.points)):
-                    w = adv.points[k]
-                    curve.append(w, adv.tangents[k], int(adv.signs[k]), float(adv.logdets[k]))
-                    reason = stop(prev, w, adv.tangents[k]) if stop is not None else None
-                    if reason is not None:
-                        curve.stop = reason
-                        return curve
-                    prev = w
+                if stop is None:
+                    curve.points.extend(adv.points)
+                    curve.tangents.extend(adv.tangents)
+                    curve.signs.extend(adv.signs.tolist())
+                    curve.logdets.extend(adv.logdets.tolist())
+                else:  # the stop check on every committed point, as below
+                    prev = u
+                    for k in range(len(adv.points)):
+                        w = adv.points[k]
+                        curve.append(w, adv.tangents[k], int(adv.signs[k]),
+                                     float(adv.logdets[k]))
+                        reason = stop(prev, w, adv.tangents[k])
+                        if reason is not None:
+                            curve.stop = reason
+                            return curve
+                        prev = w
                 u, t, t_in, sign = adv.u, adv.t, adv.t_in, adv.sign
                 h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
                 if adv.event != trace_kernel.EV_DEADLINE:

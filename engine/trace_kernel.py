@@ -18,12 +18,14 @@ of ``[e_k; J]`` with the rank-one update of :class:`engine.lu.BorderedFactor` fo
 (the same systems as :func:`engine.trace.factor_augmented`, so the same signs and ``log|det|``).
 
 The choice: environment variable ``LINKAGE_TRACER_KERNEL`` = ``numba`` (default; the Python
-loop when numba cannot be imported) or ``numpy`` (always the Python loop).
+loop when numba cannot be imported, and until the kernel is compiled: :func:`enabled` loads it
+in a background thread, :func:`load` waits for it) or ``numpy`` (always the Python loop).
 """
 
 from __future__ import annotations
 
 import os
+import threading
 import weakref
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -43,27 +45,55 @@ EV_DEADLINE = 2  # the next pass checks the deadline (the caller does, then call
 #: Points per call at most: buffers of about this many floats (a chain's rows are long).
 BUFFER_FLOATS = 1 << 18
 
+#: The compiled kernel once :func:`load` has imported and compiled it (None before, or when
+#: numba is missing or failed).
 _kernel: Callable[..., Any] | None = None
-_import_failed = False
+_loader: threading.Thread | None = None
+_lock = threading.Lock()
 
 
 def enabled() -> bool:
-    """True when the compiled path is chosen and numba is importable."""
+    """True when the compiled path is chosen and ready. The first call starts :func:`load` in
+    a background thread and the Python loop traces until it is ready: compiling takes tens of
+    seconds where numba's cache is cold (a fresh install), which no request's time budget
+    should pay."""
     if os.environ.get(KERNEL_ENV, "numba").strip().lower() == "numpy":
         return False
-    return _load() is not None
+    return _kernel is not None or load(wait=False)
 
 
-def _load() -> Callable[..., Any] | None:
-    global _kernel, _import_failed
-    if _kernel is None and not _import_failed:
-        try:
-            from engine._trace_numba import run
-        except ImportError:  # numba missing: the Python loop is the tracer
-            _import_failed = True
-            return None
-        _kernel = run
-    return _kernel
+def load(wait: bool = True) -> bool:
+    """Import and compile the kernel (once per process; numba caches the machine code on
+    disk); with ``wait`` block until done. True when it is ready."""
+    global _loader
+    with _lock:
+        if _loader is None:
+            _loader = threading.Thread(target=_compile, name="tracer-kernel", daemon=True)
+            _loader.start()
+        loader = _loader
+    if wait:
+        loader.join()
+    return _kernel is not None
+
+
+def _compile() -> None:
+    global _kernel
+    try:
+        from engine._trace_numba import run
+    except ImportError:  # numba missing: the Python loop is the tracer
+        return
+    # one call compiles the only signature (the dense and band paths take the same types)
+    from engine.presets import build_preset
+
+    lk = build_preset("four-bar")
+    cons = Constraints(lk)
+    u = lk.coordinates()
+    t = np.linalg.svd(cons.jacobian(u, sparse=False))[2][-1]
+    _advance(run, cons, True, u, t, t, 1, 0.01, 0.0, 16, False, 2, u0=u, close=False,
+             close_after=1.0, h_max=0.1, h_min=1e-9, collapse=1e-4, strain_tol=1e-2,
+             residual_atol=1e-9, cos_turn=0.9, h_cross=1e-6, band_max_work=256,
+             deadline_every=0, checked=-1, cross_ahead=True)
+    _kernel = run
 
 
 class KernelData(NamedTuple):
@@ -142,7 +172,17 @@ class Advance(NamedTuple):
 
 def advance(
     cons: Constraints, dense: bool, u: np.ndarray, t: np.ndarray, t_in: np.ndarray, sign: int,
-    h: float, arc: float, budget: int, tried: bool, room: int, *, u0: np.ndarray, close: bool,
+    h: float, arc: float, budget: int, tried: bool, room: int, **kw: Any,
+) -> Advance:
+    """:func:`_advance` with the loaded kernel (:func:`enabled` must have said True)."""
+    assert _kernel is not None
+    return _advance(_kernel, cons, dense, u, t, t_in, sign, h, arc, budget, tried, room, **kw)
+
+
+def _advance(
+    run: Callable[..., Any], cons: Constraints, dense: bool, u: np.ndarray, t: np.ndarray,
+    t_in: np.ndarray, sign: int, h: float, arc: float, budget: int, tried: bool, room: int, *,
+    u0: np.ndarray, close: bool,
     close_after: float, h_max: float, h_min: float, collapse: float, strain_tol: float,
     residual_atol: float, cos_turn: float, h_cross: float, band_max_work: int, deadline_every: int,
     checked: int, cross_ahead: bool,
@@ -151,8 +191,6 @@ def advance(
     tried)`` (``t_in`` is the row of the factorisation at ``u``: the tangent before it), at
     most ``room`` points. ``deadline_every`` 0 never hands back for the deadline; ``checked``
     is the budget value whose deadline check the caller has just made."""
-    run = _load()
-    assert run is not None
     m = len(u)
     cap = max(1, min(room, BUFFER_FLOATS // max(m, 1)))
     pts = np.empty((cap, m))
@@ -171,6 +209,7 @@ def advance(
                    d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
                    d.cols, d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys,
                    d.row_rank, d.sign_perm, pts, tans, signs, logd)
-    return Advance(pts[:n], tans[:n], signs[:n], logd[:n], int(event), state_u, state_t,
-                   state_tin, int(ip[0]), float(fp[0]), float(fp[1]), int(ip[1]),
+    # copies: views would keep the whole buffers alive for as long as the curve lives
+    return Advance(pts[:n].copy(), tans[:n].copy(), signs[:n], logd[:n], int(event), state_u,
+                   state_t, state_tin, int(ip[0]), float(fp[0]), float(fp[1]), int(ip[1]),
                    bool(ip[2]))

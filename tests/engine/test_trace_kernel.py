@@ -34,7 +34,8 @@ from engine.trace import TraceOptions, trace_curve
 
 TOL = Tolerances()
 
-pytestmark = pytest.mark.skipif(not trace_kernel.enabled(), reason="numba is not importable")
+# compiled before the tests (the tracer itself uses the Python loop until the kernel is ready)
+pytestmark = pytest.mark.skipif(not trace_kernel.load(), reason="numba is not importable")
 
 CATALOGUE = [
     ("four-bar", {}),  # equilateral: three branch points
@@ -103,6 +104,7 @@ def assert_same_curve(fast: tr.Curve, slow: tr.Curve, cons: Constraints) -> None
 
 
 def test_environment_chooses_the_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``numpy`` always the Python loop; otherwise the kernel, once loaded."""
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numpy")
     assert not trace_kernel.enabled()
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
@@ -256,7 +258,8 @@ def test_without_numba_the_python_loop_traces(monkeypatch: pytest.MonkeyPatch) -
     cons, fast = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
     monkeypatch.setitem(sys.modules, "engine._trace_numba", None)  # import raises ImportError
     monkeypatch.setattr(trace_kernel, "_kernel", None)
-    monkeypatch.setattr(trace_kernel, "_import_failed", False)
+    monkeypatch.setattr(trace_kernel, "_loader", None)
+    assert not trace_kernel.load()
     assert not trace_kernel.enabled()
     _, slow = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
     assert_same_curve(fast, slow, cons)
