@@ -76,6 +76,17 @@ def load(wait: bool = True) -> bool:
     return _kernel is not None
 
 
+def _after_fork() -> None:
+    """A forked child has no loader thread: it loads again if the parent had not finished."""
+    global _loader, _lock
+    _lock = threading.Lock()
+    if _kernel is None:
+        _loader = None
+
+
+os.register_at_fork(after_in_child=_after_fork)
+
+
 def _compile() -> None:
     global _kernel
     try:

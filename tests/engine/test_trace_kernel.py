@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -263,3 +264,12 @@ def test_without_numba_the_python_loop_traces(monkeypatch: pytest.MonkeyPatch) -
     assert not trace_kernel.enabled()
     _, slow = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
     assert_same_curve(fast, slow, cons)
+
+
+def test_a_forked_child_loads_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A child forked while the parent was still loading starts its own loader."""
+    monkeypatch.setattr(trace_kernel, "_kernel", None)
+    monkeypatch.setattr(trace_kernel, "_loader", threading.Thread(target=lambda: None))
+    trace_kernel._after_fork()
+    assert trace_kernel._loader is None
+    assert trace_kernel.load()  # a fresh loader thread compiles (from numba's cache)
