@@ -16,6 +16,7 @@ No timing here: speed lives in ``bench/bench_tracer.py``.
 
 from __future__ import annotations
 
+import importlib.util
 import itertools
 import sys
 import threading
@@ -35,8 +36,8 @@ from engine.trace import TraceOptions, trace_curve
 
 TOL = Tolerances()
 
-# compiled before the tests (the tracer itself uses the Python loop until the kernel is ready)
-pytestmark = pytest.mark.skipif(not trace_kernel.load(), reason="numba is not importable")
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("numba") is None,
+                                reason="numba is not installed")
 
 CATALOGUE = [
     ("four-bar", {}),  # equilateral: three branch points
@@ -86,6 +87,8 @@ def cases(items: list[tuple[str, dict]]) -> list:  # type: ignore[type-arg]
 def _trace(name: str, params: dict, path: str, monkeypatch: pytest.MonkeyPatch,
            options: TraceOptions | None = None, **kw: object) -> tuple[Constraints, tr.Curve]:
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+    if path == "numba":  # compiled before the comparison, or it would compare the loop with itself
+        assert trace_kernel.load() and trace_kernel.enabled()
     lk = build_preset(name, params)
     cons = Constraints(lk)
     z = first_order(lk).zero_modes[0]
@@ -109,7 +112,7 @@ def test_environment_chooses_the_path(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numpy")
     assert not trace_kernel.enabled()
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
-    assert trace_kernel.enabled()
+    assert trace_kernel.load() and trace_kernel.enabled()
 
 
 @pytest.mark.parametrize(("name", "params", "dense"), [
@@ -241,6 +244,7 @@ def test_exploration_matches_python_loop(name: str, params: dict,
     out = {}
     for path in ("numba", "numpy"):
         monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+        assert trace_kernel.enabled() == (path == "numba")
         res = explore(lk, options=opt)
         out[path] = (_summary(lk, res), res)
     assert out["numba"][0] == out["numpy"][0]
@@ -262,7 +266,11 @@ def test_without_numba_the_python_loop_traces(monkeypatch: pytest.MonkeyPatch) -
     monkeypatch.setattr(trace_kernel, "_loader", None)
     assert not trace_kernel.load()
     assert not trace_kernel.enabled()
-    _, slow = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
+    _, slow = _trace("kl-chain", {"n": 10}, "numpy", monkeypatch)
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
+    lk = build_preset("kl-chain", {"n": 10})
+    z = first_order(lk).zero_modes[0]
+    assert_same_curve(trace_curve(cons, lk.coordinates(), z, TOL, TraceOptions()), slow, cons)
     assert_same_curve(fast, slow, cons)
 
 
