@@ -56,27 +56,32 @@ def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
 
 
 @njit(cache=True)
-def _log_abs_det(ab, off, n):
-    """``sum log|ab[off, j]|`` (finite, nonzero entries) with one logarithm per block of the
-    product instead of one per entry (which costs about what the band LU of a chain does)."""
+def _diagonal(ab, off, piv, n):
+    """After the LU: the number of sign flips (negative pivots and row interchanges) and
+    ``log|det|``, and the diagonal replaced by the reciprocals of the pivots (for
+    :func:`_band_solve`); flips -1 when a pivot is not finite. One logarithm per block of the
+    product instead of one per pivot (which would cost about what the band LU does)."""
+    flips = 0
     out = 0.0
     prod = 1.0
     for j in range(n):
-        a = abs(ab[off, j])
+        a = ab[off, j]
+        if not np.isfinite(a):
+            return -1, 0.0
+        if a < 0:
+            flips += 1
+            a = -a
+        if piv[j] != j:
+            flips += 1
         if a > 1e100 or a < 1e-100:
             out += math.log(a)
-            continue
-        prod *= a
-        if prod > 1e100 or prod < 1e-100:
-            out += math.log(prod)
-            prod = 1.0
-    return out + math.log(prod)
-
-
-@njit(cache=True)
-def _invert_diagonal(ab, off, n):
-    for j in range(n):
+        else:
+            prod *= a
+            if prod > 1e100 or prod < 1e-100:
+                out += math.log(prod)
+                prod = 1.0
         ab[off, j] = 1.0 / ab[off, j]
+    return flips, out + math.log(prod)
 
 
 @njit(cache=True)
@@ -115,7 +120,7 @@ def _band_lu(ab, n, kl, ku, piv):
 @njit(cache=True)
 def _band_solve(ab, n, kl, ku, piv, b):
     """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
-    pivots (:func:`_invert_diagonal`): multiplications on the back substitution's chain of
+    pivots (:func:`_diagonal`): multiplications on the back substitution's chain of
     dependencies instead of divisions."""
     off = kl + ku
     for j in range(n):
@@ -149,10 +154,10 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
     [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
     row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with)."""
     m = u.shape[0]
-    _jac_values(u, fixed, gi, gj, rows, sign, axes, vals)
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros(0)
     if dense:
+        _jac_values(u, fixed, gi, gj, rows, sign, axes, vals)
         kl = m - 1
         ku = m - 1
         off = kl + ku
@@ -166,17 +171,10 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
         piv = np.empty(m, dtype=np.int64)
         if not _band_lu(ab, m, kl, ku, piv):
             return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
-        sgn = 1
-        for j in range(m):
-            dj = ab[off, j]
-            if not np.isfinite(dj):
-                return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
-            if dj < 0:
-                sgn = -sgn
-            if piv[j] != j:
-                sgn = -sgn
-        logdet = _log_abs_det(ab, off, m)
-        _invert_diagonal(ab, off, m)
+        flips, logdet = _diagonal(ab, off, piv, m)
+        if flips < 0:
+            return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
+        sgn = -1 if flips % 2 else 1
         return _OK, ab, piv, kl, ku, sgn, logdet, empty_i, empty_f, empty_f, 1.0
     # k = argmax |row| (the first largest, as np.argmax)
     k = 0
@@ -220,23 +218,18 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
-    for e in range(nnz):
-        ab[lay_pos[e], entry_col[e]] = vals[e]
+    ext = _extended(u, fixed)
+    for e in range(nnz):  # Constraints.jacobian_values, straight into the band
+        a = rows[e]
+        x = axes[e]
+        ab[lay_pos[e], entry_col[e]] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
     ab[off + ins - ck, ck] = 1.0
     piv = np.empty(m, dtype=np.int64)
     if not _band_lu(ab, m, kl, ku, piv):
         return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
-    flips = 0
-    for j in range(m):
-        dj = ab[off, j]
-        if not np.isfinite(dj):
-            return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
-        if dj < 0:
-            flips += 1
-        if piv[j] != j:
-            flips += 1
-    logdet = _log_abs_det(ab, off, m)
-    _invert_diagonal(ab, off, m)
+    flips, logdet = _diagonal(ab, off, piv, m)
+    if flips < 0:
+        return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
     base_sign = (-1 if flips % 2 else 1) * sign_perm * (-1 if ins % 2 else 1)
     # y0 = B0^{-1} e_1 (in the original order), d = row - e_k, gamma = 1 + d.y0
     b = np.zeros(m)
@@ -282,15 +275,17 @@ def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
 
 @njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
-             lengths, targets, sq):
-    """engine.trace.correct with a factorisation (max_iter 12): (w, ok, iterations)."""
+             lengths, targets, sq, sq_ready):
+    """engine.trace.correct with a factorisation (max_iter 12): (w, ok, iterations).
+    ``sq_ready``: ``sq`` already holds the squared lengths at ``v``."""
     ea = lengths.shape[0]
     m = v.shape[0]
     w = v.copy()
     prev = np.inf
     rhs = np.zeros(m)
     for it in range(1, 13):
-        _squared_lengths(w, fixed, gi, gj, sq)
+        if it > 1 or not sq_ready:
+            _squared_lengths(w, fixed, gi, gj, sq)
         res = 0.0
         norm = 0.0
         for a in range(ea):
@@ -397,7 +392,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         iters = 0
         if not shrink:
             w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
-                                    fixed, gi, gj, lengths, targets, sq)
+                                    fixed, gi, gj, lengths, targets, sq, True)
             if not ok:
                 st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
@@ -411,7 +406,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                 else:
                     w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
                                             gam2, dense, atol, fixed, gi, gj, lengths,
-                                            targets, sq)
+                                            targets, sq, False)
             if not decline:
                 dist = 0.0
                 for c in range(m):
