@@ -46,7 +46,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.bench_space import kl_start  # noqa: E402
 from bench.harness import Table  # noqa: E402
 from engine import trace_kernel  # noqa: E402
-from engine.configuration_space import SpaceOptions, explore  # noqa: E402
+from engine.configuration_space import Explorer, SpaceOptions, explore  # noqa: E402
+from engine.configuration_space.critical_search import critical_points  # noqa: E402
 from engine.constraints import Constraints  # noqa: E402
 from engine.presets import build_preset  # noqa: E402
 from engine.rigidity import first_order  # noqa: E402
@@ -125,6 +126,15 @@ def main() -> None:
                      f"{n} points, 2 components", path=p, points_per_s=n / t)
     table.record("crank-rocker, explore closed_form=False: after / before", 0.0,
                  "target >= 100,000 points/s", speedup=rates["numba"] / rates["numpy"])
+
+    # where the compiled explore's time goes: tracing (seeds, curves) vs the critical points
+    ex = Explorer(build_preset("four-bar", CRANK_ROCKER), Tolerances(), TRACER)
+    t_trace, _ = with_path("numba", lambda: ex.trace_all(None))
+    t_crit, _ = with_path("numba", lambda: critical_points(ex))
+    table.record("  of which seeds and curves (trace_all), numba", t_trace,
+                 f"{len(ex.curves)} curves")
+    table.record("  of which the critical-point search (refinements), numba", t_crit,
+                 f"{ex.report.get('critical_candidates')} candidates refined")
 
     opt = TraceOptions(step_max=2e-3, max_points=200_000)
     best = interleaved(lambda: trace_closed(cons, u0, z, opt), args.repeat)
