@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from engine import trace_kernel
 from engine.budget import NEVER, Deadline
 from engine.constraints import Constraints
 from engine.critical import refine_critical, singular_gap
@@ -238,11 +239,56 @@ def trace_curve(
         curve.stop = "singular start"
         return curve
     u, t, sign, fac = u0, info.tangent, info.sign, info.factor
+    t_in = t0 / np.linalg.norm(t0)  # the row of ``fac``: the tangent before ``u``
     curve.append(u, t, info.sign, info.logdet)
     h, arc, budget = 0.25 * lim.h_max, 0.0, lim.passes
     close_after = 4 * lim.h_max if min_arc_to_close is None else min_arc_to_close
     tried_at_u = False  # whether a collapsed step looked for a critical point ahead of u
+    compiled = trace_kernel.enabled()
+    # a deadline that can never expire is never looked at (no hand-back every 16 passes)
+    watch = deadline.at != float("inf") or deadline.stop is not None
     while len(curve.points) < options.max_points:
+        if compiled:
+            # the regular passes in compiled code; it hands back the pass it cannot finish
+            # as this loop would (then run below) or a due deadline check
+            checked = -1
+            while True:
+                adv = trace_kernel.advance(
+                    cons, cons.n_free <= SPARSE_LU_MIN_FREE, u, t, t_in, sign, h, arc, budget,
+                    tried_at_u, options.max_points - len(curve.points), u0=u0, close=close,
+                    close_after=close_after, h_max=lim.h_max, h_min=lim.h_min,
+                    collapse=STEP_COLLAPSE * lim.h_max, strain_tol=options.strain_tol,
+                    residual_atol=tol.residual_atol, cos_turn=float(np.cos(options.max_turn)),
+                    h_cross=lim.h_cross, band_max_work=BAND_MAX_WORK,
+                    deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
+                    cross_ahead=cons.n_free <= 600)
+                if stop is None:
+                    curve.points.extend(adv.points)
+                    curve.tangents.extend(adv.tangents)
+                    curve.signs.extend(adv.signs.tolist())
+                    curve.logdets.extend(adv.logdets.tolist())
+                else:  # the stop check on every committed point, as below
+                    prev = u
+                    for k in range(len(adv.points)):
+                        w = adv.points[k]
+                        curve.append(w, adv.tangents[k], int(adv.signs[k]),
+                                     float(adv.logdets[k]))
+                        reason = stop(prev, w, adv.tangents[k])
+                        if reason is not None:
+                            curve.stop = reason
+                            return curve
+                        prev = w
+                u, t, t_in, sign = adv.u, adv.t, adv.t_in, adv.sign
+                h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
+                if adv.event != trace_kernel.EV_DEADLINE:
+                    break
+                if deadline.expired():
+                    curve.stop = STOP_TIME
+                    return curve
+                checked = budget - 1
+            if adv.event == trace_kernel.EV_FULL:
+                continue
+            fac = factor_augmented(cons, u, t_in)
         budget -= 1
         ended = ("step budget" if budget < 0
                  else STOP_TIME if budget % DEADLINE_EVERY == 0 and deadline.expired()
@@ -279,7 +325,7 @@ def trace_curve(
         if reason is not None:
             curve.stop = reason
             return curve
-        u, t, fac, sign = w, nxt.tangent, nxt.factor, nxt.sign
+        u, t_in, t, fac, sign = w, t, nxt.tangent, nxt.factor, nxt.sign
         tried_at_u = False
         h = min(lim.h_max, h * (1.5 if step.iters <= 3 else 1.0))
     curve.stop = "max points"

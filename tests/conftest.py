@@ -10,6 +10,7 @@ from typing import Any
 import httpx
 import pytest
 
+from engine import trace_kernel
 from service.config import Settings
 from service.main import create_app
 
@@ -36,9 +37,18 @@ FUZZ_SEED = int(os.environ.get("FUZZ_SEED") or int.from_bytes(os.urandom(4), "li
 os.environ["FUZZ_SEED"] = str(FUZZ_SEED)
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """The tracer's path is one for the whole run: the compiled kernel is loaded before the
+    first test (outside tests the tracer uses the Python loop until it is ready);
+    ``LINKAGE_TRACER_KERNEL=numpy`` runs every test on the Python loop."""
+    if os.environ.get(trace_kernel.KERNEL_ENV, "numba") != "numpy":
+        trace_kernel.load()
+
+
 def pytest_report_header(config: pytest.Config) -> list[str]:
     return [f"schemathesis: {FUZZ_EXAMPLES} examples per operation ({FUZZ_COSTLY_EXAMPLES} for "
-            f"the costly ones), seed {FUZZ_SEED} (replay with FUZZ_SEED={FUZZ_SEED})"]
+            f"the costly ones), seed {FUZZ_SEED} (replay with FUZZ_SEED={FUZZ_SEED})",
+            f"tracer: {'compiled (numba)' if trace_kernel.enabled() else 'Python loop'}"]
 
 
 class ApiClient:

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 import engine.configuration_space.explorer as cs  # where the seeds are drawn
 import engine.trace as tr
+from engine import trace_kernel
 from engine.assembly import iter_seeds, seeds
 from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
 from engine.constraints import Constraints
@@ -100,6 +101,9 @@ def test_curve_matches_direct_lu(name: str, params: dict, monkeypatch: pytest.Mo
     z = first_order(lk).zero_modes[0]
     fast = tr.trace_curve(cons, lk.coordinates(), z, TOL, TraceOptions())
     monkeypatch.setattr(tr, "factor_augmented", direct_factor)
+    # the Python loop, where every factorisation goes through factor_augmented (the compiled
+    # path has its own, checked in test_trace_kernel.py)
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numpy")
     slow = tr.trace_curve(cons, lk.coordinates(), z, TOL, TraceOptions())
     assert fast.stop == slow.stop
     assert len(fast.points) == len(slow.points)

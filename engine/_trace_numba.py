@@ -1,0 +1,501 @@
+"""numba kernels of :mod:`engine.trace_kernel` (imported only when the compiled path runs).
+
+Every function mirrors a piece of :mod:`engine.trace` and :mod:`engine.lu`; the names say
+which. Matrices are in LAPACK band storage: ``ab[kl + ku + i - j, j] = A[i, j]`` with ``kl``
+extra leading rows for the fill of partial pivoting.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# status of a factorisation
+_OK = 0
+_SINGULAR = 1  # what Factor.ok = False means on the dense path (the Python loop shrinks)
+_DECLINE = 2  # the Python path would take another method (SuperLU, direct sparse LU)
+
+_EV_FULL = 0
+_EV_PASS = 1
+_EV_DEADLINE = 2
+
+
+@njit(cache=True)
+def _extended(u, fixed):
+    """``[u, fixed coordinates]``: the gathers of a bar's ends index into it."""
+    m = u.shape[0]
+    ext = np.empty(m + fixed.shape[0])
+    ext[:m] = u
+    ext[m:] = fixed
+    return ext
+
+
+@njit(cache=True)
+def _squared_lengths(u, fixed, gi, gj, out):
+    """Constraints.squared_lengths."""
+    ext = _extended(u, fixed)
+    ea, dim = gi.shape
+    for a in range(ea):
+        s = 0.0
+        for x in range(dim):
+            df = ext[gi[a, x]] - ext[gj[a, x]]
+            s += df * df
+        out[a] = s
+
+
+@njit(cache=True)
+def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
+    """Constraints.jacobian_values."""
+    ext = _extended(u, fixed)
+    for e in range(rows.shape[0]):
+        a = rows[e]
+        x = axes[e]
+        out[e] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
+
+
+@njit(cache=True)
+def _diagonal(ab, off, piv, n):
+    """After the LU: the number of sign flips (negative pivots and row interchanges) and
+    ``log|det|``, and the diagonal replaced by the reciprocals of the pivots (for
+    :func:`_band_solve`); flips -1 when a pivot is not finite. One logarithm per block of the
+    product instead of one per pivot (which would cost about what the band LU does)."""
+    flips = 0
+    out = 0.0
+    prod = 1.0
+    for j in range(n):
+        a = ab[off, j]
+        if not np.isfinite(a):
+            return -1, 0.0
+        if a < 0:
+            flips += 1
+            a = -a
+        if piv[j] != j:
+            flips += 1
+        if a > 1e100 or a < 1e-100:
+            out += math.log(a)
+        else:
+            prod *= a
+            if prod > 1e100 or prod < 1e-100:
+                out += math.log(prod)
+                prod = 1.0
+        ab[off, j] = 1.0 / ab[off, j]
+    return flips, out + math.log(prod)
+
+
+@njit(cache=True)
+def _band_lu(ab, n, kl, ku, piv):
+    """gbtrf without blocking: True unless a pivot is exactly zero."""
+    off = kl + ku
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        p = j
+        best = abs(ab[off, j])
+        for i in range(1, km + 1):
+            v = abs(ab[off + i, j])
+            if v > best:
+                best = v
+                p = j + i
+        piv[j] = p
+        if ab[off + p - j, j] == 0.0:
+            return False
+        last = min(j + kl + ku, n - 1)
+        if p != j:
+            for c in range(j, last + 1):
+                tmp = ab[off + j - c, c]
+                ab[off + j - c, c] = ab[off + p - c, c]
+                ab[off + p - c, c] = tmp
+        rpiv = 1.0 / ab[off, j]  # as gbtf2: scaled by the reciprocal of the pivot
+        for i in range(1, km + 1):
+            ab[off + i, j] *= rpiv
+        for c in range(j + 1, last + 1):
+            f = ab[off + j - c, c]
+            if f != 0.0:
+                for i in range(1, km + 1):
+                    ab[off + j + i - c, c] -= ab[off + i, j] * f
+    return True
+
+
+@njit(cache=True)
+def _band_solve(ab, n, kl, ku, piv, b):
+    """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
+    pivots (:func:`_diagonal`): multiplications on the back substitution's chain of
+    dependencies instead of divisions."""
+    off = kl + ku
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        p = piv[j]
+        if p != j:
+            tmp = b[j]
+            b[j] = b[p]
+            b[p] = tmp
+        bj = b[j]
+        if bj != 0.0:
+            for i in range(1, km + 1):
+                b[j + i] -= ab[off + i, j] * bj
+    for j in range(n - 1, -1, -1):
+        b[j] *= ab[off, j]
+        bj = b[j]
+        if bj != 0.0:
+            for i in range(max(0, j - off), j):
+                b[i] -= ab[off + i - j, j] * bj
+
+
+@njit(cache=True)
+def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
+            entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp):
+    """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
+    logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
+    otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
+    (engine.lu.BorderedFactor).
+
+    The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
+    [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
+    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with)."""
+    m = u.shape[0]
+    empty_i = np.zeros(0, dtype=np.int64)
+    empty_f = np.zeros(0)
+    if dense:
+        _jac_values(u, fixed, gi, gj, rows, sign, axes, vals)
+        kl = m - 1
+        ku = m - 1
+        off = kl + ku
+        ab = np.zeros((2 * kl + ku + 1, m))
+        for c in range(m):
+            ab[off - c, c] = row[c]  # row 0
+        for e in range(rows.shape[0]):
+            i = rows[e] + 1
+            c = cols[e]
+            ab[off + i - c, c] = vals[e]
+        piv = np.empty(m, dtype=np.int64)
+        if not _band_lu(ab, m, kl, ku, piv):
+            return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
+        flips, logdet = _diagonal(ab, off, piv, m)
+        if flips < 0:
+            return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
+        sgn = -1 if flips % 2 else 1
+        return _OK, ab, piv, kl, ku, sgn, logdet, empty_i, empty_f, empty_f, 1.0
+    # k = argmax |row| (the first largest, as np.argmax)
+    k = 0
+    big = abs(row[0])
+    for c in range(1, m):
+        if abs(row[c]) > big:
+            big = abs(row[c])
+            k = c
+    ck = col_pos[k]
+    nnz = rows.shape[0]
+    if lay[0] == k:
+        kl = lay[1]
+        ku = lay[2]
+        ins = lay[3]
+        row_pos = lay_rp
+    else:
+        ins = np.searchsorted(keys, ck, side="right")
+        kl = max(ins - ck, 0)
+        ku = max(ck - ins, 0)
+        for e in range(nnz):
+            r = entry_rank[e]
+            diff = r + (1 if r >= ins else 0) - entry_col[e]
+            if diff > kl:
+                kl = diff
+            if -diff > ku:
+                ku = -diff
+        for e in range(nnz):
+            r = entry_rank[e]
+            lay_pos[e] = kl + ku + r + (1 if r >= ins else 0) - entry_col[e]
+        row_pos = np.empty(m, dtype=np.int64)
+        row_pos[0] = ins
+        for a in range(row_rank.shape[0]):
+            r = row_rank[a]
+            row_pos[a + 1] = r + (1 if r >= ins else 0)
+        lay[0] = k
+        lay[1] = kl
+        lay[2] = ku
+        lay[3] = ins
+    if kl * (kl + ku) > band_max_work:
+        return _DECLINE, np.zeros((1, 1)), empty_i, kl, ku, 0, -np.inf, row_pos, empty_f, \
+            empty_f, 1.0
+    off = kl + ku
+    ab = np.zeros((2 * kl + ku + 1, m))
+    ext = _extended(u, fixed)
+    for e in range(nnz):  # Constraints.jacobian_values, straight into the band
+        a = rows[e]
+        x = axes[e]
+        ab[lay_pos[e], entry_col[e]] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
+    ab[off + ins - ck, ck] = 1.0
+    piv = np.empty(m, dtype=np.int64)
+    if not _band_lu(ab, m, kl, ku, piv):
+        return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
+    flips, logdet = _diagonal(ab, off, piv, m)
+    if flips < 0:
+        return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, empty_f, empty_f, 1.0
+    base_sign = (-1 if flips % 2 else 1) * sign_perm * (-1 if ins % 2 else 1)
+    # y0 = B0^{-1} e_1 (in the original order), d = row - e_k, gamma = 1 + d.y0
+    b = np.zeros(m)
+    b[row_pos[0]] = 1.0
+    _band_solve(ab, m, kl, ku, piv, b)
+    y0 = np.empty(m)
+    for c in range(m):
+        y0[c] = b[col_pos[c]]
+    d = row.copy()
+    d[k] -= 1.0
+    gamma = 1.0
+    for c in range(m):
+        gamma += d[c] * y0[c]
+    if gamma == 0.0 or not np.isfinite(gamma):
+        return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, y0, d, gamma
+    sgn = base_sign * (1 if gamma > 0 else -1)
+    return _OK, ab, piv, kl, ku, sgn, logdet + math.log(abs(gamma)), row_pos, y0, d, gamma
+
+
+@njit(cache=True)
+def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
+    """Factor.solve / BorderedFactor.solve: ``[row; J]^{-1} rhs`` (a new array)."""
+    m = rhs.shape[0]
+    if dense:
+        x = rhs.copy()
+        _band_solve(ab, m, kl, ku, piv, x)
+        return x
+    b = np.empty(m)
+    for i in range(m):
+        b[row_pos[i]] = rhs[i]
+    _band_solve(ab, m, kl, ku, piv, b)
+    x = np.empty(m)
+    for c in range(m):
+        x[c] = b[col_pos[c]]
+    s = 0.0
+    for c in range(m):
+        s += d[c] * x[c]
+    s /= gamma
+    for c in range(m):
+        x[c] -= y0[c] * s
+    return x
+
+
+@njit(cache=True)
+def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
+             lengths, targets, sq, sq_ready):
+    """engine.trace.correct with a factorisation (max_iter 12): (w, ok, iterations).
+    ``sq_ready``: ``sq`` already holds the squared lengths at ``v``."""
+    ea = lengths.shape[0]
+    m = v.shape[0]
+    w = v.copy()
+    prev = np.inf
+    rhs = np.zeros(m)
+    for it in range(1, 13):
+        if it > 1 or not sq_ready:
+            _squared_lengths(w, fixed, gi, gj, sq)
+        res = 0.0
+        norm = 0.0
+        for a in range(ea):
+            r = abs(math.sqrt(sq[a]) - lengths[a])
+            if r > res or r != r:
+                res = r if r == r else np.inf
+            g = sq[a] - targets[a]
+            norm += g * g
+        if res <= atol:
+            return w, True, it - 1
+        norm = math.sqrt(norm)
+        if norm > 0.7 * prev or norm != norm:
+            return w, False, it
+        prev = norm
+        rhs[0] = 0.0
+        for a in range(ea):
+            rhs[a + 1] = -(sq[a] - targets[a])
+        dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
+        for c in range(m):
+            w[c] += dw[c]
+    _squared_lengths(w, fixed, gi, gj, sq)
+    res = 0.0
+    for a in range(ea):
+        r = abs(math.sqrt(sq[a]) - lengths[a])
+        if r > res or r != r:
+            res = r if r == r else np.inf
+    return w, res <= atol, 12
+
+
+@njit(cache=True)
+def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign, axes,
+        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+        out_pts, out_tan, out_sign, out_logdet):
+    """Committed passes of engine.trace.trace_curve (see engine.trace_kernel.advance).
+
+    ``fp = [h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol, cos_turn,
+    h_cross]``,
+    ``ip = [sign, budget, tried, close, dense, band_max_work, deadline_every, checked,
+    cross_ahead]``; the state entries of ``u, t, t_in, fp, ip`` are updated in place. Returns
+    (points committed, event)."""
+    h = fp[0]
+    arc = fp[1]
+    close_after = fp[2]
+    h_max = fp[3]
+    h_min = fp[4]
+    collapse = fp[5]
+    strain_tol = fp[6]
+    atol = fp[7]
+    cos_turn = fp[8]
+    h_cross = fp[9]
+    sgn = ip[0]
+    budget = ip[1]
+    tried = ip[2] != 0
+    close = ip[3] != 0
+    dense = ip[4] != 0
+    band_max_work = ip[5]
+    every = ip[6]
+    checked = ip[7]
+    cross_ahead = ip[8] != 0
+    m = u.shape[0]
+    ea = lengths.shape[0]
+    cap = out_pts.shape[0]
+    vals = np.empty(rows.shape[0])
+    lay = np.full(4, -1, dtype=np.int64)
+    lay_pos = np.empty(rows.shape[0], dtype=np.int64)
+    lay_rp = np.zeros(0, dtype=np.int64)
+    sq = np.empty(ea)
+    e1 = np.zeros(m)
+    e1[0] = 1.0
+    count = 0
+    event = _EV_FULL
+    tw = np.zeros(m)
+    s3 = 0
+    l3 = 0.0
+    step = 0.0
+    st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor(
+        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
+        entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+    lay_rp = rp
+    ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
+    if st != _OK:
+        event = _EV_PASS
+    while st == _OK and count < cap:
+        nb = budget - 1
+        if nb < 0 or h < h_min or (cross_ahead and h < collapse and not tried):
+            event = _EV_PASS
+            break
+        if every > 0 and nb % every == 0 and nb != checked:
+            event = _EV_DEADLINE
+            break
+        # --- one attempt (engine.trace._attempt) ---
+        v = u + h * t
+        _squared_lengths(v, fixed, gi, gj, sq)
+        strain = 0.0
+        for a in range(ea):
+            s = abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a]
+            if s > strain or s != s:
+                strain = s if s == s else np.inf
+        shrink = strain > strain_tol
+        decline = False
+        w = v
+        ok = False
+        iters = 0
+        if not shrink:
+            w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
+                                    fixed, gi, gj, lengths, targets, sq, True)
+            if not ok:
+                st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor(
+                    v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
+                    col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+                lay_rp = rp2
+                if st2 == _DECLINE:
+                    decline = True
+                elif st2 == _SINGULAR:
+                    w, ok, iters = v, False, 0
+                else:
+                    w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
+                                            gam2, dense, atol, fixed, gi, gj, lengths,
+                                            targets, sq, False)
+            if not decline:
+                dist = 0.0
+                for c in range(m):
+                    dist += (w[c] - v[c]) ** 2
+                if not ok or math.sqrt(dist) > 0.5 * h:
+                    shrink = True
+        if decline:
+            event = _EV_PASS
+            break
+        if not shrink:
+            st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor(
+                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
+                entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
+        lay_rp)
+            lay_rp = rp3
+            if st3 == _DECLINE:
+                event = _EV_PASS
+                break
+            if st3 == _SINGULAR:
+                shrink = True
+            else:
+                if dense:
+                    y = _solve(ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3, dense, e1)
+                else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
+                    y = y03 / gam3
+                ny = 0.0
+                for c in range(m):
+                    ny += y[c] * y[c]
+                ny = math.sqrt(ny)
+                if not np.isfinite(ny) or ny == 0.0:
+                    shrink = True
+                else:
+                    tw = y / ny
+                    dot = 0.0
+                    for c in range(m):
+                        dot += tw[c] * t[c]
+                    if dot < cos_turn:
+                        shrink = True
+                    elif not (s3 == sgn or sgn == 0):
+                        if h > h_cross:
+                            shrink = True  # as engine.trace._attempt
+                        else:
+                            event = _EV_PASS  # a crossing: the Python loop decides
+                            break
+        if not shrink:
+            step = 0.0
+            for c in range(m):
+                step += (w[c] - u[c]) ** 2
+            step = math.sqrt(step)
+            if step > h_max:
+                shrink = True
+        if shrink:
+            budget = nb
+            h *= 0.5
+            continue
+        arc_new = arc + step
+        if close and arc_new > close_after:
+            # segment_distance(u, w, u0) <= 0.5 h_max: the Python loop tests the closing
+            ab_ = 0.0
+            num = 0.0
+            for c in range(m):
+                ab_ += (w[c] - u[c]) ** 2
+                num += (u0[c] - u[c]) * (w[c] - u[c])
+            s_ = 0.0 if ab_ == 0.0 else min(1.0, max(0.0, num / ab_))
+            gap = 0.0
+            for c in range(m):
+                gap += (u[c] + s_ * (w[c] - u[c]) - u0[c]) ** 2
+            if math.sqrt(gap) <= 0.5 * h_max:
+                event = _EV_PASS
+                break
+        # commit
+        budget = nb
+        out_pts[count] = w
+        out_tan[count] = tw
+        out_sign[count] = s3
+        out_logdet[count] = l3
+        count += 1
+        arc = arc_new
+        for c in range(m):
+            t_in[c] = t[c]
+            u[c] = w[c]
+            t[c] = tw[c]
+        ab, piv, kl, ku, rp, y0, dv, gam = ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3
+        sgn = s3
+        tried = False
+        h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
+    fp[0] = h
+    fp[1] = arc
+    ip[0] = sgn
+    ip[1] = budget
+    ip[2] = 1 if tried else 0
+    return count, event

@@ -1,0 +1,283 @@
+"""The tracer's compiled path (:mod:`engine.trace_kernel`, numba) against the Python loop it
+replaces (``LINKAGE_TRACER_KERNEL=numpy``), on catalogue and random linkages:
+
+* the compiled LU of ``[row; J]`` (dense, and band with the rank-one update) gives the sign,
+  ``log|det|`` and solves of a dense LU;
+* whole curves: the same points (to rounding), signs and ``log|det|``, the same stop reason,
+  every point on the constraints;
+* whole explorations with ``closed_form=False``: the same components (points, closure,
+  windings), the same critical points and segments (the Python loop's crossings, the stop
+  callbacks of the segments);
+* the hand-backs: deadlines (an expired one, a stop flag that flips during a trace), a band too
+  wide for the band LU (every pass then runs in Python), the point budget.
+
+No timing here: speed lives in ``bench/bench_tracer.py``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import engine.trace as tr
+from engine import trace_kernel
+from engine.budget import Deadline
+from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.constraints import Constraints
+from engine.presets import build_preset
+from engine.rigidity import first_order
+from engine.tolerances import Tolerances
+from engine.trace import TraceOptions, trace_curve
+
+TOL = Tolerances()
+
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("numba") is None,
+                                reason="numba is not installed")
+
+CATALOGUE = [
+    ("four-bar", {}),  # equilateral: three branch points
+    ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),  # crank-rocker
+    ("four-bar", {"L1": 1.0, "L2": 1.0, "L3": 1.0 + 1e-4}),  # a near miss
+    ("three-rotor", {}),
+    ("kl-chain", {"n": 10}),
+    ("kl-chain", {"n": 30, "r": 2.0, "l": 2.2}),
+    ("gated-kl-chain", {"n": 30, "gate": 15, "D": 2.3}),
+    ("rotor-chain-3d", {}),
+]
+
+
+def random_four_bars(count: int, seed: int) -> list[dict[str, float]]:
+    """Seeded length sets (a = 1) that assemble, near critical values or not."""
+    rng = np.random.default_rng(seed)
+    out: list[dict[str, float]] = []
+    while len(out) < count:
+        l1, l2, l3 = (float(x) for x in rng.uniform(0.3, 2.2, 3))
+        links = sorted([1.0, l1, l2, l3])
+        if links[3] < links[0] + links[1] + links[2]:
+            out.append({"L1": l1, "L2": l2, "L3": l3})
+    return out
+
+
+def random_chains(count: int, seed: int) -> list[tuple[str, dict[str, float]]]:
+    """Seeded Kane-Lubensky chains (rotor and link lengths, angle), plain and gated."""
+    rng = np.random.default_rng(seed)
+    out: list[tuple[str, dict[str, float]]] = []
+    for k in range(count):
+        n = int(rng.integers(3, 40))
+        r = float(rng.uniform(1.2, 2.0))
+        params = {"n": n, "r": r, "l": float(r * rng.uniform(1.0, 1.3)),
+                  "theta": float(rng.uniform(1.0, 1.5))}
+        out.append(("kl-chain", params) if k % 2 == 0 else
+                   ("gated-kl-chain", {**params, "gate": int(rng.integers(0, n)),
+                                       "D": float(rng.uniform(2.0, 3.0))}))
+    return out
+
+
+def cases(items: list[tuple[str, dict]]) -> list:  # type: ignore[type-arg]
+    """``(name, params)`` pairs as parameters with readable ids."""
+    return [pytest.param(n, p, id=n + "".join(f"-{k}{v:.3g}" for k, v in p.items()))
+            for n, p in items]
+
+
+def _trace(name: str, params: dict, path: str, monkeypatch: pytest.MonkeyPatch,
+           options: TraceOptions | None = None, **kw: object) -> tuple[Constraints, tr.Curve]:
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+    if path == "numba":  # compiled before the comparison, or it would compare the loop with itself
+        assert trace_kernel.load() and trace_kernel.enabled()
+    lk = build_preset(name, params)
+    cons = Constraints(lk)
+    z = first_order(lk).zero_modes[0]
+    return cons, trace_curve(cons, lk.coordinates(), z, TOL, options or TraceOptions(),
+                             **kw)  # type: ignore[arg-type]
+
+
+def assert_same_curve(fast: tr.Curve, slow: tr.Curve, cons: Constraints) -> None:
+    assert fast.stop == slow.stop
+    assert len(fast.points) == len(slow.points)
+    assert np.max(np.abs(np.array(fast.points) - np.array(slow.points))) <= 1e-8
+    assert np.max(np.abs(np.array(fast.tangents) - np.array(slow.tangents))) <= 1e-7
+    assert fast.signs == slow.signs
+    assert np.allclose(fast.logdets, slow.logdets, atol=1e-7)
+    # every point on the constraint manifold (crossed critical points included)
+    assert max(cons.max_residual(p) for p in fast.points) <= TOL.residual_atol
+
+
+def test_environment_chooses_the_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``numpy`` always the Python loop; otherwise the kernel, once loaded."""
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numpy")
+    assert not trace_kernel.enabled()
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
+    assert trace_kernel.load() and trace_kernel.enabled()
+
+
+@pytest.mark.parametrize(("name", "params", "dense"), [
+    ("four-bar", {}, True), ("three-rotor", {}, True), ("rotor-chain-3d", {}, True),
+    ("kl-chain", {"n": 10}, True),  # the dense LU also where the tracer takes the band
+    ("kl-chain", {"n": 30}, False), ("gated-kl-chain", {"n": 30, "gate": 15}, False),
+])
+def test_compiled_factor_matches_dense_lu(name: str, params: dict, dense: bool) -> None:
+    from engine._trace_numba import _factor, _solve
+
+    lk = build_preset(name, params)
+    cons = Constraints(lk)
+    d = trace_kernel.kernel_data(cons, dense)
+    rng = np.random.default_rng(3)
+    z = first_order(lk).zero_modes[0]
+    vals = np.empty(len(d.rows))
+    lay = np.full(4, -1, dtype=np.int64)
+    lay_pos = np.empty(len(d.rows), dtype=np.int64)
+    lay_rp = np.zeros(0, dtype=np.int64)
+    for trial in range(12):
+        u = lk.coordinates() + 0.05 * rng.normal(size=cons.n_free)
+        row = z + 0.3 * rng.normal(size=cons.n_free) if trial % 2 else \
+            rng.normal(size=cons.n_free)
+        row /= np.linalg.norm(row)
+        st, ab, piv, kl, ku, sign, logdet, rp, y0, dv, gam = _factor(
+            u, row, dense, 10**6, d.fixed_values, d.gather_i, d.gather_j, d.rows, d.cols,
+            d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
+            d.sign_perm, vals, lay, lay_pos, lay_rp)
+        lay_rp = rp
+        mat = np.vstack([row, cons.jacobian(u, sparse=False)])
+        ref_sign, ref_logdet = np.linalg.slogdet(mat)
+        assert st == 0 and sign == int(ref_sign)
+        assert logdet == pytest.approx(ref_logdet, abs=1e-8)
+        rhs = rng.normal(size=cons.n_free)
+        x = _solve(ab, piv, kl, ku, rp, d.col_pos, y0, dv, gam, dense, rhs)
+        assert np.linalg.norm(mat @ x - rhs) <= 1e-9 * np.linalg.norm(rhs)
+
+
+@pytest.mark.parametrize(("name", "params"), cases(
+    CATALOGUE + random_chains(6, seed=15) + [("four-bar", p) for p in random_four_bars(6, 15)]))
+def test_curve_matches_python_loop(name: str, params: dict,
+                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    cons, fast = _trace(name, params, "numba", monkeypatch)
+    _, slow = _trace(name, params, "numpy", monkeypatch)
+    assert_same_curve(fast, slow, cons)
+
+
+def test_curve_with_small_steps_and_stop_matches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Many points per call and a stop callback checked on every committed point."""
+    def stop(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> str | None:
+        return "far" if b[0] < -0.3 else None
+
+    opt = TraceOptions(step_max=2e-3)
+    params = {"L1": 0.5, "L2": 1.2, "L3": 1.0}
+    cons, fast = _trace("four-bar", params, "numba", monkeypatch, opt, stop=stop)
+    _, slow = _trace("four-bar", params, "numpy", monkeypatch, opt, stop=stop)
+    assert fast.stop == "far"
+    assert_same_curve(fast, slow, cons)
+    cons, fast = _trace("four-bar", params, "numba", monkeypatch, opt)
+    _, slow = _trace("four-bar", params, "numpy", monkeypatch, opt)
+    assert fast.stop == "closed" and len(fast.points) > 3000
+    assert_same_curve(fast, slow, cons)
+
+
+@pytest.mark.parametrize("max_points", [1, 2, 57])
+def test_point_budget_matches(max_points: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    opt = TraceOptions(max_points=max_points)
+    cons, fast = _trace("kl-chain", {"n": 30}, "numba", monkeypatch, opt)
+    _, slow = _trace("kl-chain", {"n": 30}, "numpy", monkeypatch, opt)
+    assert fast.stop == "max points" and len(fast.points) == max_points
+    assert_same_curve(fast, slow, cons)
+
+
+def test_band_too_wide_runs_every_pass_in_python(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(tr, "BAND_MAX_WORK", -1)  # SuperLU for every factorisation
+    calls = []
+    advance = trace_kernel.advance
+
+    def counted(*a: object, **k: object) -> trace_kernel.Advance:
+        out = advance(*a, **k)  # type: ignore[arg-type]
+        calls.append(len(out.points))
+        return out
+
+    monkeypatch.setattr(trace_kernel, "advance", counted)
+    cons, fast = _trace("kl-chain", {"n": 30}, "numba", monkeypatch)
+    assert calls and not any(calls)  # the kernel committed nothing
+    _, slow = _trace("kl-chain", {"n": 30}, "numpy", monkeypatch)
+    assert_same_curve(fast, slow, cons)
+
+
+def test_expired_deadline_stops_both_paths(monkeypatch: pytest.MonkeyPatch) -> None:
+    for path in ("numba", "numpy"):
+        _, curve = _trace("kl-chain", {"n": 30}, path, monkeypatch,
+                          deadline=Deadline.after(0.0))
+        assert curve.stop == tr.STOP_TIME and len(curve.points) < 20
+
+
+def test_stop_flag_during_a_trace(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A cancel flag that flips after a number of deadline checks stops the compiled trace at
+    the same pass as the Python loop: the kernel hands back every DEADLINE_EVERY passes."""
+    curves = {}
+    for path in ("numba", "numpy"):
+        checks = itertools.count()
+        deadline = Deadline(stop=lambda c=checks: next(c) >= 7)
+        cons, curves[path] = _trace("kl-chain", {"n": 30}, path, monkeypatch,
+                                    deadline=deadline)
+    assert curves["numba"].stop == tr.STOP_TIME
+    assert_same_curve(curves["numba"], curves["numpy"], cons)
+
+
+def _summary(lk, res) -> tuple:  # noqa: ANN001
+    comps = []
+    for comp in res.components:
+        turns = {k: winding(a, comp.closed) for k, a in rotor_angles(lk, comp.points).items()}
+        comps.append((comp.closed, comp.through_start, len(comp.points),
+                      tuple(sorted(turns.items())), tuple(comp.critical_points)))
+    crit = sorted((cp.kind, tuple(np.round(cp.u, 6))) for cp in res.critical_points)
+    segs = [(s.start, s.start_ray, s.end, s.end_ray, len(s.points)) for s in res.segments]
+    return comps, crit, segs, res.search["complete"]
+
+
+@pytest.mark.parametrize(("name", "params"), cases(
+    [c for c in CATALOGUE if c[0] != "kl-chain" or c[1]["n"] <= 10]
+    + [("four-bar", p) for p in random_four_bars(4, seed=16)]))
+def test_exploration_matches_python_loop(name: str, params: dict,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    lk = build_preset(name, params)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4, max_components=8)
+    out = {}
+    for path in ("numba", "numpy"):
+        monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+        assert trace_kernel.enabled() == (path == "numba")
+        res = explore(lk, options=opt)
+        out[path] = (_summary(lk, res), res)
+    assert out["numba"][0] == out["numpy"][0]
+    fast, slow = out["numba"][1], out["numpy"][1]
+    for a, b in zip(fast.components, slow.components, strict=True):
+        assert np.max(np.abs(a.points - b.points)) <= 1e-8
+    for a, b in zip(fast.critical_points, slow.critical_points, strict=True):
+        assert np.max(np.abs(a.u - b.u)) <= 1e-8
+    cons = Constraints(lk)
+    for comp in fast.components:
+        assert max(cons.max_residual(p) for p in comp.points) <= TOL.residual_atol
+
+
+def test_without_numba_the_python_loop_traces(monkeypatch: pytest.MonkeyPatch) -> None:
+    """numba missing (the import fails): the tracer is the Python loop, with the same curve."""
+    cons, fast = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
+    monkeypatch.setitem(sys.modules, "engine._trace_numba", None)  # import raises ImportError
+    monkeypatch.setattr(trace_kernel, "_kernel", None)
+    monkeypatch.setattr(trace_kernel, "_loader", None)
+    assert not trace_kernel.load()
+    assert not trace_kernel.enabled()
+    _, slow = _trace("kl-chain", {"n": 10}, "numpy", monkeypatch)
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
+    lk = build_preset("kl-chain", {"n": 10})
+    z = first_order(lk).zero_modes[0]
+    assert_same_curve(trace_curve(cons, lk.coordinates(), z, TOL, TraceOptions()), slow, cons)
+    assert_same_curve(fast, slow, cons)
+
+
+def test_a_forked_child_loads_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A child forked while the parent was still loading starts its own loader."""
+    monkeypatch.setattr(trace_kernel, "_kernel", None)
+    monkeypatch.setattr(trace_kernel, "_loader", threading.Thread(target=lambda: None))
+    trace_kernel._after_fork()
+    assert trace_kernel._loader is None
+    assert trace_kernel.load()  # a fresh loader thread compiles (from numba's cache)
