@@ -29,6 +29,13 @@ from engine.tolerances import Tolerances
 #: The tracer looks at its deadline every this many passes of its loop.
 DEADLINE_EVERY = 16
 
+#: The corrector converges to this fraction of ``residual_atol`` (Newton's last step costs
+#: little and squares the error): near critical lengths the Jacobian's smallest singular value
+#: ``s`` is small, and a point accepted at ``residual_atol`` could sit ``residual_atol / s``
+#: off the curve, farther than the steps that pass a narrow neck (the tracer then crawled
+#: inside the tolerance band, e.g. a four-bar 1e-8 from critical lengths).
+CORRECT_TIGHT = 1e-3
+
 #: ``Curve.stop`` of a trace that its deadline ended.
 STOP_TIME = "time"
 
@@ -130,7 +137,9 @@ def correct(
 
     Solves ``[t; J] dw = [0; -(l^2 - L^2)]``; with ``factor`` (of ``[t; J]`` at a nearby
     point) the iteration is chord Newton (no refactorisation), otherwise it refactors at
-    ``v`` once. Returns the point, whether ``max|l - L| <= residual_atol``, and the iterations.
+    ``v`` once. Returns the point (converged to ``CORRECT_TIGHT * residual_atol`` where
+    rounding allows), whether ``max|l - L| <= residual_atol``, and the iterations that reached
+    ``residual_atol`` (what the step control looks at).
     """
     fac = factor if factor is not None else factor_augmented(cons, v, t)
     if not fac.ok:
@@ -138,15 +147,20 @@ def correct(
     w = v.copy()
     prev = np.inf
     lengths = cons.linkage.lengths[cons.bars]
+    tight = CORRECT_TIGHT * tol.residual_atol
+    within: int | None = None  # the iterations that reached residual_atol (the step control's)
     for it in range(1, max_iter + 1):
         sq = cons.squared_lengths(w)  # once per iteration: both the residual and g use it
         g = sq - cons.targets
         res = float(np.max(np.abs(np.sqrt(sq) - lengths))) if sq.size else 0.0
-        if res <= tol.residual_atol:
-            return w, True, it - 1
+        if within is None and res <= tol.residual_atol:
+            within = it - 1
+        if res <= tight:
+            return w, True, it - 1 if within is None else within
         norm = float(np.linalg.norm(g))
-        if norm > 0.7 * prev:  # not contracting: leave it to the caller to shrink the step
-            return w, False, it
+        if norm > 0.7 * prev:  # not contracting: within residual_atol (the rounding floor of
+            # large coordinates) the point stands, else the caller shrinks the step
+            return w, res <= tol.residual_atol, it if within is None else within
         prev = norm
         w = w + fac.solve(np.concatenate([[0.0], -g]))
     return w, cons.max_residual(w) <= tol.residual_atol, max_iter
