@@ -12,6 +12,8 @@ import math
 import numpy as np
 from numba import njit
 
+from engine.tolerances import CORRECT_TIGHT
+
 # status of a factorisation
 _OK = 0
 _SINGULAR = 1  # what Factor.ok = False means on the dense path (the Python loop shrinks)
@@ -276,13 +278,16 @@ def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
 @njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
              lengths, targets, sq, sq_ready):
-    """engine.trace.correct with a factorisation (max_iter 12): (w, ok, iterations).
+    """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``):
+    (w, ok, iterations that reached ``atol``).
     ``sq_ready``: ``sq`` already holds the squared lengths at ``v``."""
     ea = lengths.shape[0]
     m = v.shape[0]
     w = v.copy()
     prev = np.inf
     rhs = np.zeros(m)
+    tight = CORRECT_TIGHT * atol
+    within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
         if it > 1 or not sq_ready:
             _squared_lengths(w, fixed, gi, gj, sq)
@@ -294,11 +299,13 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
                 res = r if r == r else np.inf
             g = sq[a] - targets[a]
             norm += g * g
-        if res <= atol:
-            return w, True, it - 1
+        if within < 0 and res <= atol:
+            within = it - 1
+        if res <= tight:
+            return w, True, it - 1 if within < 0 else within
         norm = math.sqrt(norm)
         if norm > 0.7 * prev or norm != norm:
-            return w, False, it
+            return w, res <= atol, it if within < 0 else within
         prev = norm
         rhs[0] = 0.0
         for a in range(ea):
@@ -312,7 +319,7 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
         r = abs(math.sqrt(sq[a]) - lengths[a])
         if r > res or r != r:
             res = r if r == r else np.inf
-    return w, res <= atol, 12
+    return w, res <= atol, 12 if within < 0 else within
 
 
 @njit(cache=True)

@@ -30,6 +30,13 @@ MIN_CRITICAL_LENGTH_ATOL = 1e3
 #: quotient is then 0 instead of a division by zero).
 NORM_FLOOR = 1e-300
 
+#: The corrector converges to this fraction of ``residual_atol`` (Newton's last step costs
+#: little and squares the error): near critical lengths the Jacobian's smallest singular value
+#: ``s`` is small, and a point accepted at ``residual_atol`` could sit ``residual_atol / s``
+#: off the curve, farther than the steps that pass a narrow neck (the tracer then crawled
+#: inside the tolerance band, e.g. a four-bar 1e-8 from critical lengths).
+CORRECT_TIGHT = 1e-3
+
 
 @dataclass(frozen=True)
 class Tolerances:

@@ -24,17 +24,10 @@ from engine.budget import NEVER, Deadline
 from engine.constraints import Constraints
 from engine.critical import refine_critical, singular_gap
 from engine.lu import BandLU, BorderedFactor, Factor
-from engine.tolerances import Tolerances
+from engine.tolerances import CORRECT_TIGHT, Tolerances
 
 #: The tracer looks at its deadline every this many passes of its loop.
 DEADLINE_EVERY = 16
-
-#: The corrector converges to this fraction of ``residual_atol`` (Newton's last step costs
-#: little and squares the error): near critical lengths the Jacobian's smallest singular value
-#: ``s`` is small, and a point accepted at ``residual_atol`` could sit ``residual_atol / s``
-#: off the curve, farther than the steps that pass a narrow neck (the tracer then crawled
-#: inside the tolerance band, e.g. a four-bar 1e-8 from critical lengths).
-CORRECT_TIGHT = 1e-3
 
 #: ``Curve.stop`` of a trace that its deadline ended.
 STOP_TIME = "time"
@@ -163,7 +156,7 @@ def correct(
             return w, res <= tol.residual_atol, it if within is None else within
         prev = norm
         w = w + fac.solve(np.concatenate([[0.0], -g]))
-    return w, cons.max_residual(w) <= tol.residual_atol, max_iter
+    return w, cons.max_residual(w) <= tol.residual_atol, max_iter if within is None else within
 
 
 @dataclass

@@ -13,8 +13,8 @@ from engine.configuration_space import SpaceOptions, explore, rotor_angles, wind
 from engine.constraints import Constraints
 from engine.linkage import BarSpec, VertexSpec, build_linkage
 from engine.presets import build_preset
-from engine.tolerances import Tolerances
-from engine.trace import CORRECT_TIGHT, correct
+from engine.tolerances import CORRECT_TIGHT, Tolerances
+from engine.trace import correct
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
