@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.constraints import Constraints
-from engine.tolerances import Tolerances
+from engine.tolerances import CORRECT_TIGHT, Tolerances
 
 #: Above this many free coordinates the batched paths are not used: the per-point code's call
 #: overhead no longer dominates (measured: no gain at M = 43 or 60, single-threaded BLAS).
@@ -58,7 +58,8 @@ class BatchedConstraints:
         """:func:`engine.trace.correct` (without a given factor) at every row of ``vs`` with
         the hyperplane normals ``ts``: the same iteration and stopping rules, vectorised.
 
-        Returns the corrected points (K, M) and whether each met ``residual_atol``.
+        Returns the corrected points (K, M; converged to ``CORRECT_TIGHT * residual_atol``
+        where rounding allows) and whether each met ``residual_atol``.
         """
         k, m = vs.shape
         mats = np.concatenate([ts[:, None, :], self.jacobians(vs)], axis=1)  # (K, M, M)
@@ -76,11 +77,13 @@ class BatchedConstraints:
             sq = self.squared_lengths(w[idx])
             g = sq - self.lengths**2
             res = np.max(np.abs(np.sqrt(sq) - self.lengths), axis=1, initial=0.0)
-            done = res <= tol.residual_atol
+            done = res <= CORRECT_TIGHT * tol.residual_atol
             ok[idx[done]] = True
             live[idx[done]] = False
             norm = np.linalg.norm(g, axis=1)
-            stalled = ~done & (norm > 0.7 * prev[idx])  # not contracting: fail
+            # not contracting: the point stands within residual_atol (rounding), else fails
+            stalled = ~done & (norm > 0.7 * prev[idx])
+            ok[idx[stalled]] = res[stalled] <= tol.residual_atol
             live[idx[stalled]] = False
             step = ~done & ~stalled
             idx, g = idx[step], g[step]

@@ -44,6 +44,23 @@ BUDGET_STOPS = re.compile(r"max points|step budget")
 #: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
 SEED_CHUNK = 128
 
+#: Nearest curve points looked at when testing whether a point lies on traced curves; of
+#: these, only the closest point of each pass of a curve near the point is tested.
+NEAREST = 16
+
+
+def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray,
+                dist: np.ndarray) -> np.ndarray:
+    """Which of the nearest curve points ``idx`` (K, k) of ``us`` (K, M), at distances
+    ``dist``, are the closest point of their pass: no closer than their neighbours along the
+    curve ``points`` (n, M). Where a curve folds back near itself (the two arcs of a split
+    branch point) the nearest points can all lie on the pass a point is not on; testing one
+    point per pass finds the pass it is on."""
+    n = len(points)
+    before = np.linalg.norm(points[np.maximum(idx - 1, 0)] - us[:, None, :], axis=2)
+    after = np.linalg.norm(points[np.minimum(idx + 1, n - 1)] - us[:, None, :], axis=2)
+    return (dist <= before) & (dist <= after)
+
 
 class Explorer:
     """The state of one search: the linkage's constraints, the curves traced so far (with a
@@ -87,14 +104,15 @@ class Explorer:
         self.timed_out = self.timed_out or curve.stop == STOP_TIME
         return curve
 
-    def finish(self, degenerate: bool, segments_done: bool = True,
+    def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
                **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
-        flags that decide whether it is complete (:class:`engine.report.SearchReport`)."""
+        flags that decide whether it is complete (:class:`engine.report.SearchReport`);
+        ``agreed`` False: an independent count disagrees with what was traced (unresolved)."""
         budget = bool(self.report.get("component_budget_reached")
                       or self.report.get("assemblies_truncated")
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
-        unresolved = bool(self.report.get("open_curves", 0)) or not segments_done
+        unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
                             degenerate=degenerate, unresolved=unresolved,
                             time_budget_s=granted(self.deadline))
@@ -113,13 +131,23 @@ class Explorer:
 
     def on_traced(self, u: np.ndarray) -> bool:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
-        correction from the nearest curve point towards ``u`` lands on ``u``."""
+        correction from the closest point of some pass of a curve near ``u`` (among its
+        ``NEAREST`` nearest curve points) towards ``u`` lands on ``u``."""
         if self.tree is None:
             return False
-        dist, idx = self.tree.query(u, k=min(4, self.tree.n))
-        for d, i in zip(np.atleast_1d(dist), np.atleast_1d(idx), strict=True):
-            if d > self.h_max:
-                continue
+        dist, idx = self.tree.query(u, k=min(NEAREST, self.tree.n))
+        dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+        near = dist <= self.h_max
+        dist, idx = dist[near], idx[near]
+        if not len(idx):
+            return False
+        owner = self.tree_owner[idx]
+        first = self.tree_first[owner]
+        last = first + np.array([len(self.curves[o].points) for o in owner]) - 1
+        pts = self.tree.data
+        before = np.linalg.norm(pts[np.maximum(idx - 1, first)] - u, axis=1)
+        after = np.linalg.norm(pts[np.minimum(idx + 1, last)] - u, axis=1)
+        for i in idx[(dist <= before) & (dist <= after)]:
             curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
             v = p + ((u - p) @ t) * t
@@ -151,18 +179,19 @@ class Explorer:
 
     def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
         """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
-        linkages): each point is tested from its 4 nearest points of ``curve`` within the step
-        bound (a superset of the tests :meth:`on_traced` makes for that curve), and a point
+        linkages): each point is tested from the closest point of each pass of ``curve`` among
+        its ``NEAREST`` nearest within the step bound (:func:`pass_minima`), and a point
         counts as on the curve only when a hyperplane correction lands on it."""
         assert self.batched is not None  # only called for small linkages
         pts = np.array(curve.points)
         tans = np.array(curve.tangents)
-        k = min(4, len(pts))
+        k = min(NEAREST, len(pts))
         dist, idx = cKDTree(pts).query(us, k=k)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+        candidate = (dist <= self.h_max) & pass_minima(pts, us, idx, dist)
         on = np.zeros(len(us), dtype=bool)
-        for r in range(k):  # nearest curve point first; the next only where that one failed
-            which = np.flatnonzero(~on & (dist[:, r] <= self.h_max))
+        for r in range(k):  # nearest pass first; the next only where that one failed
+            which = np.flatnonzero(~on & candidate[:, r])
             if not len(which):
                 continue
             p, t = pts[idx[which, r]], tans[idx[which, r]]

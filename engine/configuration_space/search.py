@@ -138,7 +138,13 @@ def explore(
         # traced components is far below it (a 100-rotor spinner chain has 2^99)
         ex.report["components_total"] = count.components
         ex.report["components_total_rule"] = count.rule
-    search = ex.finish(degenerate, seg_complete, critical_points_found=len(crit),
+        if not ex.report.get("component_budget_reached") and \
+                len(components) != count.components:
+            # a second method disagrees: never a confident count (unresolved)
+            ex.report["components_disagree"] = (
+                f"traced {len(components)} components, {count.rule} gives {count.components}")
+    search = ex.finish(degenerate, seg_complete, "components_disagree" not in ex.report,
+                       critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
     return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)

@@ -4,6 +4,7 @@ independent critical-point search."""
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -225,3 +226,31 @@ def test_the_corrector_converges_below_the_residual_tolerance_near_a_neck():
         off = 1e-6 * np.random.default_rng(i).normal(size=t.size)
         w, ok, _ = correct(cons, points[i] + off, t, TOL)
         assert ok and cons.max_residual(w) <= CORRECT_TIGHT * TOL.residual_atol
+
+
+@pytest.mark.parametrize(("sign", "count"), [(1, 1), (-1, 2)])
+def test_near_critical_four_bar_with_default_options_counts_each_component_once(sign, count):
+    """1e-7 from critical lengths, with the default options, a seed lay on a curve whose other
+    arc (the split branch point's) passed nearer than the seed's own arc: the nearest curve
+    points all belonged to the wrong pass, the seed was traced again and the same component
+    came out twice with ``complete: true``. The closest point of every pass is now tested."""
+    lk = equilateral(1 + sign * 1e-7)
+    res = explore(lk, TOL, SpaceOptions())
+    assert res.search["complete"]
+    assert len(res.components) == count == res.search["components_total"]
+
+
+def test_a_count_that_disagrees_with_the_chain_rule_is_unresolved(monkeypatch):
+    """Fault injection: with a membership test that never recognises a traced curve, every seed
+    is traced again; the four-bar rule's independent count then disagrees and the answer must
+    say so instead of reporting a confident count."""
+    from engine.configuration_space import explorer
+
+    monkeypatch.setattr(explorer.Explorer, "on_traced", lambda self, u: False)
+    monkeypatch.setattr(explorer.Explorer, "on_curve",
+                        lambda self, us, curve: np.zeros(len(us), dtype=bool))
+    res = explore(build_preset("four-bar", {"L2": 1.2}), TOL,
+                  replace(FAST, closed_form=False, max_components=1000))
+    assert len(res.components) != res.search["components_total"]
+    assert not res.search["complete"] and res.search["reason"] == "unresolved"
+    assert "components_disagree" in res.search
