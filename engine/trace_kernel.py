@@ -87,12 +87,25 @@ def _after_fork() -> None:
 os.register_at_fork(after_in_child=_after_fork)
 
 
+#: Why the kernel could not be loaded (None while loading, once loaded, or with numba missing):
+#: e.g. no writable cache directory for numba; the Python loop is then the tracer.
+failure: str | None = None
+
+
 def _compile() -> None:
-    global _kernel
+    global failure
     try:
-        from engine._trace_numba import run
+        _compile_kernel()
     except ImportError:  # numba missing: the Python loop is the tracer
         return
+    except Exception as err:  # noqa: BLE001 -- any failure leaves the Python loop in charge
+        failure = f"{type(err).__name__}: {err}"
+
+
+def _compile_kernel() -> None:
+    global _kernel
+    from engine._trace_numba import run
+
     # one call compiles the only signature (the dense and band paths take the same types)
     from engine.presets import build_preset
 

@@ -105,3 +105,13 @@ def test_command_uses_the_guarded_protocol_and_proxy_headers() -> None:
     assert readme_args[readme_args.index("--http") + 1] == cmd[cmd.index("--http") + 1]
     env = " ".join(args for k, args in steps if k == "ENV")
     assert "LINKAGE_WORKERS" not in env
+
+
+def test_the_tracer_kernel_is_compiled_into_the_image_for_the_app_user() -> None:
+    """numba's cache must be warm and writable by the user that runs the service: the kernel
+    is compiled at build time into ``NUMBA_CACHE_DIR`` in the app user's home, handed to it."""
+    text = (ROOT / "Dockerfile").read_text()
+    cache = re.search(r"NUMBA_CACHE_DIR=(\S+)", text)
+    assert cache and cache.group(1).startswith("/home/app/")
+    warm = next(args for k, args in instructions() if k == "RUN" and "trace_kernel.load()" in args)
+    assert "chown -R app" in warm and cache.start() < text.index("trace_kernel.load()")

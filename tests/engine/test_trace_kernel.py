@@ -281,3 +281,17 @@ def test_a_forked_child_loads_again(monkeypatch: pytest.MonkeyPatch) -> None:
     trace_kernel._after_fork()
     assert trace_kernel._loader is None
     assert trace_kernel.load()  # a fresh loader thread compiles (from numba's cache)
+
+
+def test_a_kernel_that_fails_to_compile_leaves_the_python_loop_and_says_why(monkeypatch):
+    """E.g. numba with no writable cache directory: the loader thread must not die with a
+    traceback and leave nothing behind; the failure is kept and the Python loop traces."""
+    from engine import trace_kernel
+
+    def broken() -> None:
+        raise RuntimeError("cannot cache function: no locator available")
+
+    monkeypatch.setattr(trace_kernel, "_compile_kernel", broken)
+    monkeypatch.setattr(trace_kernel, "failure", None)
+    trace_kernel._compile()
+    assert trace_kernel.failure == "RuntimeError: cannot cache function: no locator available"
