@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from scipy.sparse.linalg import splu
 
 from engine.constraints import Constraints
+from engine.errors import InvalidRequest
 from engine.linkage import Linkage
 from engine.second_order import SecondOrderResult, second_order
 from engine.tolerances import NORM_FLOOR, Tolerances
@@ -284,7 +285,8 @@ def refine_critical(
     :class:`SparseAugmentedSystem` from there on (the tests check the two against each
     other); ``"minpack"`` or ``"sparse"`` force one."""
     if method not in REFINE_METHODS:
-        raise ValueError(f"unknown method {method!r}: one of {', '.join(REFINE_METHODS)}")
+        raise InvalidRequest(f"unknown method {method!r}: one of {', '.join(REFINE_METHODS)}",
+                             loc=("method",))
     m = cons.n_free
     system = _SYSTEMS.get(cons)
     if system is None:

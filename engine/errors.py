@@ -1,9 +1,38 @@
-"""Exceptions raised by the engine for bad input.
+"""Exceptions raised by the engine, and the one rule for numerical methods that fail.
 
-Every error carries ``loc``: the path of the offending field inside the linkage description
-(e.g. ``("bars", 3, "ends")``), so that the service can name it in its answer.
-Numerical methods that fail to converge do not raise; they return a result with
-``success=False`` and a ``message``.
+Bad input raises a subclass of :class:`EngineError` (a ``ValueError``). Every error carries
+``loc``: the path of the offending field inside the linkage description or the request (e.g.
+``("bars", 3, "ends")``), so that the service can name it in its answer (problem+json).
+
+A numerical method that does not converge is not an error of the caller: what a caller can rely
+on, by kind of method,
+
+* **An iterative method with one answer** (projection, margin, design, prestress) returns a
+  frozen result dataclass with ``success: bool`` and ``message: str`` (SciPy's
+  ``OptimizeResult`` habit): ``success=False`` when it did not converge, with the message
+  saying why; its numbers are then whatever the method reached, not a converged answer.
+* **A search** (configuration spaces, critical points, slices, sweeps) answers what it found
+  with a :class:`engine.report.SearchReport`: ``complete`` is False, with a ``reason`` ("time",
+  "budget", "unresolved", ...), whenever anything was left out; what it did find is as valid as
+  in a complete answer.
+* **A traced curve** (:class:`engine.trace.Curve`) says why it ended in ``stop`` ("closed",
+  "time", "max points", "singular start", ...); the searches turn that into their report.
+* **No result can be formed** (the sparse null spaces of :mod:`engine.rigidity` are
+  inconsistent, Lanczos does not converge and the dense fallback is not allowed): raise
+  :class:`NumericalFailure`, never a bare ``RuntimeError`` or a ``LinAlgError``. The service
+  answers 422 ``numerical-failure`` (``service/errors.py``), a job fails with that error
+  (``service/tasks.py``), a sweep records it on the row (:mod:`engine.sweep`).
+
+So a non-converged answer never looks like a converged one: it is ``success=False``,
+``complete=False``, a curve whose ``stop`` names the limit it hit, or a
+:class:`NumericalFailure`. Internally, helpers may return ``None`` for "this step did not
+converge" or "this fast path does not apply" (the closed forms decline, the caller falls back
+to the general method); the public function turns that into one of the forms above.
+
+Linear algebra that raises on singular matrices of finite entries (``np.linalg.solve``,
+``scipy.sparse.linalg.splu``, ``eigsh``) is called inside a ``try`` that handles it, or on
+matrices checked non-singular first. ``tests/engine/test_errors.py`` checks these rules where a
+program can.
 """
 
 from __future__ import annotations

@@ -202,7 +202,10 @@ def _sparse_null_spaces(
 
         op = spla.LinearOperator((n, n), matvec=apply, dtype=float)
         k_round = max(1, min(k, n - basis.shape[1] - 2))
-        mu, vecs = spla.eigsh(op, k=k_round, which="LM", tol=1e-12, v0=rng.normal(size=n))
+        try:
+            mu, vecs = spla.eigsh(op, k=k_round, which="LM", tol=1e-12, v0=rng.normal(size=n))
+        except spla.ArpackError as err:  # ArpackNoConvergence included: no answer to form
+            raise NumericalFailure(f"Lanczos did not converge: {err}") from err
         lam = shift + 1.0 / mu
         null = np.abs(lam) <= thresh
         if null.any():

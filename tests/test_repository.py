@@ -1,4 +1,5 @@
-"""The repository keeps its promises: README commands, CI script, Dockerfile."""
+"""The repository keeps its promises: README commands, CI script, Dockerfile, the map of the
+tests (tests/README.md)."""
 
 import re
 from pathlib import Path
@@ -58,3 +59,45 @@ def test_readme_gives_the_quick_command_and_its_markers_are_registered():
     registered = {m.split(":", 1)[0] for m in pytest_ini["ini_options"]["markers"]}
     assert {"slow", "process", "browser", "dask", "fuzz", "lint"} <= registered
     assert "--strict-markers" in pytest_ini["ini_options"]["addopts"]
+
+
+# The map of the tests (tests/README.md): paths are written from the repository's root.
+TEST_MAP = ROOT / "tests" / "README.md"
+
+
+def mirror(module: Path) -> Path:
+    """Where the tests of a module are by default: ``engine/a/b.py`` -> ``tests/engine/a/
+    test_b.py``; a router ``service/routers/x.py`` -> ``tests/service/test_x.py``."""
+    top, *inner, name = module.parts
+    if top == "service" and inner == ["routers"]:
+        inner = []
+    return ROOT.joinpath("tests", top, *inner, f"test_{name}")
+
+
+def modules() -> list[Path]:
+    return sorted(p.relative_to(ROOT) for top in ("engine", "service")
+                  for p in (ROOT / top).rglob("*.py") if p.name != "__init__.py")
+
+
+def mapped_paths() -> set[str]:
+    return set(re.findall(r"`((?:engine|service|tests)/[\w/]+\.py)`", TEST_MAP.read_text()))
+
+
+def test_every_module_has_a_mirrored_test_file_or_a_row_in_the_test_map():
+    named = mapped_paths()
+    missing = [m.as_posix() for m in modules()
+               if not mirror(m).exists() and m.as_posix() not in named]
+    assert not missing, f"no tests/.../test_<module>.py and no row in tests/README.md: {missing}"
+
+
+def test_the_test_map_is_true():
+    """Every test file is a module's mirror or named in tests/README.md, and every path the
+    map names exists (a renamed module or test file must be renamed there too)."""
+    named = mapped_paths()
+    mirrors = {mirror(m) for m in modules()}
+    tests = sorted((ROOT / "tests").rglob("test_*.py"))
+    unmapped = [p.relative_to(ROOT).as_posix() for p in tests
+                if p not in mirrors and p.relative_to(ROOT).as_posix() not in named]
+    assert not unmapped, f"test files that mirror no module, not in tests/README.md: {unmapped}"
+    stale = sorted(p for p in named if not (ROOT / p).exists())
+    assert not stale, f"tests/README.md names paths that do not exist: {stale}"

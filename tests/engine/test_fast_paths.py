@@ -91,7 +91,7 @@ def test_find_critical_points_equals_explore(name):
     # explore's closed form (engine.dyads) searches along its own walks; the tracer's curves
     # are what find_critical_points searches, so compare with explore on those
     full = explore(lk, TOL, replace(FAST, closed_form=False))
-    # (the closed-form candidates are cross-checked in test_critical_closed_form.py)
+    # (the closed-form candidates are cross-checked in tests/engine/dyads/test_candidates.py)
     fast = find_critical_points(lk, TOL, replace(FAST, critical_closed_form=False))
     assert len(fast.critical_points) == len(full.critical_points)
     for a, b in zip(fast.critical_points, full.critical_points, strict=True):
@@ -108,7 +108,7 @@ def test_find_critical_points_equals_explore(name):
 
 def test_three_rotor_critical_points_fast_path():
     """The critical-points endpoint's path finds the 12 branch points (cross-checked against an
-    independent multistart in test_configuration_space)."""
+    independent multistart in configuration_space/test_search.py)."""
     res = find_critical_points(build_preset("three-rotor"), TOL)
     assert len(res.critical_points) == 12
     assert all(cp.kind == "branch" for cp in res.critical_points)

@@ -22,7 +22,7 @@ from engine.dyads import chain_of, closed_form_space
 from engine.linkage import BarSpec, VertexSpec, build_linkage
 from engine.presets import build_preset, circle_intersection
 from engine.tolerances import Tolerances
-from tests.engine.test_configuration_space import classical, random_four_bars
+from tests.engine.configuration_space.test_search import classical, random_four_bars
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)

@@ -164,7 +164,7 @@ def test_near_critical_three_rotor_declines(eps):
 
 def test_degenerate_three_rotor_declines():
     # pins on a line: non-isolated critical sets; the general search (tested in
-    # test_configuration_space) answers, the fast path never does
+    # tests/engine/configuration_space/test_search.py) answers, the fast path never does
     lk = build_preset("three-rotor", {"phi": 0.0})
     ex = _Explorer(lk, TOL, FAST)
     assert _closed_form_critical(ex) is None
