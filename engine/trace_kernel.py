@@ -62,6 +62,15 @@ def enabled() -> bool:
     return _kernel is not None or load(wait=False)
 
 
+def prepare() -> bool:
+    """Load the kernel and wait for it unless the Python loop is chosen: call it before work
+    whose answers should not depend on whether the kernel happened to be ready (the two paths
+    agree to rounding, not bit for bit). True when the compiled path is in use."""
+    if os.environ.get(KERNEL_ENV, "numba").strip().lower() == "numpy":
+        return False
+    return load()
+
+
 def load(wait: bool = True) -> bool:
     """Import and compile the kernel (once per process; numba caches the machine code on
     disk); with ``wait`` block until done. True when it is ready."""

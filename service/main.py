@@ -9,7 +9,7 @@ from fastapi.middleware.cors import CORSMiddleware
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 
-from engine import __version__
+from engine import __version__, trace_kernel
 from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
@@ -36,6 +36,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # The tracer's compiled kernel: compiled here once where numba's cache is cold (20-30 s
+        # on the first start after an install), so that the workers load it from the cache.
+        await run_in_threadpool(trace_kernel.prepare)
         await run_in_threadpool(pool.start)
         try:
             yield

@@ -39,6 +39,7 @@ import numpy as np
 from distributed import Client, Event, Future, LocalCluster, get_worker
 from pydantic import BaseModel
 
+from engine import trace_kernel
 from engine.budget import Deadline, ProgressSink
 from engine.errors import EngineError, NumericalFailure
 from engine.sweep import PointResult, run_points
@@ -157,6 +158,7 @@ def _task_deadline(job_id: str, chunk: int, end_wall: float) -> Deadline:
 def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settings,
                   end_wall: float) -> bytes:
     """One analysis as a task: the synchronous endpoint's JSON answer."""
+    trace_kernel.prepare()  # one tracer path per worker process (see engine/trace_kernel.py)
     fn = OPERATIONS[operation].run
     deadline = _task_deadline(job_id, 0, end_wall)
     # the engine searches take the deadline as they gain one (engine/budget.py)
@@ -170,6 +172,7 @@ def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np
                     end_wall: float) -> list[PointResult]:
     """Some ``points`` of a sweep as a task (fewer rows than points when stopped); ``sweep``
     says what to compute (its own points are not used)."""
+    trace_kernel.prepare()  # one tracer path per worker process (see engine/trace_kernel.py)
     return run_points(sweep.family, points, sweep.compute, sweep.tolerances, sweep.options,
                       _task_deadline(job_id, chunk, end_wall))
 

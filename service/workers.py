@@ -40,6 +40,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import Response
 
+from engine import trace_kernel
 from service import serialise
 from service.config import Settings
 
@@ -92,6 +93,7 @@ class Busy(ServiceFault):
 
 
 def _warm() -> int:
+    trace_kernel.prepare()  # the worker's tracer path, before its first request
     return os.getpid()
 
 
@@ -207,7 +209,12 @@ def engine_pool(request: Request) -> EnginePool:
 def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings) -> bytes:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
-    (for answers with many points this is most of the cost of the hop)."""
+    (for answers with many points this is most of the cost of the hop). The tracer's compiled
+    kernel is loaded first (once per worker: from numba's on-disk cache about a second,
+    compiled where the cache is cold), so that every answer of a worker traces on one path (the
+    Python loop's points agree with the kernel's to rounding, not bit for bit); inside the task,
+    so that a worker dying meanwhile fails this request like any other."""
+    trace_kernel.prepare()
     return serialise.dumps(fn(body, settings))
 
 
