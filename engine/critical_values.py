@@ -56,12 +56,6 @@ SEED_MAX_POINTS = 2000
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
 
-#: How a traced slice picks the seed lengths it explores (``seeding=`` of
-#: :func:`critical_value_slice`): ``"regions"`` explores a grid seed only while no explored seed
-#: *witnesses* its region of the curves traced so far (see :meth:`_CurveTracing.seed_grid`);
-#: ``"grid"`` explores every grid seed (the path it replaces; the tests cross-check the two).
-SEEDINGS = ("regions", "grid")
-
 
 @dataclass(frozen=True)
 class Axis:
@@ -259,7 +253,6 @@ def critical_value_slice(
     deadline: Deadline | None = None,
     *,
     method: str = "auto",
-    seeding: str = "regions",
 ) -> Slice:
     """Curves of the critical value set in the plane of two lengths, and its regions.
 
@@ -270,11 +263,6 @@ def critical_value_slice(
     its closed-form critical lines (:func:`engine.dyad_margin.critical_planes`), sampled at the
     tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
-
-    ``seeding`` (traced curves only): ``"regions"`` explores a seed length only while its region
-    of the curves traced so far has no witness (an explored seed of that region every critical
-    configuration of which lies on a traced curve); ``"grid"`` explores all
-    ``seeds_per_axis**2`` of them. ``search["seed_lengths_explored"]`` counts those explored.
 
     Examples
     --------
@@ -287,9 +275,6 @@ def critical_value_slice(
     if method not in SLICE_METHODS:
         raise InvalidRequest(f"unknown method {method!r}: one of {', '.join(SLICE_METHODS)}",
                              loc=("method",))
-    if seeding not in SEEDINGS:
-        raise InvalidRequest(f"unknown seeding {seeding!r}: one of {', '.join(SEEDINGS)}",
-                             loc=("seeding",))
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions(angles=24, random_starts=4)
     dl = deadline or NEVER
@@ -299,33 +284,26 @@ def critical_value_slice(
     h_max = float(min(span)) / resolution
     lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     if lines is not None:
-        raw, seeds, timed_out, explored = lines, 0, False, 0
+        raw, seeds, timed_out = lines, 0, False
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
         grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
                 for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
-        if seeding == "grid":
-            for k, p0 in enumerate(grid):
-                if dl.expired():
-                    tracing.timed_out = True
-                    break
-                dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
-                tracing.seed_at(p0)
-                tracing.seed_lengths_explored += 1
-        else:
-            tracing.seed_grid(grid, resolution)
+        for k, p0 in enumerate(grid):
+            if dl.expired():
+                tracing.timed_out = True
+                break
+            dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
+            tracing.seed_at(p0)
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
-        explored = tracing.seed_lengths_explored
     curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
     regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
     timed_out = timed_out or any(r.components is None for r in regions)
     search: dict[str, object] = {
         "method": "closed form" if lines is not None else "traced",
         "seed_lengths": len(grid),
-        "seed_lengths_explored": explored,
-        "seeding": seeding if lines is None else None,
         "seed_configurations": seeds,
         "curves": len(curves),
         "step": h_max,
@@ -396,7 +374,7 @@ class _CurveTracing:
         self.sys = _System(linkage, ax)
         self.span = float(max(box[:, 1] - box[:, 0]))
         self.curves: list[np.ndarray] = []
-        self.seeds_tried = self.seeds_used = self.seed_lengths_explored = 0
+        self.seeds_tried = self.seeds_used = 0
         self.timed_out = False
         # A seed exploration need not be complete (it only has to reach critical configurations
         # near its lengths), so its curves get a point budget: one that fails to close (as near
@@ -412,49 +390,8 @@ class _CurveTracing:
         p = x[-2:][None, :]
         return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves)
 
-    def seed_grid(self, grid: list[np.ndarray], resolution: int) -> None:
-        """Explore the seed lengths of ``grid`` (in order) until every one lies in a region of
-        the curves traced so far that a *witness* has explored: a seed length whose exploration
-        found critical configurations, one at least projecting onto a curve traced in the box
-        (the others on critical sheets outside it), none failing. Across such a region no
-        critical value separates two seed lengths (as far as the curves traced so far tell), so
-        their configuration spaces are alike and their critical configurations lie on the same
-        critical sheets, i.e. the same curves: the other seeds of the region would only
-        rediscover them. Seeds on a curve's cells, in no witnessed region, and seeds whose
-        regions split as new curves appear are explored; the regions are those of
-        :func:`_regions` (the raster at ``resolution``)."""
-        explored: dict[int, bool] = {}
-        n = resolution
-        span = self.box[:, 1] - self.box[:, 0]
-        cells = [tuple(np.clip(((p - self.box[:, 0]) / span * n).astype(int), 0, n - 1))
-                 for p in grid]
-        labels: np.ndarray | None = None
-        known_curves = -1
-        while True:
-            if known_curves != len(self.curves):
-                raw = [_clip(c[:, -2:], self.box) for c in self.curves]
-                blocked = _blocked_cells([c for c in raw if len(c) >= 2], self.box, n)
-                labels = ndimage.label(~blocked)[0]
-                known_curves = len(self.curves)
-            assert labels is not None
-            witnessed = {int(labels[cells[k]]) for k, w in explored.items() if w} - {0}
-            todo = [k for k in range(len(grid))
-                    if k not in explored and int(labels[cells[k]]) not in witnessed]
-            if not todo:
-                return
-            if self.deadline.expired():
-                self.timed_out = True
-                return
-            self.deadline.report(0.6 * len(explored) / len(grid),
-                                 "critical values: tracing the curves")
-            explored[todo[0]] = self.seed_at(grid[todo[0]])
-            self.seed_lengths_explored += 1
-
-    def seed_at(self, p0: np.ndarray) -> bool:
-        """Trace every new curve through the critical configurations near lengths ``p0``; True
-        when every one of them was projected onto ``G = 0`` (and, inside the box, followed to
-        the box or round) and one at least lies on a curve in the box: the seed is then a
-        witness of its region (see :meth:`seed_grid`)."""
+    def seed_at(self, p0: np.ndarray) -> None:
+        """Trace every new curve through the critical configurations near lengths ``p0``."""
         lengths = self.linkage.lengths.copy()
         lengths[self.ax[0].bar], lengths[self.ax[1].bar] = p0
         at = self.linkage.with_lengths(lengths)
@@ -466,42 +403,33 @@ class _CurveTracing:
             [(cp.u, None) for cp in res.critical_points]
             + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
         )
-        resolved, on_curve = True, False
         for u0, s0 in starts:
             self.seeds_tried += 1
             if s0 is None:  # (a near miss's configuration is refined already, with its stress)
                 ref = refine_critical(cons, u0, self.tol)
                 u0, s0 = ref.u, ref.sigma
             x = _onto_solutions(self.sys, np.concatenate([u0, s0, p0]))
-            if np.max(np.abs(self.sys.g(x))) > 1e-9:
-                resolved = False  # not projected: a witness must place every start
-                continue
-            if self.known(x):
-                on_curve = True
+            if np.max(np.abs(self.sys.g(x))) > 1e-9 or self.known(x):
                 continue
             if np.any(x[-2:] < self.box[:, 0] - self.h_max) or \
                     np.any(x[-2:] > self.box[:, 1] + self.h_max):
-                continue  # a critical sheet outside the box (both paths leave it)
+                continue
             self.seeds_used += 1
-            followed = self.follow(x)
-            resolved, on_curve = resolved and followed, on_curve or followed
-        return resolved and on_curve
+            self.follow(x)
 
-    def follow(self, x: np.ndarray) -> bool:
-        """The curve through ``x``, both ways (closed: once round); False when there is no
-        tangent, or a way ended otherwise than leaving the box or closing."""
+    def follow(self, x: np.ndarray) -> None:
+        """The curve through ``x``, both ways (closed: once round)."""
         t = _tangent(self.sys, x, np.random.default_rng(self.seeds_used).normal(size=self.sys.n))
         if t is None:
-            return False
+            return
         args = (self.box, self.h_max, self.max_curve_points, self.deadline)
         fwd, stop_f = _continue(self.sys, x, t, *args)
         if stop_f == "closed":
             self.curves.append(np.array(fwd + [fwd[0]]))
-            return True
+            return
         back, stop_b = _continue(self.sys, x, -t, *args)
         self.curves.append(np.array(back[::-1] + fwd[1:]))
         self.timed_out = self.timed_out or REASON_TIME in (stop_f, stop_b)
-        return stop_f == stop_b == "left the box"
 
 
 def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
