@@ -93,6 +93,7 @@ class _System:
         self.base = linkage.lengths[self.cons.bars].copy()
         self.s = 2.0 * float(np.median(self.base))
         self.n = self.m + self.e + 2
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def lengths(self, p: np.ndarray) -> np.ndarray:
         out = self.base.copy()
@@ -102,9 +103,19 @@ class _System:
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return x[: self.m], x[self.m : self.m + self.e], x[self.m + self.e :]
 
+    def _jacobian(self, u: np.ndarray) -> np.ndarray:
+        """``J(u)``, reused while ``u`` is the last one asked for (``g`` and ``dg`` are asked
+        at the same point by every Newton step and by least squares)."""
+        last = self._last
+        if last is not None and np.array_equal(last[0], u):
+            return last[1]
+        jac = self.cons.jacobian(u, sparse=False)
+        self._last = (u.copy(), jac)
+        return jac
+
     def g(self, x: np.ndarray) -> np.ndarray:
         u, sig, p = self.split(x)
-        jac = self.cons.jacobian(u, sparse=False)
+        jac = self._jacobian(u)
         return np.concatenate([
             (self.cons.squared_lengths(u) - self.lengths(p) ** 2) / self.s,
             jac.T @ sig / self.s,
@@ -113,7 +124,7 @@ class _System:
 
     def dg(self, x: np.ndarray) -> np.ndarray:
         u, sig, p = self.split(x)
-        jac = self.cons.jacobian(u, sparse=False)
+        jac = self._jacobian(u)
         out = np.zeros((self.e + self.m + 1, self.n))
         out[: self.e, : self.m] = jac / self.s
         for k, r in enumerate(self.rows):
