@@ -22,12 +22,11 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from harness import Table
+from harness import Table, best_of_cpu
 
 import engine.critical as critical
 from engine.configuration_space import Explorer, SpaceOptions
@@ -36,17 +35,6 @@ from engine.critical_values import critical_value_slice
 from engine.presets import build_preset
 from engine.robustness import robustness
 from engine.tolerances import Tolerances
-
-
-def best_of(fn: Callable[[], Any], repeat: int) -> tuple[float, float, Any]:
-    """Best wall-clock and best CPU time of ``repeat`` runs, and the last output."""
-    wall, cpu, out = float("inf"), float("inf"), None
-    for _ in range(max(1, repeat)):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall = min(wall, time.perf_counter() - w0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu, out
 
 
 def main() -> None:
@@ -59,7 +47,7 @@ def main() -> None:
     before = not args.no_before
 
     def row(name: str, fn: Callable[[], Any], detail: Callable[[Any], str], **extra: Any) -> None:
-        wall, cpu, out = best_of(fn, args.repeat)
+        wall, cpu, out = best_of_cpu(fn, args.repeat)
         table.record(name, wall, detail(out), cpu=cpu, **extra)
 
     gated = build_preset("gated-kl-chain", {"n": 4, "gate": 2})

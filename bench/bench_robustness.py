@@ -11,13 +11,10 @@ linkage got before the closed form); the slider-crank of issue 11 (crank 0.7 fro
 from __future__ import annotations
 
 import argparse
-import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from harness import Table
+from harness import Table, best_of_cpu
 
 from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 from engine.presets import build_preset
@@ -31,17 +28,6 @@ def slider_crank(crank: float = 0.7, rod: float = 1.6, theta: float = 0.9) -> Li
                              VertexSpec("P", (px, 0.0), (False, True))],
                          [BarSpec("crank", ("O", "B"), crank), BarSpec("rod", ("B", "P"), rod)])
 
-
-def best_of(fn: Callable[[], Any], repeat: int) -> tuple[float, float, Any]:
-    """Best wall-clock and best CPU time (this process, ``time.process_time``) of ``repeat``
-    runs, and the last output: on a shared machine the CPU time is the steadier number."""
-    wall, cpu, out = float("inf"), float("inf"), None
-    for _ in range(max(1, repeat)):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall = min(wall, time.perf_counter() - w0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu, out
 
 
 def main() -> None:
@@ -57,13 +43,13 @@ def main() -> None:
     ]
     for name, lk, adj in cases:
         for method in ("auto", "multistart"):
-            t, cpu, m = best_of(lambda lk=lk, adj=adj, method=method: robustness(
+            t, cpu, m = best_of_cpu(lambda lk=lk, adj=adj, method=method: robustness(
                 lk, adj, method=method), args.repeat)
             table.record(f"{name}: {m.method}", t, f"margin {m.margin:.6f} ({m.guarantee})",
                          cpu=cpu)
     sc = slider_crank()
     for adj, exact in ((None, 0.9 / np.sqrt(2)), (["rod"], 0.9)):
-        t, cpu, m = best_of(lambda adj=adj: robustness(sc, adj), args.repeat)
+        t, cpu, m = best_of_cpu(lambda adj=adj: robustness(sc, adj), args.repeat)
         table.record(f"slider-crank, {'+'.join(adj or ['both bars'])}: {m.method}", t,
                      f"margin {m.margin:.6f} (exact {exact:.6f}; {m.guarantee})", cpu=cpu)
     table.save(args.json)

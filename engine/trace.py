@@ -466,7 +466,13 @@ def polyline_distance(points: np.ndarray, target: np.ndarray) -> float:
     its segments (one point: the distance to it)."""
     if len(points) < 2:
         return float(np.linalg.norm(points[0] - target))
-    a, ab = points[:-1], np.diff(points, axis=0)
+    return segments_distance(points[:-1], points[1:], target)
+
+
+def segments_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
+    """Distance from ``target`` to the nearest of the segments ``[a_k, b_k]`` (K, M),
+    vectorised over the segments."""
+    ab = b - a
     denom = np.einsum("ij,ij->i", ab, ab)
     num = np.einsum("ij,ij->i", target - a, ab)
     s = np.clip(np.divide(num, denom, out=np.zeros_like(num), where=denom > 0), 0.0, 1.0)

@@ -20,6 +20,7 @@ from engine.tolerances import NORM_FLOOR
 from engine.trace import (
     Curve,
     polyline_distance,
+    segments_distance,
 )
 
 #: The critical-point search on closed-form walks looks at most this many points per walk
@@ -74,17 +75,7 @@ def walk_distance(walk: np.ndarray, target: np.ndarray, gap: float) -> float:
     reach = (np.sqrt(d2.min()) + 0.5 * gap) * (1.0 + 1e-9)
     near = d2 <= reach * reach
     seg = np.flatnonzero(near[:-1] | near[1:])  # segment k joins points k and k + 1
-    return _segments_distance(walk[seg], walk[seg + 1], target)
-
-
-def _segments_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
-    """Distance from ``target`` to the nearest of the segments ``[a_k, b_k]`` (K, M)."""
-    ab = b - a
-    denom = np.einsum("ij,ij->i", ab, ab)
-    num = np.einsum("ij,ij->i", target - a, ab)
-    s = np.clip(np.divide(num, denom, out=np.zeros_like(num), where=denom > 0), 0.0, 1.0)
-    gap = a + s[:, None] * ab - target
-    return float(np.sqrt(np.min(np.einsum("ij,ij->i", gap, gap))))
+    return segments_distance(walk[seg], walk[seg + 1], target)
 
 
 def closed_form_answer(

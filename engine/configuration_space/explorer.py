@@ -49,16 +49,17 @@ SEED_CHUNK = 128
 NEAREST = 16
 
 
-def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray,
-                dist: np.ndarray) -> np.ndarray:
+def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray, dist: np.ndarray,
+                first: np.ndarray | int = 0, last: np.ndarray | int | None = None) -> np.ndarray:
     """Which of the nearest curve points ``idx`` (K, k) of ``us`` (K, M), at distances
     ``dist``, are the closest point of their pass: no closer than their neighbours along the
-    curve ``points`` (n, M). Where a curve folds back near itself (the two arcs of a split
-    branch point) the nearest points can all lie on the pass a point is not on; testing one
-    point per pass finds the pass it is on."""
-    n = len(points)
-    before = np.linalg.norm(points[np.maximum(idx - 1, 0)] - us[:, None, :], axis=2)
-    after = np.linalg.norm(points[np.minimum(idx + 1, n - 1)] - us[:, None, :], axis=2)
+    curve in ``points`` (n, M) that runs from index ``first`` to ``last`` (default: all of
+    ``points``; arrays like ``idx`` where ``points`` holds several curves). Where a curve folds
+    back near itself (the two arcs of a split branch point) the nearest points can all lie on
+    the pass a point is not on; testing one point per pass finds the pass it is on."""
+    last = len(points) - 1 if last is None else last
+    before = np.linalg.norm(points[np.maximum(idx - 1, first)] - us[:, None, :], axis=2)
+    after = np.linalg.norm(points[np.minimum(idx + 1, last)] - us[:, None, :], axis=2)
     return (dist <= before) & (dist <= after)
 
 
@@ -144,10 +145,8 @@ class Explorer:
         owner = self.tree_owner[idx]
         first = self.tree_first[owner]
         last = first + np.array([len(self.curves[o].points) for o in owner]) - 1
-        pts = self.tree.data
-        before = np.linalg.norm(pts[np.maximum(idx - 1, first)] - u, axis=1)
-        after = np.linalg.norm(pts[np.minimum(idx + 1, last)] - u, axis=1)
-        for i in idx[(dist <= before) & (dist <= after)]:
+        tested = pass_minima(self.tree.data, u[None], idx[None], dist[None], first, last)[0]
+        for i in idx[tested]:
             curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
             v = p + ((u - p) @ t) * t

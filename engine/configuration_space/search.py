@@ -133,17 +133,19 @@ def explore(
     segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
     components = assemble_components(ex, crit, segs, degenerate)
     mark_through_start(components, start, ex.h_max)
+    agreed = True
     if count is not None:
         # the true total for rotor chains (four-bar decomposition), also when the budget of
         # traced components is far below it (a 100-rotor spinner chain has 2^99)
         ex.report["components_total"] = count.components
         ex.report["components_total_rule"] = count.rule
-        if not ex.report.get("component_budget_reached") and \
-                len(components) != count.components:
-            # a second method disagrees: never a confident count (unresolved)
+        # (a search cut by its budget or deadline says so itself)
+        agreed = ex.timed_out or bool(ex.report.get("component_budget_reached")) \
+            or len(components) == count.components
+        if not agreed:  # a second method disagrees: never a confident count (unresolved)
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives {count.components}")
-    search = ex.finish(degenerate, seg_complete, "components_disagree" not in ex.report,
+    search = ex.finish(degenerate, seg_complete, agreed,
                        critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
