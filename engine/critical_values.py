@@ -40,6 +40,7 @@ from engine.critical import dense_stress_hessian, refine_critical
 from engine.dyad_margin import critical_planes
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
+from engine.report import SearchReport
 from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
@@ -78,7 +79,7 @@ class Region:
 class Slice:
     curves: list[np.ndarray]  # each (n, 2)
     regions: list[Region]
-    search: dict[str, object]
+    search: SearchReport
 
 
 class _System:
@@ -312,7 +313,7 @@ def critical_value_slice(
     curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
     regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
     timed_out = timed_out or any(r.components is None for r in regions)
-    search: dict[str, object] = {
+    search = SearchReport({
         "method": "closed form" if lines is not None else "traced",
         "seed_lengths": len(grid),
         "seed_configurations": seeds,
@@ -320,11 +321,7 @@ def critical_value_slice(
         "step": h_max,
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
-        "complete": not timed_out,
-        "reason": REASON_TIME if timed_out else None,
-    }
-    if (seconds := granted(dl)) is not None:
-        search["time_budget_s"] = seconds
+    }, timed_out=timed_out, time_budget_s=granted(dl))
     return Slice(curves, regions, search)
 
 

@@ -103,8 +103,8 @@ class PrestressResult:
     second_order_flex: np.ndarray | None
     second_order_acceleration: np.ndarray | None
     method: str
-    success: bool = True
-    message: str = ""
+    success: bool
+    message: str
 
 
 @dataclass(frozen=True)
@@ -120,8 +120,8 @@ class _Decision:
     dual_residual: float | None
     witness: np.ndarray | None  # (k,) coefficients of a second-order flex on the basis
     method: str
-    success: bool = True
-    message: str = ""
+    success: bool
+    message: str
 
 
 def flex_differences(linkage: Linkage, bars: np.ndarray, flexes: np.ndarray) -> np.ndarray:
@@ -303,7 +303,7 @@ def decide(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decision:
                 f"prestress stable: the combined stress of {s} self-stresses has energy at least "
                 f"{lam_min:.3g} on every unit non-trivial flex ({k} flexes); hence second-order "
                 "rigid (and rigid)",
-                omega, lam_min, None, None, None, "sdp",
+                omega, lam_min, None, None, None, "sdp", True, "",
             )
     lam, vec = np.linalg.eigh(0.5 * (dual + dual.T))
     lam = np.clip(lam, 0.0, None)
@@ -357,10 +357,10 @@ def _not_stable(
             "not prestress stable (dual certificate) and not second-order rigid: "
             "second_order_flex is a non-trivial flex with zero energy under every self-stress, "
             "so it extends to a second-order flex",
-            None, None, dual, residual, witness, "sdp",
+            None, None, dual, residual, witness, "sdp", True, "",
         )
     return _Decision(False, True if k == 2 else None, rigid_reason, None, None, dual, residual,
-                     None, "sdp")
+                     None, "sdp", True, "")
 
 
 def _count(n: int, noun: str) -> str:
@@ -380,7 +380,7 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
                 True, True,
                 f"prestress stable: one non-trivial flex and {_count(s, 'self-stress')}; the "
                 f"combined stress has energy {norm:.3g} on it, hence second-order rigid",
-                vals / norm, norm, None, None, None, "closed-form",
+                vals / norm, norm, None, None, None, "closed-form", True, "",
             )
         return _Decision(
             False, False,
@@ -388,7 +388,7 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
             f"zero energy under {_count(s, 'self-stress')}, so it extends to second order "
             "(higher-order analysis decides rigidity)",
             None, None, np.ones((1, 1)), float(np.max(np.abs(vals) / scales)),
-            np.ones(1), "closed-form",
+            np.ones(1), "closed-form", True, "",
         )
     lam, vec = np.linalg.eigh(q[0])  # ascending
     # definite either way: omega = +1 or -1 (a stress and its negative are both stresses)
@@ -398,7 +398,7 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
                 True, True,
                 f"prestress stable: one self-stress whose Q is definite on the {k} flexes "
                 f"(smallest |eigenvalue| {smallest:.3g}), hence second-order rigid",
-                np.array([sign]), smallest, None, None, None, "closed-form",
+                np.array([sign]), smallest, None, None, None, "closed-form", True, "",
             )
     # Q is semidefinite-singular or indefinite: a real zero of c^T Q c exists
     small = np.flatnonzero(np.abs(lam) <= thr[0])
@@ -416,7 +416,7 @@ def _closed_form(q: np.ndarray, scales: np.ndarray, tol: Tolerances) -> _Decisio
         False, False,
         f"not prestress stable and not second-order rigid: one self-stress and {why}; "
         "second_order_flex has zero energy, so it extends to a second-order flex",
-        None, None, dual, residual, c, "closed-form",
+        None, None, dual, residual, c, "closed-form", True, "",
     )
 
 
@@ -448,13 +448,14 @@ def prestress(linkage: Linkage, rig: RigidityResult, tolerances: Tolerances | No
         dec = _Decision(
             True, True, "first-order rigid: no non-trivial flex, so every self-stress (even 0) "
             "certifies prestress stability", np.zeros(s), None, None, None, None, "first-order",
+            True, "",
         )
         return _from_decision(linkage, stresses, flexes, dec)
     if s == 0:
         dec = _Decision(
             False, False, "no self-stress: the bars are independent and every flex "
             f"({_count(k, 'flex')}) extends to a real motion (the framework flexes here)",
-            None, None, np.diag(np.eye(k)[0]), 0.0, np.eye(k)[0], "first-order",
+            None, None, np.diag(np.eye(k)[0]), 0.0, np.eye(k)[0], "first-order", True, "",
         )
         return _from_decision(linkage, stresses, flexes, dec)
     if k > 1 and s > 1 and (k > MAX_FLEXES or s > MAX_STRESSES):

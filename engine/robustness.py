@@ -23,7 +23,7 @@ Two methods, and each result says which one answered and what it guarantees:
   branch point). It is the global minimum when some start lies in the basin of the nearest
   sheet of the critical value set.
   With a :class:`engine.budget.Deadline` the starts stop when it expires and the best so far is
-  returned with ``search["complete"] = False`` and ``search["reason"] = "time"``.
+  returned with ``search.complete`` False and ``search.reason`` ``"time"``.
 """
 
 from __future__ import annotations
@@ -35,13 +35,14 @@ import numpy as np
 from scipy.optimize import OptimizeResult, least_squares, minimize
 
 from engine.assembly import iter_projected_random_starts
-from engine.budget import NEVER, REASON_TIME, Deadline, granted
+from engine.budget import NEVER, Deadline, granted
 from engine.configuration_space import SpaceOptions, find_critical_points
 from engine.constraints import Constraints
 from engine.critical import dense_stress_hessian, refine_critical
 from engine.dyad_margin import exact_margin
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
+from engine.report import SearchReport
 from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: A local search whose start, moved onto the critical set, has a bar shorter than this
@@ -66,8 +67,9 @@ class Margin:
     configuration ``critical_u`` (M,) there; ``starts``/``converged`` count the local runs.
 
     ``method`` is ``"closed-form"`` or ``"multistart"``; ``guarantee`` says what the margin is
-    (``"exact"``, or the best local minimum over the converged starts); ``search`` reports
-    ``complete`` and ``reason`` (``"time"`` when a deadline stopped the starts, else None)."""
+    (``"exact"``, or the best local minimum over the converged starts); ``search`` is the
+    :class:`engine.report.SearchReport` of the starts (``complete``, and ``reason`` ``"time"``
+    when a deadline stopped them)."""
 
     margin: float
     nearest: np.ndarray
@@ -78,7 +80,7 @@ class Margin:
     message: str
     method: Literal["closed-form", "multistart"] = "multistart"
     guarantee: str = ""
-    search: dict[str, object] = field(default_factory=dict)
+    search: SearchReport = field(default_factory=SearchReport)
 
 
 def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarray:
@@ -245,7 +247,7 @@ def robustness(
         the multistart; ``"closed-form"`` raises :class:`InvalidRequest` where it does not apply.
     deadline : Deadline, optional
         When it expires the multistart stops and returns the best margin so far, with
-        ``search["complete"] = False`` and ``search["reason"] = "time"``.
+        ``search.complete`` False and ``search.reason`` ``"time"``.
 
     Examples
     --------
@@ -272,8 +274,8 @@ def robustness(
                 f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
                 if found else "no critical value is reachable by the adjustable bars",
                 method="closed-form", guarantee="exact",
-                search={"complete": True, "reason": None, "planes": exact.planes,
-                        **_granted(deadline)},
+                search=SearchReport({"planes": exact.planes},
+                                    time_budget_s=_granted(deadline)),
             )
     if method == "closed-form":
         raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "
@@ -332,11 +334,9 @@ def _multistart(
             best = found
     # the deadline may also have ended the last run part-way (conservatively: incomplete)
     complete = not (cut or deadline.expired())
-    search: dict[str, object] = {
-        "complete": complete, "reason": None if complete else REASON_TIME,
-        "starts_planned": planned, "starts_run": run,
-        "critical_points_complete": cp_complete, **_granted(deadline),
-    }
+    search = SearchReport({"starts_planned": planned, "starts_run": run,
+                           "critical_points_complete": cp_complete},
+                          timed_out=not complete, time_budget_s=_granted(deadline))
     guarantee = f"best local minimum over {converged} converged of {run} starts"
     nearest = np.array(linkage.lengths, dtype=float)
     if best is None:
@@ -349,7 +349,6 @@ def _multistart(
                   method="multistart", guarantee=guarantee, search=search)
 
 
-def _granted(deadline: Deadline | None) -> dict[str, object]:
+def _granted(deadline: Deadline | None) -> float | None:
     """``time_budget_s`` for the report, when the search had a deadline."""
-    seconds = granted(deadline) if deadline is not None else None
-    return {} if seconds is None else {"time_budget_s": seconds}
+    return granted(deadline) if deadline is not None else None

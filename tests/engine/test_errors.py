@@ -84,6 +84,32 @@ def test_every_engine_dataclass_with_success_has_a_message():
     assert set(ITERATIVE_RESULTS) <= set(found)
 
 
+def test_no_engine_result_claims_success_by_default():
+    """``success`` is stated by whoever builds a result: a default of True would let a new
+    failure path report success without saying so (issue 16)."""
+    defaulted = []
+    for info in pkgutil.walk_packages(engine.__path__, "engine."):
+        module = importlib.import_module(info.name)
+        for obj in vars(module).values():
+            if isinstance(obj, type) and obj.__module__ == module.__name__ \
+                    and dataclasses.is_dataclass(obj):
+                defaulted += [f"{obj.__qualname__}.{f.name}" for f in dataclasses.fields(obj)
+                              if f.name in ("success", "message")
+                              and f.default is not dataclasses.MISSING]
+    assert not defaulted, defaulted
+
+
+def test_every_search_result_reports_with_a_search_report():
+    """One report type for every search: explorations, critical searches, margins and slices
+    (``complete`` computed in one place, :class:`engine.report.SearchReport`)."""
+    from engine.configuration_space import CriticalSearch, SpaceResult
+    from engine.critical_values import Slice
+    from engine.report import SearchReport
+
+    for cls in (SpaceResult, CriticalSearch, Margin, Slice):
+        assert field_types(cls)["search"] in (SearchReport, "SearchReport"), cls
+
+
 def raised_names(tree: ast.AST) -> list[tuple[str, int]]:
     out = []
     for node in ast.walk(tree):
