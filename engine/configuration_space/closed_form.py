@@ -98,8 +98,7 @@ def closed_form_answer(
         ex.report["method"] = "tracer"
         ex.report["closed_form"] = cf.report["closed_form"]
         return None
-    free = ~np.asarray(lk.fixed)
-    walks = [c[:, free] for c in cf.components]
+    walks = cf.components  # free coordinates (n, M)
     # distances to the start, once (they order the walks and mark the one through the start)
     dist = [] if start is None else [walk_distance(w, start, ex.h_max) for w in walks]
     if dist:  # as the tracer, which starts there: the given one first (a stable sort)
