@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -189,3 +190,30 @@ def golden_signed_nu(lo, hi, sgn, dyad, signs, iters, g, vertex, a, b, consts, b
             if f_new < low:
                 low = f_new
         best[r] = low
+
+
+@njit(cache=True, error_model="numpy")
+def near_segments(walk, target, gap, out):
+    """:func:`engine.configuration_space.closed_form.walk_distance`'s choice of segments: the
+    ``k`` (in ``out``, how many returned) whose point ``k`` or ``k + 1`` of ``walk`` (n, M) is
+    within ``(d + gap / 2) (1 + 1e-9)`` of ``target`` (``d`` the distance to the nearest point;
+    squares summed column by column). A nan point makes ``d`` nan (numpy's min): none."""
+    n, m = walk.shape
+    d2 = np.empty(n)
+    best = np.inf
+    for i in range(n):
+        s = 0.0
+        for c in range(m):
+            d = walk[i, c] - target[c]
+            s = d * d if c == 0 else s + d * d
+        d2[i] = s
+        if best == best and (s != s or s < best):  # numpy's min: a nan wins
+            best = s
+    reach = (math.sqrt(best) + 0.5 * gap) * (1.0 + 1e-9)
+    limit = reach * reach
+    count = 0
+    for k in range(n - 1):
+        if d2[k] <= limit or d2[k + 1] <= limit:
+            out[count] = k
+            count += 1
+    return count

@@ -76,4 +76,5 @@ def _compile() -> ModuleType:
     _numba.within_lengths(f8x2, f8x2, i8, np.zeros((1, 2), dtype=np.int64), f8, f8)
     _numba.golden_signed_nu(f8, f8, f8, i8, np.ones((1, 1)), 1, 0.5, i8, i8, i8,
                             np.ones((1, 6)), f8x2, 0, 0, 1.0, np.zeros(1))
+    _numba.near_segments(f8x2, np.zeros(2), 1.0, i8)
     return _numba
