@@ -49,7 +49,7 @@ def place(cos_t, sin_t, radius, signs, flat, vertex, a, b, consts, base, pin, ti
         bx, by = base[b[j], 0], base[b[j], 1]
         sum2, diff2, ra2, rb2, denom = (consts[j, 0], consts[j, 1], consts[j, 2],
                                         consts[j, 3], consts[j, 4])
-        sign = signs[0, j]
+        sign = signs[0, j] if signs.shape[0] > 0 else 1.0  # no sample: no sheet
         for i in range(n):
             cx = out[i, ca] if ca >= 0 else ax
             cy = out[i, ca + 1] if ca >= 0 else ay

@@ -152,7 +152,8 @@ def place(
         pos = np.empty((n, len(ch.base), 2))
         nu = np.empty((n, ch.k))
         d2 = np.empty((n, ch.k))
-        _place_compiled(compiled, ch, theta, signs, flat, pos.reshape(n, -1), ch.all_columns,
+        _place_compiled(compiled, ch, theta, signs, flat, pos.reshape(n, 2 * len(ch.base)),
+                        ch.all_columns,
                         nu, d2)
         return pos, nu, d2
     if n <= PLACE_BLOCK:
@@ -178,7 +179,7 @@ def place_free(
     n = len(theta)
     compiled = kernel.kernels()
     if compiled is None:
-        return place(ch, theta, signs, flat)[0].reshape(n, -1)[:, ch.free_flat]
+        return place(ch, theta, signs, flat)[0].reshape(n, 2 * len(ch.base))[:, ch.free_flat]
     out = np.empty((n, len(ch.free_flat)))
     none = np.empty((0, ch.k))
     _place_compiled(compiled, ch, theta, signs, flat, out, ch.columns, none, none)

@@ -130,7 +130,7 @@ def extremum_minima(ch: Chain, lo: np.ndarray, hi: np.ndarray, sgn: np.ndarray,
         best = np.empty(len(lo))
         compiled.golden_signed_nu(
             np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float),
-            np.ascontiguousarray(sgn, dtype=float), np.asarray(dyad, dtype=np.int64),
+            np.ascontiguousarray(sgn, dtype=float), np.ascontiguousarray(dyad, dtype=np.int64),
             np.ascontiguousarray(signs, dtype=float), GOLDEN_ITERS, GOLDEN_RATIO, ch.vertex,
             ch.a, ch.b, ch.consts, ch.base, ch.pin, ch.tip, ch.radius, best)
         return best
