@@ -63,6 +63,15 @@ def load() -> bool:
     return _module is not None
 
 
+def _after_fork() -> None:
+    """A forked child gets a lock of its own (a thread of the parent may hold the old one)."""
+    global _lock
+    _lock = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_after_fork)
+
+
 def _compile() -> ModuleType:
     """The kernel module, every kernel compiled for the one signature it is called with."""
     import numpy as np
