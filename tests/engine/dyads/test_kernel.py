@@ -101,6 +101,7 @@ def test_environment_chooses_the_path(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 @pytest.mark.parametrize("lk", CHAINS, ids=lambda lk: f"V{lk.n_vertices}")
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # inf angles
 def test_placement_is_bitwise_numpys(lk: Linkage, numpy_path) -> None:  # type: ignore[no-untyped-def]
     ch = chain_of(lk)
     assert ch is not None
