@@ -10,6 +10,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 
 from engine import __version__, trace_kernel
+from engine.dyads import kernel as dyads_kernel
 from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
@@ -39,6 +40,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # The tracer's compiled kernel: compiled here once where numba's cache is cold (20-30 s
         # on the first start after an install), so that the workers load it from the cache.
         await run_in_threadpool(trace_kernel.prepare)
+        await run_in_threadpool(dyads_kernel.prepare)  # the closed form's loops, likewise
         await run_in_threadpool(pool.start)
         try:
             yield

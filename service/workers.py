@@ -41,6 +41,7 @@ from starlette.requests import Request
 from starlette.responses import Response
 
 from engine import trace_kernel
+from engine.dyads import kernel as dyads_kernel
 from service import serialise
 from service.config import Settings
 
@@ -94,6 +95,7 @@ class Busy(ServiceFault):
 
 def _warm() -> int:
     trace_kernel.prepare()  # the worker's tracer path, before its first request
+    dyads_kernel.prepare()  # the closed form's compiled loops (loaded on first use otherwise)
     return os.getpid()
 
 

@@ -15,6 +15,7 @@ from engine.configuration_space.results import Component, CriticalSearch, SpaceR
 from engine.constraints import Constraints
 from engine.critical import NearMiss
 from engine.dyads import closed_form_space, critical_candidates
+from engine.dyads import kernel as dyads_kernel
 from engine.report import SearchReport
 from engine.tolerances import NORM_FLOOR
 from engine.trace import (
@@ -70,11 +71,20 @@ def walk_distance(walk: np.ndarray, target: np.ndarray, gap: float) -> float:
     the answer) comes nearer than ``d``: only the others are measured, with the same formula."""
     if len(walk) < 2:
         return polyline_distance(walk, target)
-    off = walk - target
-    d2 = np.einsum("ij,ij->i", off, off)  # (n,) squared distances to the points
-    reach = (np.sqrt(d2.min()) + 0.5 * gap) * (1.0 + 1e-9)
-    near = d2 <= reach * reach
-    seg = np.flatnonzero(near[:-1] | near[1:])  # segment k joins points k and k + 1
+    compiled = dyads_kernel.kernels()
+    if compiled is not None:
+        seg = np.empty(len(walk) - 1, dtype=np.int64)
+        seg = seg[:compiled.near_segments(np.ascontiguousarray(walk, dtype=float),
+                                          np.ascontiguousarray(target, dtype=float),
+                                          float(gap), seg)]
+    else:  # the same arithmetic: squares summed column by column
+        d2 = np.zeros(len(walk))
+        for c in range(walk.shape[1]):
+            d = walk[:, c] - target[c]
+            d2 = d * d if c == 0 else d2 + d * d
+        reach = (np.sqrt(d2.min()) + 0.5 * gap) * (1.0 + 1e-9)
+        near = d2 <= reach * reach
+        seg = np.flatnonzero(near[:-1] | near[1:])  # segment k joins points k and k + 1
     return segments_distance(walk[seg], walk[seg + 1], target)
 
 
@@ -98,8 +108,7 @@ def closed_form_answer(
         ex.report["method"] = "tracer"
         ex.report["closed_form"] = cf.report["closed_form"]
         return None
-    free = ~np.asarray(lk.fixed)
-    walks = [c[:, free] for c in cf.components]
+    walks = cf.components  # free coordinates (n, M)
     # distances to the start, once (they order the walks and mark the one through the start)
     dist = [] if start is None else [walk_distance(w, start, ex.h_max) for w in walks]
     if dist:  # as the tracer, which starts there: the given one first (a stable sort)

@@ -9,11 +9,14 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 
 from engine.assembly import dyad_plan, rotors
+from engine.dyads import kernel
 from engine.linkage import Linkage
 from engine.tolerances import SAME_POINT_REL, Tolerances
 
@@ -48,6 +51,43 @@ class Chain:
     @property
     def k(self) -> int:
         return len(self.vertex)
+
+    @cached_property
+    def columns(self) -> np.ndarray:
+        """(V,) the column of each vertex's x in the free coordinates (its y next), -1 for
+        a pin (the compiled placement's layout of a walk)."""
+        free = np.ones(len(self.base), bool)
+        free[self.pins] = False
+        return np.where(free, 2 * np.cumsum(free) - 2, -1).astype(np.int64)
+
+    @cached_property
+    def all_columns(self) -> np.ndarray:
+        """(V,) the columns of :func:`place`'s positions (n, V, 2) seen as (n, 2V)."""
+        return 2 * np.arange(len(self.base), dtype=np.int64)
+
+    @cached_property
+    def free_flat(self) -> np.ndarray:
+        """(M,) the free coordinates' indices in the flattened positions (2V,)."""
+        free = np.ones((len(self.base), 2), bool)
+        free[self.pins] = False
+        return np.flatnonzero(free)
+
+    @cached_property
+    def no_flat(self) -> np.ndarray:
+        """(0, k) bool: no dyad forced flat (the compiled placement's "none")."""
+        return np.zeros((0, self.k), bool)
+
+    @cached_property
+    def consts(self) -> np.ndarray:
+        """Per dyad (k, 6): ``(ra + rb)^2``, ``(ra - rb)^2``, ``ra * ra``, ``rb * rb``,
+        ``4 ra^2 rb^2`` and 0, each by the expression :func:`_place` evaluates (the compiled
+        kernel's constants)."""
+        out = np.zeros((self.k, 6))
+        for j in range(self.k):
+            ra, rb = self.ra[j], self.rb[j]
+            out[j, :5] = ((ra + rb) ** 2, (ra - rb) ** 2, ra * ra, rb * rb,
+                          4.0 * ra * ra * rb * rb)
+        return out
 
 
 def chain_of(linkage: Linkage) -> Chain | None:
@@ -107,6 +147,15 @@ def place(
     :data:`PLACE_BLOCK`: every operation is elementwise, so blocks change no bit).
     """
     n = len(theta)
+    compiled = kernel.kernels() if given is None else None
+    if compiled is not None:
+        pos = np.empty((n, len(ch.base), 2))
+        nu = np.empty((n, ch.k))
+        d2 = np.empty((n, ch.k))
+        _place_compiled(compiled, ch, theta, signs, flat, pos.reshape(n, 2 * len(ch.base)),
+                        ch.all_columns,
+                        nu, d2)
+        return pos, nu, d2
     if n <= PLACE_BLOCK:
         return _place(ch, theta, signs, flat, given)
     pos = np.empty((n, len(ch.base), 2))
@@ -120,6 +169,37 @@ def place(
             None if flat is None else flat[part],
             None if given is None else {j: v[part] for j, v in given.items()})
     return pos, nu, d2
+
+
+def place_free(
+    ch: Chain, theta: np.ndarray, signs: np.ndarray, flat: np.ndarray | None = None,
+) -> np.ndarray:
+    """The free coordinates (n, M) of :func:`place` (the columns of ``positions[:, free]``:
+    the pins left out), without ``nu`` and ``d2``; compiled, the pins are never written."""
+    n = len(theta)
+    compiled = kernel.kernels()
+    if compiled is None:
+        return place(ch, theta, signs, flat)[0].reshape(n, 2 * len(ch.base))[:, ch.free_flat]
+    out = np.empty((n, len(ch.free_flat)))
+    none = np.empty((0, ch.k))
+    _place_compiled(compiled, ch, theta, signs, flat, out, ch.columns, none, none)
+    return out
+
+
+def _place_compiled(
+    compiled: ModuleType, ch: Chain, theta: np.ndarray, signs: np.ndarray,
+    flat: np.ndarray | None, out: np.ndarray, cols: np.ndarray, nu: np.ndarray,
+    d2: np.ndarray,
+) -> None:
+    """:func:`place` by the compiled kernel into ``out`` (n, C) at columns ``cols`` (V,),
+    bitwise :func:`_place`: the trigonometry and the dyads' constants by numpy, the rest the
+    same operations in the same order."""
+    theta = np.asarray(theta, dtype=float)
+    compiled.place(np.cos(theta), np.sin(theta), ch.radius,
+                   np.ascontiguousarray(signs, dtype=float),
+                   ch.no_flat if flat is None else np.ascontiguousarray(flat, dtype=bool),
+                   ch.vertex, ch.a, ch.b, ch.consts, ch.base, ch.pin, ch.tip, ch.pins, cols,
+                   out, nu, d2)
 
 
 def _place(
@@ -173,6 +253,11 @@ def sheets_of(k: int) -> np.ndarray:
     return 1 - 2 * (s & 1)
 
 
+#: The golden section's ratio, ``(sqrt(5) - 1) / 2`` (one value for :func:`golden_arg` and
+#: the compiled search of :func:`engine.dyads.closed_form.extremum_minima`).
+GOLDEN_RATIO = float((np.sqrt(5.0) - 1.0) / 2.0)
+
+
 def golden(
     f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
 ) -> np.ndarray:
@@ -185,7 +270,7 @@ def golden_arg(
     f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray, iters: int = 60
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_golden` with the argument of the smallest value seen: ``(value, argument)``."""
-    g = (np.sqrt(5.0) - 1.0) / 2.0
+    g = GOLDEN_RATIO
     a, b = lo.copy(), hi.copy()
     c, d = b - g * (b - a), a + g * (b - a)
     fa, fb, fc, fd = f(a), f(b), f(c), f(d)

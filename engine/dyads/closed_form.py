@@ -8,8 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.dyads import kernel
 from engine.dyads.chain import (
     DETECT_SAMPLES,
+    GOLDEN_RATIO,
     Chain,
     Decline,
     Folds,
@@ -19,6 +21,7 @@ from engine.dyads.chain import (
     golden,
     locate_folds,
     place,
+    place_free,
     sample_sheets,
 )
 from engine.linkage import Linkage
@@ -26,6 +29,8 @@ from engine.tolerances import Tolerances
 
 #: Points of the first pass along an arc (before resampling to the step bound).
 ARC_PILOT = 512
+#: Golden-section steps of the extrema check.
+GOLDEN_ITERS = 60
 
 FoldKey = tuple[int, int, int]  # (sheet, inside grid index, -1 at a run's start / +1 at its end)
 Arc = tuple[int, float, float, FoldKey | None, FoldKey | None]  # sheet, theta range, end folds
@@ -33,8 +38,9 @@ Arc = tuple[int, float, float, FoldKey | None, FoldKey | None]  # sheet, theta r
 
 @dataclass(frozen=True)
 class ClosedForm:
-    """Components (each a closed walk of positions (n, V, 2), the first point repeated at the
-    end) and what was checked; or why the closed form declined (``components`` is None)."""
+    """Components (each a closed walk (n, M) of the free coordinates, as
+    ``positions[:, ~linkage.fixed]``, the first point repeated at the end) and what was
+    checked; or why the closed form declined (``components`` is None)."""
 
     components: list[np.ndarray] | None
     report: dict[str, object]
@@ -88,10 +94,9 @@ def _closed_form(
         fold_at = _check_folds(sm, folds)
         arcs, partner, dyad_of = _arcs(sm, folds, fold_at)
         sm.report["folds"] = len(partner) // 2
-        sampler = _ArcSampler(ch, sm.sheets, dyad_of, ~np.asarray(linkage.fixed), step_max,
-                              max_points)
+        sampler = _ArcSampler(ch, sm.sheets, dyad_of, step_max, max_points)
         components = _walks(arcs, [sampler.points(a) for a in arcs], partner)
-        _check_lengths(linkage, components, tol, max_points)
+        _check_lengths(linkage, ch, components, tol, max_points)
     except Decline as exc:
         sm.report["closed_form"] = f"declined: {exc}"
         return ClosedForm(None, sm.report)
@@ -109,15 +114,33 @@ def _check_extrema(ch: Chain, sm: Sampled) -> None:
     sgn = np.where(sm.nu[si, ii, jj] > 0, 1.0, -1.0)
     lo = sm.grid[ii] - np.where(ext.prev_ok[si, ii, jj], sm.dth, 0.0)
     hi = sm.grid[ii] + np.where(ext.next_ok[si, ii, jj], sm.dth, 0.0)
-    cand_signs = sm.sheets[si]
-
-    def signed_nu(t: np.ndarray) -> np.ndarray:
-        _, v, _ = place(ch, t, cand_signs)
-        return sgn * v[np.arange(len(t)), jj]
-
-    if np.any(golden(signed_nu, lo, hi) <= sm.tau):
+    if np.any(extremum_minima(ch, lo, hi, sgn, jj, sm.sheets[si]) <= sm.tau):
         raise Decline("a dyad is (nearly) collinear at an extremum of its angle: at or near "
                       "critical lengths")
+
+
+def extremum_minima(ch: Chain, lo: np.ndarray, hi: np.ndarray, sgn: np.ndarray,
+                    dyad: np.ndarray, signs: np.ndarray) -> np.ndarray:
+    """The smallest ``sgn * nu`` of ``dyad`` on sheet ``signs`` (m, k) seen by the golden
+    search (:func:`engine.dyads.chain.golden`) on each ``[lo, hi]`` (m,). Compiled: the same
+    search in one call (sixty placements of a few angles cost more in numpy's overhead than
+    in arithmetic), equal to rounding (math's trigonometry instead of numpy's)."""
+    compiled = kernel.kernels()
+    if compiled is not None:
+        best = np.empty(len(lo))
+        compiled.golden_signed_nu(
+            np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float),
+            np.ascontiguousarray(sgn, dtype=float), np.ascontiguousarray(dyad, dtype=np.int64),
+            np.ascontiguousarray(signs, dtype=float), GOLDEN_ITERS, GOLDEN_RATIO, ch.vertex,
+            ch.a, ch.b, ch.consts, ch.base, ch.pin, ch.tip, ch.radius, best)
+        return best
+    rows = np.arange(len(lo))
+
+    def signed_nu(t: np.ndarray) -> np.ndarray:
+        _, v, _ = place(ch, t, signs)
+        return sgn * v[rows, dyad]
+
+    return golden(signed_nu, lo, hi, GOLDEN_ITERS)
 
 
 def _check_folds(sm: Sampled, folds: Folds | None) -> dict[FoldKey, float]:
@@ -181,12 +204,11 @@ class _ArcSampler:
     ch: Chain
     sheets: np.ndarray
     dyad_of: dict[FoldKey, int]
-    free: np.ndarray
     step_max: float
     max_points: int
 
     def positions(self, arc: Arc, sig: np.ndarray) -> np.ndarray:
-        """Positions (n, V, 2) at arc parameters ``sig`` in [0, 1]; the fold points exactly
+        """Free coordinates (n, M) at arc parameters ``sig`` in [0, 1]; the fold points exactly
         (their dyad flat: the two sheets meeting there give bitwise the same configuration)."""
         s, t0, t1, k0, k1 = arc
         if k0 is None:  # a full turn
@@ -200,7 +222,7 @@ class _ArcSampler:
             fl[sig == 0.0, self.dyad_of[k0]] = True
             fl[sig == 1.0, self.dyad_of[k1]] = True
         # one sheet along the arc: its signs (1, k) broadcast over the samples
-        p, _, _ = place(self.ch, th, self.sheets[s][None, :], fl)
+        p = place_free(self.ch, th, self.sheets[s][None, :], fl)
         if k0 is None and sig[-1] == 1.0 and sig[0] == 0.0:
             p[-1] = p[0]
         return p
@@ -209,7 +231,7 @@ class _ArcSampler:
         """The arc sampled so that consecutive points are at most ``step_max`` apart: a pilot
         pass, resampled by arc length, then bisected where a gap is still too long."""
         sig = np.linspace(0.0, 1.0, ARC_PILOT)
-        u = self.positions(arc, sig)[:, self.free]
+        u = self.positions(arc, sig)
         cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(u, axis=0), axis=1))])
         need = cum[-1] / (0.95 * self.step_max)
         if not np.isfinite(need) or need >= self.max_points:  # bounded before any allocation
@@ -218,8 +240,7 @@ class _ArcSampler:
         sig[0], sig[-1] = 0.0, 1.0
         p = self.positions(arc, sig)
         for _ in range(60):
-            gaps = np.linalg.norm(np.diff(p[:, self.free], axis=0), axis=1)
-            long = np.flatnonzero(gaps > self.step_max)
+            long = long_gaps(p, self.step_max)
             if not len(long):
                 return p
             if len(sig) + len(long) > self.max_points:
@@ -230,6 +251,51 @@ class _ArcSampler:
             sig = np.concatenate([sig, mid])[order]
             p = np.concatenate([p, self.positions(arc, mid)])[order]
         raise Decline("the step bound is not reached by bisection")
+
+
+def long_gaps(walk: np.ndarray, limit: float) -> np.ndarray:
+    """The ``i`` whose step from sample ``i`` to ``i + 1`` of ``walk`` (n, M) is longer than
+    ``limit``: the squares summed column by column, then the square root (the compiled
+    kernel's order: both paths give the same bits)."""
+    n = max(len(walk) - 1, 0)
+    compiled = kernel.kernels()
+    if compiled is not None:
+        out = np.empty(n, dtype=np.int64)
+        count = compiled.long_gaps(np.ascontiguousarray(walk, dtype=float), float(limit), out)
+        return out[:count]
+    total = np.zeros(n)
+    for c in range(walk.shape[1]):
+        d = walk[1:, c] - walk[:-1, c]
+        total = d * d if c == 0 else total + d * d
+    return np.flatnonzero(np.sqrt(total) > limit)
+
+
+def within_lengths(ch: Chain, walk: np.ndarray, ends: np.ndarray, lengths: np.ndarray,
+                   atol: float) -> bool:
+    """Every sample of ``walk`` (n, M; free coordinates of ``ch``, its pins where they are)
+    with every bar ``ends`` (E, 2) within ``atol`` of its length:
+    ``| |p_i - p_j| - L | <= atol  <=>  (L - atol)^2 <= |p_i - p_j|^2 <= (L + atol)^2`` (no
+    square root per sample); a non-finite sample fails."""
+    low = np.array([max(length - atol, 0.0) ** 2 for length in lengths.tolist()])
+    high = np.array([(length + atol) ** 2 for length in lengths.tolist()])
+    ends = np.ascontiguousarray(ends, dtype=np.int64)
+    cols = ch.columns
+    compiled = kernel.kernels()
+    if compiled is not None:
+        return bool(compiled.within_lengths(np.ascontiguousarray(walk, dtype=float), ch.base,
+                                            cols, ends, low, high))
+
+    def coordinate(v: int, axis: int) -> np.ndarray:
+        return walk[:, cols[v] + axis] if cols[v] >= 0 else ch.base[v, axis]
+
+    for (i, j), lo, hi in zip(ends.tolist(), low, high, strict=True):
+        # one pass per bar over views of the walk; a nan fails the comparison
+        dx = coordinate(i, 0) - coordinate(j, 0)
+        dy = coordinate(i, 1) - coordinate(j, 1)
+        d2 = np.asarray(dx * dx + dy * dy)
+        if len(walk) and not (lo <= d2.min() and d2.max() <= hi):
+            return False
+    return True
 
 
 def _walks(arcs: list[Arc], pieces: list[np.ndarray],
@@ -260,7 +326,7 @@ def _walks(arcs: list[Arc], pieces: list[np.ndarray],
     return components
 
 
-def _check_lengths(linkage: Linkage, components: list[np.ndarray], tol: Tolerances,
+def _check_lengths(linkage: Linkage, ch: Chain, components: list[np.ndarray], tol: Tolerances,
                    max_points: int) -> None:
     """Every component within the point budget, every point with every bar within
     ``residual_atol`` (an independent check)."""
@@ -268,15 +334,5 @@ def _check_lengths(linkage: Linkage, components: list[np.ndarray], tol: Toleranc
         raise Decline(f"a component needs more than max_points = {max_points} points")
     ends = linkage.ends[linkage.active]
     lengths = linkage.lengths[linkage.active]
-    atol = tol.residual_atol
-    for c in components:
-        for (i, j), length in zip(ends, lengths, strict=True):
-            # | |p_i - p_j| - L | <= atol  <=>  (L - atol)^2 <= |p_i - p_j|^2 <= (L + atol)^2:
-            # no square root per point, one pass per bar over views of the walk; a non-finite
-            # point fails the comparison
-            dx = c[:, i, 0] - c[:, j, 0]
-            dy = c[:, i, 1] - c[:, j, 1]
-            d2 = dx * dx + dy * dy
-            low = max(length - atol, 0.0) ** 2
-            if len(d2) and not (low <= d2.min() and d2.max() <= (length + atol) ** 2):
-                raise Decline("a point misses the lengths by more than residual_atol")
+    if not all(within_lengths(ch, c, ends, lengths, tol.residual_atol) for c in components):
+        raise Decline("a point misses the lengths by more than residual_atol")
