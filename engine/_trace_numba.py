@@ -42,8 +42,15 @@ def _squared_lengths(u, fixed, gi, gj, out):
 
 @njit(cache=True)
 def _squared_lengths_ext(ext, gi, gj, out):
-    """:func:`_squared_lengths` of ``ext = [u, fixed]``."""
+    """:func:`_squared_lengths` of ``ext = [u, fixed]`` (in the plane without the loop over
+    the axes: the same sums)."""
     ea, dim = gi.shape
+    if dim == 2:
+        for a in range(ea):
+            d0 = ext[gi[a, 0]] - ext[gj[a, 0]]
+            d1 = ext[gi[a, 1]] - ext[gj[a, 1]]
+            out[a] = 0.0 + d0 * d0 + d1 * d1
+        return
     for a in range(ea):
         s = 0.0
         for x in range(dim):
@@ -415,12 +422,24 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
         if norm > 0.7 * prev or norm != norm:
             return w.copy(), res <= atol, it if within < 0 else within
         prev = norm
-        rhs[0] = 0.0
-        for a in range(ea):
-            rhs[a + 1] = -(sq[a] - targets[a])
-        dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
-        for c in range(m):
-            w[c] += dw[c]
+        if dense:
+            rhs[0] = 0.0
+            for a in range(ea):
+                rhs[a + 1] = -(sq[a] - targets[a])
+            dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
+            for c in range(m):
+                w[c] += dw[c]
+        else:  # _solve fused: the right-hand side straight into the band order, one buffer
+            rhs[row_pos[0]] = 0.0
+            for a in range(ea):
+                rhs[row_pos[a + 1]] = -(sq[a] - targets[a])
+            _band_solve(ab, m, kl, ku, piv, rhs)
+            s = 0.0
+            for c in range(m):
+                s += d[c] * rhs[col_pos[c]]
+            s /= gamma
+            for c in range(m):
+                w[c] += rhs[col_pos[c]] - y0[c] * s
     _squared_lengths_ext(ext, gi, gj, sq)
     res = 0.0
     for a in range(ea):
