@@ -193,7 +193,13 @@ def _band_solve(ab, n, kl, ku, piv, b):
     :func:`_band_solve22`."""
     if kl == 2 and ku == 2:
         _band_solve22(ab, n, piv, b)
-        return
+    else:
+        _band_solve_any(ab, n, kl, ku, piv, b)
+
+
+@njit(cache=True)
+def _band_solve_any(ab, n, kl, ku, piv, b):
+    """:func:`_band_solve` for any band."""
     off = kl + ku
     for j in range(n):
         km = min(kl, n - 1 - j)
