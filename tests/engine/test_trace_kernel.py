@@ -170,8 +170,7 @@ def _random_band(rng: np.random.Generator, n: int, kl: int, ku: int,
 def test_chain_band_kernels_match_any_band_bit_for_bit(zeros: float) -> None:
     """``kl = ku = 2`` (a chain's band): the unrolled LU and the solve with its window in
     registers against the loops for any band, for every size around the edge cases."""
-    from engine._trace_numba import (_band_lu, _band_lu_from, _band_solve, _band_solve_any,
-                                     _diagonal)
+    from engine._trace_numba import _band_lu, _band_lu_from, _band_solve, _band_solve_any, _diagonal
 
     rng = np.random.default_rng(int(100 * zeros) + 7)
     for n in list(range(1, 24)) + [57, 200]:
