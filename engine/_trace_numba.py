@@ -37,8 +37,20 @@ def _extended(u, fixed):
 @njit(cache=True)
 def _squared_lengths(u, fixed, gi, gj, out):
     """Constraints.squared_lengths."""
-    ext = _extended(u, fixed)
+    _squared_lengths_ext(_extended(u, fixed), gi, gj, out)
+
+
+@njit(cache=True)
+def _squared_lengths_ext(ext, gi, gj, out):
+    """:func:`_squared_lengths` of ``ext = [u, fixed]`` (in the plane without the loop over
+    the axes: the same sums)."""
     ea, dim = gi.shape
+    if dim == 2:
+        for a in range(ea):
+            d0 = ext[gi[a, 0]] - ext[gj[a, 0]]
+            d1 = ext[gi[a, 1]] - ext[gj[a, 1]]
+            out[a] = 0.0 + d0 * d0 + d1 * d1
+        return
     for a in range(ea):
         s = 0.0
         for x in range(dim):
@@ -88,9 +100,63 @@ def _diagonal(ab, off, piv, n):
 
 @njit(cache=True)
 def _band_lu(ab, n, kl, ku, piv):
-    """gbtrf without blocking: True unless a pivot is exactly zero."""
+    """gbtrf without blocking: True unless a pivot is exactly zero. A chain's band
+    (``kl = ku = 2``) goes through :func:`_band_lu22` up to its last few columns."""
+    j0 = 0
+    if kl == 2 and ku == 2:
+        j0 = _band_lu22(ab, n, piv)
+        if j0 < 0:
+            return False
+    return _band_lu_from(ab, n, kl, ku, piv, j0)
+
+
+@njit(cache=True, boundscheck=False)
+def _band_lu22(ab, n, piv):
+    """:func:`_band_lu_from` for ``kl = ku = 2`` on the columns ``j < n - 4`` (where every
+    column has both multipliers and four columns to its right): the same operations in the
+    same order, the loops unrolled and the row interchange done unconditionally (a no-op
+    without a pivot: no data-dependent branch). Returns the next column, -1 at a zero pivot."""
+    for j in range(n - 4):
+        a4 = ab[4, j]
+        a5 = ab[5, j]
+        a6 = ab[6, j]
+        p = 0
+        best = abs(a4)
+        pv = a4
+        if abs(a5) > best:
+            best = abs(a5)
+            p = 1
+            pv = a5
+        if abs(a6) > best:
+            p = 2
+            pv = a6
+        piv[j] = j + p
+        if pv == 0.0:
+            return -1
+        for k in range(5):
+            c = j + k
+            x = ab[4 - k, c]
+            ab[4 - k, c] = ab[4 - k + p, c]
+            ab[4 - k + p, c] = x
+        rpiv = 1.0 / ab[4, j]
+        l1 = ab[5, j] * rpiv
+        l2 = ab[6, j] * rpiv
+        ab[5, j] = l1
+        ab[6, j] = l2
+        for k in range(1, 5):
+            c = j + k
+            f = ab[4 - k, c]
+            if f != 0.0:
+                ab[5 - k, c] -= l1 * f
+                ab[6 - k, c] -= l2 * f
+    return max(n - 4, 0)
+
+
+@njit(cache=True)
+def _band_lu_from(ab, n, kl, ku, piv, j0):
+    """gbtf2 from column ``j0`` on (the columns before it done)."""
     off = kl + ku
-    for j in range(n):
+    for j in range(j0, n):
         km = min(kl, n - 1 - j)
         p = j
         best = abs(ab[off, j])
@@ -123,7 +189,17 @@ def _band_lu(ab, n, kl, ku, piv):
 def _band_solve(ab, n, kl, ku, piv, b):
     """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
     pivots (:func:`_diagonal`): multiplications on the back substitution's chain of
-    dependencies instead of divisions."""
+    dependencies instead of divisions. A chain's band (``kl = ku = 2``) goes through
+    :func:`_band_solve22`."""
+    if kl == 2 and ku == 2:
+        _band_solve22(ab, n, piv, b)
+    else:
+        _band_solve_any(ab, n, kl, ku, piv, b)
+
+
+@njit(cache=True)
+def _band_solve_any(ab, n, kl, ku, piv, b):
+    """:func:`_band_solve` for any band."""
     off = kl + ku
     for j in range(n):
         km = min(kl, n - 1 - j)
@@ -142,6 +218,50 @@ def _band_solve(ab, n, kl, ku, piv, b):
         if bj != 0.0:
             for i in range(max(0, j - off), j):
                 b[i] -= ab[off + i - j, j] * bj
+
+
+@njit(cache=True, boundscheck=False)
+def _band_solve22(ab, n, piv, b):
+    """:func:`_band_solve` for ``kl = ku = 2`` with the window of ``b`` that a column touches
+    held in registers (the substitutions are chains of dependencies: no store and reload of
+    ``b`` on them) and the row interchange as selects: the same operations in the same order
+    (a zero entry of ``b`` is not skipped: its products are exact zeros, the factors finite)."""
+    # forward, L: b0, b1, b2 = b[j], b[j + 1], b[j + 2]
+    b0 = b[0] if n > 0 else 0.0
+    b1 = b[1] if n > 1 else 0.0
+    b2 = b[2] if n > 2 else 0.0
+    for j in range(n):
+        p = piv[j] - j
+        t = b0
+        b0 = b1 if p == 1 else (b2 if p == 2 else b0)
+        b1 = t if p == 1 else b1
+        b2 = t if p == 2 else b2
+        b[j] = b0
+        if j + 1 < n:
+            b1 -= ab[5, j] * b0
+        if j + 2 < n:
+            b2 -= ab[6, j] * b0
+        b0 = b1
+        b1 = b2
+        b2 = b[j + 3] if j + 3 < n else 0.0
+    # backward, U (reciprocal diagonal in row 4): r0..r4 = b[j], ..., b[j - 4]
+    r0 = b[n - 1] if n > 0 else 0.0
+    r1 = b[n - 2] if n > 1 else 0.0
+    r2 = b[n - 3] if n > 2 else 0.0
+    r3 = b[n - 4] if n > 3 else 0.0
+    r4 = b[n - 5] if n > 4 else 0.0
+    for j in range(n - 1, -1, -1):
+        x = r0 * ab[4, j]
+        b[j] = x
+        r1 -= ab[3, j] * x
+        r2 -= ab[2, j] * x
+        r3 -= ab[1, j] * x
+        r4 -= ab[0, j] * x
+        r0 = r1
+        r1 = r2
+        r2 = r3
+        r3 = r4
+        r4 = b[j - 5] if j >= 5 else 0.0
 
 
 @njit(cache=True)
@@ -283,14 +403,15 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
     ``sq_ready``: ``sq`` already holds the squared lengths at ``v``."""
     ea = lengths.shape[0]
     m = v.shape[0]
-    w = v.copy()
+    ext = _extended(v, fixed)  # w is ext[:m]: the gathers read it without a copy per iteration
+    w = ext[:m]
     prev = np.inf
     rhs = np.zeros(m)
     tight = CORRECT_TIGHT * atol
     within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
         if it > 1 or not sq_ready:
-            _squared_lengths(w, fixed, gi, gj, sq)
+            _squared_lengths_ext(ext, gi, gj, sq)
         res = 0.0
         norm = 0.0
         for a in range(ea):
@@ -302,24 +423,36 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
         if within < 0 and res <= atol:
             within = it - 1
         if res <= tight:
-            return w, True, it - 1 if within < 0 else within
+            return w.copy(), True, it - 1 if within < 0 else within
         norm = math.sqrt(norm)
         if norm > 0.7 * prev or norm != norm:
-            return w, res <= atol, it if within < 0 else within
+            return w.copy(), res <= atol, it if within < 0 else within
         prev = norm
-        rhs[0] = 0.0
-        for a in range(ea):
-            rhs[a + 1] = -(sq[a] - targets[a])
-        dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
-        for c in range(m):
-            w[c] += dw[c]
-    _squared_lengths(w, fixed, gi, gj, sq)
+        if dense:
+            rhs[0] = 0.0
+            for a in range(ea):
+                rhs[a + 1] = -(sq[a] - targets[a])
+            dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
+            for c in range(m):
+                w[c] += dw[c]
+        else:  # _solve fused: the right-hand side straight into the band order, one buffer
+            rhs[row_pos[0]] = 0.0
+            for a in range(ea):
+                rhs[row_pos[a + 1]] = -(sq[a] - targets[a])
+            _band_solve(ab, m, kl, ku, piv, rhs)
+            s = 0.0
+            for c in range(m):
+                s += d[c] * rhs[col_pos[c]]
+            s /= gamma
+            for c in range(m):
+                w[c] += rhs[col_pos[c]] - y0[c] * s
+    _squared_lengths_ext(ext, gi, gj, sq)
     res = 0.0
     for a in range(ea):
         r = abs(math.sqrt(sq[a]) - lengths[a])
         if r > res or r != r:
             res = r if r == r else np.inf
-    return w, res <= atol, 12 if within < 0 else within
+    return w.copy(), res <= atol, 12 if within < 0 else within
 
 
 @njit(cache=True)

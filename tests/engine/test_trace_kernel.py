@@ -8,6 +8,9 @@ replaces (``LINKAGE_TRACER_KERNEL=numpy``), on catalogue and random linkages:
 * whole explorations with ``closed_form=False``: the same components (points, closure,
   windings), the same critical points and segments (the Python loop's crossings, the stop
   callbacks of the segments);
+* the band kernels specialised for a chain's band (``kl = ku = 2``) give bit for bit what the
+  kernels for any band give, and chains on that path (Kane-Lubensky chains up to n = 130) and
+  off it (a gated chain's wider band, the dense LU) trace as the Python loop does;
 * the hand-backs: deadlines (an expired one, a stop flag that flips during a trace), a band too
   wide for the band LU (every pass then runs in Python), the point budget.
 
@@ -149,6 +152,96 @@ def test_compiled_factor_matches_dense_lu(name: str, params: dict, dense: bool) 
         rhs = rng.normal(size=cons.n_free)
         x = _solve(ab, piv, kl, ku, rp, d.col_pos, y0, dv, gam, dense, rhs)
         assert np.linalg.norm(mat @ x - rhs) <= 1e-9 * np.linalg.norm(rhs)
+
+
+def _random_band(rng: np.random.Generator, n: int, kl: int, ku: int,
+                 zeros: float) -> np.ndarray:
+    """An unfactored band matrix in LAPACK storage (``kl`` rows of room for the fill), some
+    entries exact zeros (skipped updates) and pivots in every position."""
+    ab = np.zeros((2 * kl + ku + 1, n))
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            if rng.random() >= zeros:
+                ab[kl + ku + i - j, j] = rng.normal() * (1e3 if rng.random() < 0.1 else 1.0)
+    return ab
+
+
+@pytest.mark.parametrize("zeros", [0.0, 0.3])
+def test_chain_band_kernels_match_any_band_bit_for_bit(zeros: float) -> None:
+    """``kl = ku = 2`` (a chain's band): the unrolled LU and the solve with its window in
+    registers against the loops for any band, for every size around the edge cases."""
+    from engine._trace_numba import _band_lu, _band_lu_from, _band_solve, _band_solve_any, _diagonal
+
+    rng = np.random.default_rng(int(100 * zeros) + 7)
+    for n in list(range(1, 24)) + [57, 200]:
+        for _ in range(3):
+            ab = _random_band(rng, n, 2, 2, zeros)
+            fast, slow = ab.copy(), ab.copy()
+            piv_f, piv_s = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+            ok_f = _band_lu(fast, n, 2, 2, piv_f)
+            ok_s = _band_lu_from(slow, n, 2, 2, piv_s, 0)
+            assert ok_f == ok_s
+            if not ok_s:
+                continue
+            assert np.array_equal(piv_f, piv_s) and np.array_equal(fast, slow)
+            assert _diagonal(fast, 4, piv_f, n) == _diagonal(slow, 4, piv_s, n)
+            b = rng.normal(size=n)
+            b[rng.random(n) < zeros] = 0.0
+            x_f, x_s = b.copy(), b.copy()
+            _band_solve(fast, n, 2, 2, piv_f, x_f)
+            _band_solve_any(slow, n, 2, 2, piv_s, x_s)
+            assert np.array_equal(x_f, x_s)
+            if n <= 40:  # and the solve is a solve: against the dense matrix
+                dense = np.zeros((n, n))
+                for j in range(n):
+                    for i in range(max(0, j - 2), min(n, j + 3)):
+                        dense[i, j] = ab[4 + i - j, j]
+                if np.linalg.cond(dense) < 1e8:
+                    assert np.allclose(dense @ x_f, b, atol=1e-8 * (1 + np.abs(b).max()))
+
+
+def test_a_zero_pivot_in_the_chain_band() -> None:
+    """An exactly singular chain band: the unrolled LU stops at the zero pivot as the loop
+    for any band does."""
+    from engine._trace_numba import _band_lu, _band_lu_from
+
+    for col in (0, 11, 25, 29):  # in the unrolled columns and in the tail
+        ab = _random_band(np.random.default_rng(col), 30, 2, 2, 0.0)
+        ab[:, col] = 0.0  # an empty column: its pivot is an exact zero
+        a1, a2 = ab.copy(), ab.copy()
+        p1, p2 = np.empty(30, dtype=np.int64), np.empty(30, dtype=np.int64)
+        assert not _band_lu(a1, 30, 2, 2, p1)
+        assert not _band_lu_from(a2, 30, 2, 2, p2, 0)
+        assert np.array_equal(p1[:col + 1], p2[:col + 1])
+        assert np.array_equal(a1[:, :col], a2[:, :col])
+
+
+@pytest.mark.parametrize(("name", "params", "band"), [
+    ("kl-chain", {"n": 20}, (2, 2)), ("kl-chain", {"n": 60}, (2, 2)),
+    ("kl-chain", {"n": 130, "r": 1.6, "l": 1.9}, (2, 2)),
+    ("gated-kl-chain", {"n": 30, "gate": 0}, (2, 2)),
+    ("gated-kl-chain", {"n": 30, "gate": 15, "D": 2.3}, (3, 2)),  # off the chain's kernels
+])
+def test_chain_band_curves_match_python_loop(name: str, params: dict, band: tuple,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """Chains of several sizes on the band path: the band they take (so the specialised
+    kernels run, or not), and the same curve as the Python loop."""
+    from engine._trace_numba import _factor
+
+    lk = build_preset(name, params)
+    cons = Constraints(lk)
+    d = trace_kernel.kernel_data(cons, False)
+    z = first_order(lk).zero_modes[0]
+    out = _factor(lk.coordinates(), z / np.linalg.norm(z), False, 10**6, d.fixed_values,
+                  d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes, d.col_pos,
+                  d.entry_rank, d.entry_col, d.keys, d.row_rank, d.sign_perm,
+                  np.empty(len(d.rows)), np.full(4, -1, dtype=np.int64),
+                  np.empty(len(d.rows), dtype=np.int64), np.zeros(0, dtype=np.int64))
+    assert out[0] == 0 and (out[3], out[4]) == band
+    cons, fast = _trace(name, params, "numba", monkeypatch)
+    _, slow = _trace(name, params, "numpy", monkeypatch)
+    assert fast.stop == "closed"
+    assert_same_curve(fast, slow, cons)
 
 
 @pytest.mark.parametrize(("name", "params"), cases(
