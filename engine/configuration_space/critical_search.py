@@ -9,6 +9,7 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
+from engine import critical_batched
 from engine.assembly import projected_random_starts
 from engine.configuration_space.explorer import Explorer
 from engine.critical import (
@@ -19,7 +20,6 @@ from engine.critical import (
     refine_critical,
     singular_gap,
 )
-from engine import critical_batched
 from engine.tolerances import SAME_POINT_REL
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
@@ -99,8 +99,9 @@ def resolve(
 def refined(ex: Explorer, candidates: Iterable[np.ndarray]) -> Iterator[Refined]:
     """:func:`engine.critical.refine_critical` from every candidate, in order, until the
     deadline: small linkages (up to :data:`engine.critical_batched.REFINE_BATCH_MAX_FREE` free
-    coordinates) refine all of them at once (:func:`engine.critical_batched.refine_critical_batch`,
-    the same answers; the tests compare the two), larger ones one at a time."""
+    coordinates) refine all of them at once
+    (:func:`engine.critical_batched.refine_critical_batch`: the same answers, the tests compare
+    the two), larger ones one at a time."""
     if ex.cons.n_free > critical_batched.REFINE_BATCH_MAX_FREE:
         for u0 in candidates:
             if ex.out_of_time():
@@ -110,7 +111,9 @@ def refined(ex: Explorer, candidates: Iterable[np.ndarray]) -> Iterator[Refined]
     starts = [np.asarray(u0, dtype=float) for u0 in candidates]
     if not starts or ex.out_of_time():
         return
-    for ref in critical_batched.refine_critical_batch(ex.cons, np.array(starts), ex.tol, deadline=ex.deadline):
+    batch = critical_batched.refine_critical_batch(ex.cons, np.array(starts), ex.tol,
+                                                   deadline=ex.deadline)
+    for ref in batch:
         if ref is None:  # the deadline stopped it before it finished
             ex.timed_out = True
             continue
