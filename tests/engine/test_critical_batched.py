@@ -278,3 +278,47 @@ def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
                 <= 1e-3 * step
     assert [(r.point, r.components, r.signature, r.cells) for r in fast.regions] == \
         [(r.point, r.components, r.signature, r.cells) for r in slow.regions]
+
+
+@pytest.mark.parametrize(("name", "params", "axes"), [
+    ("four-bar", {"L2": 1.2}, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)]),
+    ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)]),
+    ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)]),
+])
+def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
+    """The seeds of a slice (near misses and critical points at sample lengths, as
+    ``_CurveTracing.seed_at`` takes them) moved onto ``G = 0`` all at once and one at a time:
+    the same points (the same Gauss-Newton iteration, and the same fallback)."""
+    from engine.critical_values import (
+        _BatchedSystem,
+        _onto_solutions,
+        _onto_solutions_batch,
+        _System,
+        _validate,
+    )
+
+    lk = build_preset(name, params)
+    ax = _validate(lk, axes)
+    sys = _System(lk, ax)
+    rng = np.random.default_rng(4)
+    x0s = []
+    for _ in range(3):
+        p0 = np.array([rng.uniform(a.lo, a.hi) for a in ax])
+        lengths = lk.lengths.copy()
+        lengths[ax[0].bar], lengths[ax[1].bar] = p0
+        res = find_critical_points(lk.with_lengths(lengths), TOL,
+                                   SpaceOptions(angles=12, random_starts=2, max_components=4),
+                                   start_on_space=False)
+        x0s += [np.concatenate([m.critical_u, m.critical_sigma, p0]) for m in res.near_misses]
+    assert len(x0s) >= 2
+    x0s = np.array(x0s)
+    batched = _BatchedSystem(sys)
+    np.testing.assert_allclose(batched.g(x0s), [sys.g(x) for x in x0s], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(batched.dg(x0s), [sys.dg(x) for x in x0s], rtol=0, atol=1e-13)
+    fast = _onto_solutions_batch(sys, x0s)
+    for x0, x in zip(x0s, fast, strict=True):
+        ref = _onto_solutions(sys, x0)
+        on_ref, on_new = (np.max(np.abs(sys.g(y))) <= 1e-9 for y in (ref, x))
+        assert on_ref == on_new
+        if on_ref:
+            assert np.linalg.norm(x - ref) <= 1e-7 * (1.0 + np.linalg.norm(ref))
