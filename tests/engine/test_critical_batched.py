@@ -322,3 +322,33 @@ def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
         assert on_ref == on_new
         if on_ref:
             assert np.linalg.norm(x - ref) <= 1e-7 * (1.0 + np.linalg.norm(ref))
+
+
+@pytest.mark.parametrize(("name", "params"), LINKAGES, ids=IDS)
+def test_seed_assemblies_checked_at_once_are_the_ones_checked_one_by_one(name, params):
+    """``iter_seeds`` checks every assembly of an angle in one expression: the same seeds, in
+    the same order, as the check of each one's coordinates by ``Constraints.max_residual``."""
+    from engine.assembly import assemblies_at, dyad_plan, iter_seeds, rotors
+
+    lk = _build(name, params)
+    cons = Constraints(lk)
+    angles, budget = 12, 16
+    got = list(iter_seeds(lk, TOL, {}, angles, budget, 0, 0, 4))
+    offset = (np.sqrt(5) - 1) / 2
+    grid = 2 * np.pi * (np.arange(angles) + offset) / angles
+    cands = rotors(lk)
+    if len(cands) > 4:
+        pick = np.linspace(0, len(cands) - 1, 4).round().astype(int)
+        cands = [cands[k] for k in sorted(set(pick.tolist()))]
+    ref = []
+    for rotor in cands:
+        plan = dyad_plan(lk, rotor)
+        if plan is None:
+            continue
+        for angle in grid:
+            for pos in assemblies_at(lk, rotor, plan, float(angle), budget)[0]:
+                u = lk.coordinates(pos)
+                if cons.max_residual(u) <= max(1e3 * TOL.residual_atol, 1e-7):
+                    ref.append(u)
+    assert len(got) == len(ref) > 0
+    np.testing.assert_array_equal(np.array(got), np.array(ref))
