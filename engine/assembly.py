@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.batched import BATCH_MAX_FREE, project_many
 from engine.constraints import Constraints, project
 from engine.linkage import Linkage
 from engine.tolerances import Tolerances
@@ -136,6 +137,14 @@ def iter_projected_random_starts(
     cons = Constraints(linkage)
     scale = float(np.median(linkage.lengths[cons.bars])) if cons.n_constraints else 1.0
     free = ~linkage.fixed
+    if 0 < cons.n_free <= BATCH_MAX_FREE and count > 1:
+        # small linkages: every start drawn (the same draws, in order) and projected at once
+        base = linkage.coordinates()
+        us = np.array([base + scale * rng.normal(size=int(free.sum())) for _ in range(count)])
+        projected, ok = project_many(cons, us, tol)
+        for k in np.flatnonzero(ok):
+            yield projected[k]
+        return
     for _ in range(count):
         pos = np.array(linkage.positions, dtype=float)
         pos[free] += scale * rng.normal(size=int(free.sum()))

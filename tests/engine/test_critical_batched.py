@@ -352,3 +352,26 @@ def test_seed_assemblies_checked_at_once_are_the_ones_checked_one_by_one(name, p
                     ref.append(u)
     assert len(got) == len(ref) > 0
     np.testing.assert_array_equal(np.array(got), np.array(ref))
+
+
+@pytest.mark.parametrize(("name", "params"), LINKAGES, ids=IDS)
+def test_projections_at_once_are_the_projections_one_by_one(name, params, monkeypatch):
+    """``project_many`` (the random starts of small linkages, all at once) against
+    ``project`` from each start: the same verdicts and the same points."""
+    from engine.batched import project_many
+    from engine.constraints import project
+
+    lk = _build(name, params)
+    cons = Constraints(lk)
+    scale = float(np.median(lk.lengths[cons.bars]))
+    rng = np.random.default_rng(8)
+    us = lk.coordinates() + scale * rng.normal(size=(24, cons.n_free))
+    got, ok = project_many(cons, us, TOL)
+    agree = 0
+    for u0, u, success in zip(us, got, ok, strict=True):
+        ref = project(lk.with_positions(lk.positions_of(u0)), TOL)
+        assert ref.success == success
+        if success:
+            agree += np.linalg.norm(lk.coordinates(ref.positions) - u) <= 1e-9 * scale
+    # (rounding: an SVD against lstsq's may tip one near-tie decision of the line search)
+    assert agree >= ok.sum() - 1
