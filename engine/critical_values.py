@@ -234,8 +234,11 @@ def _min_norm_steps(mats: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     regular = np.min(diag, axis=1) > 1e-13 * np.maximum(np.max(diag, axis=1), NORM_FLOOR)
     out = np.empty((len(mats), mats.shape[2]))
     if regular.any():
-        y = np.linalg.solve(np.transpose(r[regular], (0, 2, 1)), rhs[regular][:, :, None])
-        out[regular] = np.matmul(q[regular], y)[:, :, 0]
+        try:
+            y = np.linalg.solve(np.transpose(r[regular], (0, 2, 1)), rhs[regular][:, :, None])
+            out[regular] = np.matmul(q[regular], y)[:, :, 0]
+        except np.linalg.LinAlgError:  # (not expected: R's diagonal was checked) by lstsq
+            regular[:] = False
     for k in np.flatnonzero(~regular):
         out[k] = np.linalg.lstsq(mats[k], rhs[k], rcond=None)[0]
     return out
