@@ -112,7 +112,8 @@ class Rows:
         blas = ", ".join(f"{k}={v}" for k, v in info["blas_threads"].items() if v is not None)
         head = (f"Machine: {info['cpu']}, {info['cores']} cores, BLAS threads: {blas or 'default'}"
                 f", Python {info['python']}, numpy {info['numpy']}, numba "
-                f"{info['numba'] or 'absent'}; load average "
+                f"{info['numba'] or 'absent'}, tracer kernel {info.get('tracer_kernel', '?')}; "
+                f"load average "
                 f"{info['load_average_start'][0]:.2f} at the start, "
                 f"{info['load_average_end'][0]:.2f} at the end"
                 + (" (--quick: smaller sizes, not the issue's)" if quick else "") + "\n\n")
@@ -308,7 +309,12 @@ def main() -> None:
     parser.add_argument("--only", nargs="+", choices=ROWS, default=list(ROWS),
                         help="run these rows only")
     args = parser.parse_args()
+    # the tracer's compiled kernel loaded before any timing, as the service's workers do at
+    # start-up (trace_kernel.prepare): otherwise the first rows trace with the Python loop
+    # while numba loads in a background thread (and competes with them for the CPU)
+    kernel = trace_kernel.prepare()
     info = machine()
+    info["tracer_kernel"] = "numba" if kernel else "numpy (Python loop)"
     print(f"# issue 15, {'quick' if args.quick else 'full'} run on {info['cpu']} "
           f"({info['cores']} cores)", flush=True)
     rows = Rows()

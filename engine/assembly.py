@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.batched import BATCH_MAX_FREE, project_many
 from engine.constraints import Constraints, project
 from engine.linkage import Linkage
 from engine.tolerances import Tolerances
@@ -136,6 +137,14 @@ def iter_projected_random_starts(
     cons = Constraints(linkage)
     scale = float(np.median(linkage.lengths[cons.bars])) if cons.n_constraints else 1.0
     free = ~linkage.fixed
+    if 0 < cons.n_free <= BATCH_MAX_FREE and count > 1:
+        # small linkages: every start drawn (the same draws, in order) and projected at once
+        base = linkage.coordinates()
+        us = np.array([base + scale * rng.normal(size=int(free.sum())) for _ in range(count)])
+        projected, ok = project_many(cons, us, tol)
+        for k in np.flatnonzero(ok):
+            yield projected[k]
+        return
     for _ in range(count):
         pos = np.array(linkage.positions, dtype=float)
         pos[free] += scale * rng.normal(size=int(free.sum()))
@@ -178,6 +187,9 @@ def iter_seeds(
     is filled as generation proceeds; its counts describe the seeds generated so far.
     """
     cons = Constraints(linkage)
+    ends = linkage.ends[cons.bars]
+    targets = linkage.lengths[cons.bars]
+    free = ~np.asarray(linkage.fixed, dtype=bool)
     rng = np.random.default_rng(seed)
     swept: list[str] = []
     offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
@@ -205,12 +217,19 @@ def iter_seeds(
             found, cut = assemblies_at(linkage, rotor, plan, float(angle), budget)
             if cut:
                 report["assemblies_truncated"] = True
-            for pos in found:
-                u = linkage.coordinates(pos)
-                if cons.max_residual(u) <= max(1e3 * tol.residual_atol, 1e-7):
-                    counts["seeds"] += 1
-                    report.update(counts)
-                    yield u
+            if not found:
+                continue
+            # every assembly of this angle checked at once (the same residual as
+            # cons.max_residual of its coordinates, one vectorised expression)
+            stack = np.array(found, dtype=float)  # (F, V, d)
+            vec = stack[:, ends[:, 0]] - stack[:, ends[:, 1]]
+            res = np.max(np.abs(np.sqrt(np.einsum("kij,kij->ki", vec, vec)) - targets), axis=1,
+                         initial=0.0)
+            us = stack[:, free]
+            for k in np.flatnonzero(res <= max(1e3 * tol.residual_atol, 1e-7)):
+                counts["seeds"] += 1
+                report.update(counts)
+                yield us[k]
     # The random projections come last, drawn from one generator in order: stopping early
     # never changes the seeds that were generated.
     for u in iter_projected_random_starts(linkage, tol, random_starts, rng):

@@ -379,7 +379,11 @@ def _escape(
     z = vt[s_full <= 1e-3 * max(float(s_full.max()), NORM_FLOOR)]
     if z.shape[0] == 0:
         return None
-    curv = z @ cons.stress_hessian(g, sparse=False) @ z.T
+    # (the dense H_g by one weighted bincount: the same matrix as stress_hessian's assembly,
+    # tests/engine/test_fast_paths.py; imported here, engine.critical imports this module)
+    from engine.critical import dense_stress_hessian
+
+    curv = z @ dense_stress_hessian(cons, g) @ z.T
     lam, vec = np.linalg.eigh(0.5 * (curv + curv.T))
     best = None
     f0 = cons.squared_lengths(u)

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
 
+from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.budget import NEVER, REASON_TIME, Deadline, granted
 from engine.configuration_space import (
     SpaceOptions,
@@ -36,7 +37,7 @@ from engine.configuration_space import (
     winding,
 )
 from engine.constraints import Constraints
-from engine.critical import dense_stress_hessian, refine_critical
+from engine.critical import DenseStressHessian, dense_stress_hessian, refine_critical
 from engine.dyad_margin import critical_planes
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
@@ -182,6 +183,100 @@ def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndar
     sol = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15,
                         max_nfev=200)
     return np.asarray(sol.x)
+
+
+class _BatchedSystem:
+    """``G`` and ``dG`` of :class:`_System` at a stack of points (K, M + E + 2) (small
+    linkages: :data:`engine.batched.BATCH_MAX_FREE`)."""
+
+    def __init__(self, sys: _System) -> None:
+        self.sys = sys
+        self.batch = BatchedConstraints(sys.cons)
+        m, e = sys.m, sys.e
+        hess = DenseStressHessian(sys.cons)
+        self.hess_map = np.zeros((e, m * m))
+        np.add.at(self.hess_map, (hess._bar, hess._flat), hess._sign)
+
+    def g(self, xs: np.ndarray) -> np.ndarray:
+        sys = self.sys
+        m, e = sys.m, sys.e
+        u, sig, p = xs[:, :m], xs[:, m:m + e], xs[:, m + e:]
+        lengths = np.broadcast_to(sys.base, (len(xs), e)).copy()
+        lengths[:, sys.rows] = p
+        jac = self.batch.jacobians(u)
+        out = np.empty((len(xs), e + m + 1))
+        out[:, :e] = (self.batch.squared_lengths(u) - lengths**2) / sys.s
+        out[:, e:e + m] = np.einsum("ka,kam->km", sig, jac) / sys.s
+        out[:, -1] = np.einsum("ka,ka->k", sig, sig) - 1.0
+        return out
+
+    def dg(self, xs: np.ndarray) -> np.ndarray:
+        sys = self.sys
+        m, e, k = sys.m, sys.e, len(xs)
+        u, sig, p = xs[:, :m], xs[:, m:m + e], xs[:, m + e:]
+        jac = self.batch.jacobians(u)
+        out = np.zeros((k, e + m + 1, sys.n))
+        out[:, :e, :m] = jac / sys.s
+        for c, r in enumerate(sys.rows):
+            out[:, r, m + e + c] = -2.0 * p[:, c] / sys.s
+        out[:, e:e + m, :m] = (sig @ self.hess_map).reshape(k, m, m) / sys.s
+        out[:, e:e + m, m:m + e] = np.transpose(jac, (0, 2, 1)) / sys.s
+        out[:, -1, m:m + e] = 2.0 * sig
+        return out
+
+
+def _min_norm_steps(mats: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``lstsq(mats[k], rhs[k])`` for every ``k`` (wide matrices, (K, p, n), p < n): from the
+    QR factorisation of ``mats[k]^T = Q R`` (``x = Q R^-T rhs``, as accurate as the SVD of
+    ``lstsq`` where ``mats[k]`` has full rank), by ``lstsq`` for the rows where ``R`` is
+    singular to working precision."""
+    q, r = np.linalg.qr(np.transpose(mats, (0, 2, 1)))
+    diag = np.abs(np.diagonal(r, axis1=1, axis2=2))
+    regular = np.min(diag, axis=1) > 1e-13 * np.maximum(np.max(diag, axis=1), NORM_FLOOR)
+    out = np.empty((len(mats), mats.shape[2]))
+    if regular.any():
+        try:
+            y = np.linalg.solve(np.transpose(r[regular], (0, 2, 1)), rhs[regular][:, :, None])
+            out[regular] = np.matmul(q[regular], y)[:, :, 0]
+        except np.linalg.LinAlgError:  # (not expected: R's diagonal was checked) by lstsq
+            regular[:] = False
+    for k in np.flatnonzero(~regular):
+        out[k] = np.linalg.lstsq(mats[k], rhs[k], rcond=None)[0]
+    return out
+
+
+def _onto_solutions_batch(sys: _System, x0s: np.ndarray, max_iter: int = 30) -> np.ndarray:
+    """:func:`_onto_solutions` from every row of ``x0s`` at once (small linkages): the same
+    Gauss-Newton iteration with minimum-norm steps, the rows that converge leaving it, and the
+    least-squares fallback of :func:`_onto_solutions` for every row that does not converge
+    (the tests compare the two)."""
+    if sys.m > BATCH_MAX_FREE or len(x0s) < 2:
+        return np.array([_onto_solutions(sys, x0, max_iter) for x0 in x0s]).reshape(x0s.shape)
+    batched = _BatchedSystem(sys)
+    xs = np.array(x0s, dtype=float)
+    live = np.ones(len(xs), dtype=bool)
+    done = np.zeros(len(xs), dtype=bool)
+    for _ in range(max_iter):
+        idx = np.flatnonzero(live)
+        if not len(idx):
+            break
+        g = batched.g(xs[idx])
+        finite = np.all(np.isfinite(g), axis=1)
+        conv = finite & (np.max(np.abs(g), axis=1) <= 1e-13)
+        done[idx[conv]] = True
+        live[idx[conv | ~finite]] = False
+        step = finite & ~conv
+        idx, g = idx[step], g[step]
+        if len(idx):
+            xs[idx] = xs[idx] - _min_norm_steps(batched.dg(xs[idx]), g)
+    rest = np.flatnonzero(~done)
+    if len(rest):
+        g = batched.g(xs[rest])
+        fine = np.all(np.isfinite(g), axis=1) & (np.max(np.abs(g), axis=1) <= 1e-12)
+        for k in rest[~fine]:
+            xs[k] = least_squares(sys.g, x0s[k], jac=sys.dg, method="trf", xtol=1e-15,
+                                  ftol=1e-15, gtol=1e-15, max_nfev=200).x
+    return xs
 
 
 def _continue(
@@ -407,16 +502,23 @@ class _CurveTracing:
         res = find_critical_points(at, self.tol, self.seed_opt, start_on_space=False,
                                    deadline=self.deadline)
         cons = Constraints(at)
-        starts: list[tuple[np.ndarray, np.ndarray | None]] = (
+        starts: list[tuple[np.ndarray, np.ndarray]] = []
+        found: list[tuple[np.ndarray, np.ndarray | None]] = (
             [(cp.u, None) for cp in res.critical_points]
             + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
         )
-        for u0, s0 in starts:
-            self.seeds_tried += 1
+        for u0, s0 in found:
             if s0 is None:  # (a near miss's configuration is refined already, with its stress)
                 ref = refine_critical(cons, u0, self.tol)
                 u0, s0 = ref.u, ref.sigma
-            x = _onto_solutions(self.sys, np.concatenate([u0, s0, p0]))
+            starts.append((u0, s0))
+        if not starts:
+            return
+        # every start onto G = 0 at once (a pure function of the start), then in order
+        xs = _onto_solutions_batch(self.sys, np.array([np.concatenate([u0, s0, p0])
+                                                       for u0, s0 in starts]))
+        for x in xs:
+            self.seeds_tried += 1
             if np.max(np.abs(self.sys.g(x))) > 1e-9 or self.known(x):
                 continue
             if np.any(x[-2:] < self.box[:, 0] - self.h_max) or \

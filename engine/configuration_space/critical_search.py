@@ -5,13 +5,21 @@ classified and merged where not isolated.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
 import numpy as np
 
+from engine import critical_batched
 from engine.assembly import projected_random_starts
 from engine.configuration_space.explorer import Explorer
-from engine.critical import CriticalPoint, NearMiss, classify, refine_critical, singular_gap
+from engine.critical import (
+    CriticalPoint,
+    NearMiss,
+    Refined,
+    classify,
+    refine_critical,
+    singular_gap,
+)
 from engine.tolerances import SAME_POINT_REL
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
@@ -64,10 +72,7 @@ def resolve(
     exact: list[CriticalPoint] = []
     misses: list[NearMiss] = []
     failed = 0
-    for u0 in candidates:
-        if ex.out_of_time():
-            break
-        ref = refine_critical(ex.cons, u0, ex.tol)
+    for ref in refined(ex, candidates):
         failed += not ref.critical
         if ref.critical:
             if any(np.linalg.norm(ref.u - c.u) <= SAME_POINT_REL * ex.scale for c in exact):
@@ -89,6 +94,30 @@ def resolve(
     exact.sort(key=lambda c: tuple(np.round(c.u / ex.scale, 5)))
     misses = dedupe_misses(misses, ex.scale)
     return exact, misses, degenerate, failed
+
+
+def refined(ex: Explorer, candidates: Iterable[np.ndarray]) -> Iterator[Refined]:
+    """:func:`engine.critical.refine_critical` from every candidate, in order, until the
+    deadline: small linkages (up to :data:`engine.critical_batched.REFINE_BATCH_MAX_FREE` free
+    coordinates) refine all of them at once
+    (:func:`engine.critical_batched.refine_critical_batch`: the same answers, the tests compare
+    the two), larger ones one at a time."""
+    if ex.cons.n_free > critical_batched.REFINE_BATCH_MAX_FREE:
+        for u0 in candidates:
+            if ex.out_of_time():
+                return
+            yield refine_critical(ex.cons, u0, ex.tol)
+        return
+    starts = [np.asarray(u0, dtype=float) for u0 in candidates]
+    if not starts or ex.out_of_time():
+        return
+    batch = critical_batched.refine_critical_batch(ex.cons, np.array(starts), ex.tol,
+                                                   deadline=ex.deadline)
+    for ref in batch:
+        if ref is None:  # the deadline stopped it before it finished
+            ex.timed_out = True
+            continue
+        yield ref
 
 
 def merge_non_isolated(points: list[CriticalPoint]) -> tuple[list[CriticalPoint], bool]:
