@@ -128,3 +128,33 @@ def test_a_request_stopped_at_the_time_limit_leaves_no_file(tmp_path, monkeypatc
         app.state.engine_pool.close()
     assert_problem(slow, 504, "time-limit")
     assert list(Path(tmp_path).iterdir()) == []
+
+
+def _faults_of_a_second_array() -> int:
+    """Minor page faults of filling a 20 MB array after one of the same size was freed."""
+    import resource
+
+    import numpy as np
+
+    first = np.ones(2_500_000)
+    del first
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    second = np.ones(2_500_000)
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    del second
+    return faults
+
+
+@pytest.mark.slow
+def test_a_worker_reuses_freed_memory():
+    """tune_malloc in every worker: an array of 20 MB freed and allocated again is filled
+    in memory the worker kept (no page faults; with glibc's defaults the second array is
+    mapped or the heap grown afresh: hundreds to thousands of faults)."""
+    if not workers.tune_malloc():
+        pytest.skip("no glibc mallopt here")
+    pool = workers.EnginePool(1, 4)
+    try:
+        faults = asyncio.run(pool.run(60, _faults_of_a_second_array))
+    finally:
+        pool.close()
+    assert faults < 100, faults
