@@ -18,10 +18,12 @@ waking the kernel's out-of-memory killer.
 
 An answer of at least ``SPILL_MIN_BYTES`` (a configuration space of 10^5 points is 10-20 MB
 of JSON) comes back from its worker through a file in memory (``/dev/shm``, else the temporary
-directory) that the service creates for the request and removes after reading, instead of
-pebble's result pipe: there it would be pickled, pushed through a 64 kB pipe buffer in some
-two hundred wake-ups of the two processes, and unpickled (50-80 ms for 13 MB on a busy 2-core
-machine), where the file costs one write and one read of the bytes (a few ms).
+directory) that the service hands to the request, instead of pebble's result pipe: there it
+would be pickled, pushed through a 64 kB pipe buffer in some two hundred wake-ups of the two
+processes, and unpickled (30-80 ms for 13 MB on a 2-core machine), where the file costs one
+write and one read of the bytes. A file whose request was answered is kept for the next
+request (``SpillFiles``: a new file's pages cost the kernel as much again as the copy);
+one whose worker may still be running (time limit, cancellation, failure) is removed at once.
 
 Each worker's ``malloc`` (glibc) keeps freed memory for the next request
 (:func:`tune_malloc`): by default every array of more than 128 kB is mapped fresh from the
@@ -44,9 +46,8 @@ import os
 import resource
 import tempfile
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import TimeoutError as FutureTimeout
-from contextlib import contextmanager
 from typing import Any, TypeVar
 
 import pebble
@@ -68,6 +69,8 @@ LIGHT_MAX_VERTICES = 64
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 #: Answers from this size on come back from a worker through a file, not pebble's pipe.
 SPILL_MIN_BYTES = 1 << 20
+#: Files that held more than this are removed after their answer, not kept for the next one.
+SPILL_KEEP_MAX_BYTES = 64 << 20
 
 
 class ServiceFault(Exception):
@@ -159,6 +162,7 @@ class EnginePool:
         self.max_queue = max_queue
         self.memory_mb = memory_mb
         self.admitted = 0
+        self.spill_files = SpillFiles(keep=workers)
         self._pool: pebble.ProcessPool | None = None
         self._lock = threading.Lock()
         self._on_event = on_event or (lambda event: None)
@@ -201,6 +205,7 @@ class EnginePool:
         if pool is not None:
             pool.close()
             pool.join()
+        self.spill_files.close()
 
     async def run(self, time_limit: float, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` in a worker, stopped after ``time_limit`` seconds of running."""
@@ -302,18 +307,50 @@ def _spill_dir() -> str:
     return tempfile.gettempdir()
 
 
-@contextmanager
-def _spill_file() -> Iterator[str]:
-    """A new empty file (mode 0600) for one answer, removed at the end of the block."""
-    fd, path = tempfile.mkstemp(prefix="linkage-answer-", suffix=".json", dir=_spill_dir())
-    os.close(fd)
+class SpillFiles:
+    """Files for answers in transit from the workers (mode 0600, in :func:`_spill_dir`): one
+    per request in flight, and up to ``keep`` of them kept between requests (each at most
+    ``SPILL_KEEP_MAX_BYTES``) so that a request writes over pages the file already has."""
+
+    def __init__(self, keep: int) -> None:
+        self.keep = keep
+        self._free: list[str] = []
+        self._lock = threading.Lock()
+
+    def take(self) -> str:
+        with self._lock:
+            if self._free:
+                return self._free.pop()
+        fd, path = tempfile.mkstemp(prefix="linkage-answer-", suffix=".json", dir=_spill_dir())
+        os.close(fd)
+        return path
+
+    def give_back(self, path: str, reuse: bool) -> None:
+        """Keep ``path`` for another request when ``reuse`` (its worker has finished with it)
+        and there is room, else remove it."""
+        if reuse:
+            try:
+                small = os.path.getsize(path) <= SPILL_KEEP_MAX_BYTES
+            except OSError:
+                small = False
+            with self._lock:
+                if small and len(self._free) < self.keep:
+                    self._free.append(path)
+                    return
+        _unlink(path)
+
+    def close(self) -> None:
+        with self._lock:
+            free, self._free = self._free, []
+        for path in free:
+            _unlink(path)
+
+
+def _unlink(path: str) -> None:
     try:
-        yield path
-    finally:
-        try:
-            os.unlink(path)
-        except FileNotFoundError:
-            pass
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
 
 
 def _read_spill(path: str, size: int) -> bytes:
@@ -336,9 +373,13 @@ async def engine_call(request: Request, settings: Settings,
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:
-        with _spill_file() as spill:
-            answer = await engine_pool(request).run(settings.time_limit_s, _as_json, fn, body,
-                                                    settings, spill)
+        pool = engine_pool(request)
+        spill, answered = pool.spill_files.take(), False
+        try:
+            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill)
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
+            answered = True
+        finally:  # a worker stopped at the time limit may still write: not for reuse
+            pool.spill_files.give_back(spill, reuse=answered)
     return Response(payload, media_type="application/json")

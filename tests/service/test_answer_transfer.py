@@ -1,7 +1,8 @@
 """Large answers from the engine workers to the client (service/workers.py, issue 15): an
 answer of at least ``SPILL_MIN_BYTES`` comes back from its worker through a file the service
-made for the request, not pebble's pipe, and the file is gone once the request is answered,
-also when the worker was stopped at the time limit.
+hands to the request, not pebble's pipe; the file is kept for the next request once its
+request is answered, removed at once when the worker was stopped at the time limit, and every
+file is gone when the pool closes.
 
 References: the same job serialised in-process by :func:`service.serialise.dumps` (the bytes
 every answer had before), and the directory the files live in, which must end up empty."""
@@ -82,18 +83,22 @@ def test_a_cut_answer_is_a_worker_failure(tmp_path):
 
 
 @pytest.mark.slow
-def test_answers_through_a_worker_leave_no_file(tmp_path, monkeypatch, crank_rocker):
-    """Default and compact answers of a real worker are the in-process ones, and the files
-    they crossed in are removed."""
+def test_answers_through_a_worker_reuse_one_file(tmp_path, monkeypatch, crank_rocker):
+    """Default and compact answers of a real worker are the in-process ones; one after the
+    other they cross in one file, which is gone when the pool closes."""
     monkeypatch.setattr(workers, "_spill_dir", lambda: str(tmp_path))
     app = create_app(Settings(workers=1, time_limit_s=120))
     settings = get_settings()
+    files = []
 
     async def scenario() -> list[Any]:
+        answers = []
         async with client_for(app) as c:
-            return [await c.post(SPACE, json={"linkage": crank_rocker,
-                                              "options": {**DENSE, "points": points}})
-                    for points in (None, "compact")]
+            for points in (None, "compact"):
+                answers.append(await c.post(SPACE, json={
+                    "linkage": crank_rocker, "options": {**DENSE, "points": points}}))
+                files.append(sorted(Path(tmp_path).iterdir()))
+        return answers
 
     try:
         answers = asyncio.run(scenario())
@@ -109,7 +114,30 @@ def test_answers_through_a_worker_leave_no_file(tmp_path, monkeypatch, crank_roc
         got = r.json()
         assert got["components"] == expected["components"]
         assert got.keys() == expected.keys()
+    assert len(files[0]) == 1 and files[1] == files[0]  # kept, and taken again
     assert list(Path(tmp_path).iterdir()) == []
+
+
+def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
+    monkeypatch.setattr(workers, "_spill_dir", lambda: str(tmp_path))
+    files = workers.SpillFiles(keep=1)
+    a, b = files.take(), files.take()
+    assert a != b and Path(a).parent == Path(b).parent == tmp_path
+    assert oct(Path(a).stat().st_mode & 0o777) == oct(0o600)
+    files.give_back(a, reuse=True)
+    files.give_back(b, reuse=True)  # no room: removed
+    assert sorted(tmp_path.iterdir()) == [Path(a)]
+    assert files.take() == a
+    with open(a, "wb") as f:  # too large to keep
+        f.truncate(workers.SPILL_KEEP_MAX_BYTES + 1)
+    files.give_back(a, reuse=True)
+    c = files.take()
+    files.give_back(c, reuse=False)  # its worker may still write: removed
+    assert list(tmp_path.iterdir()) == []
+    d = files.take()
+    files.give_back(d, reuse=True)
+    files.close()
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.slow
@@ -124,10 +152,10 @@ def test_a_request_stopped_at_the_time_limit_leaves_no_file(tmp_path, monkeypatc
 
     try:
         slow = asyncio.run(scenario())
+        assert_problem(slow, 504, "time-limit")
+        assert list(Path(tmp_path).iterdir()) == []  # removed at once, not kept
     finally:
         app.state.engine_pool.close()
-    assert_problem(slow, 504, "time-limit")
-    assert list(Path(tmp_path).iterdir()) == []
 
 
 def _faults_of_a_second_array() -> int:
