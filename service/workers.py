@@ -266,7 +266,7 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     Python loop's points agree with the kernel's to rounding, not bit for bit); inside the task,
     so that a worker dying meanwhile fails this request like any other.
 
-    With ``spill`` (a file the service created for this request), an answer of at least
+    With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer."""
     trace_kernel.prepare()
