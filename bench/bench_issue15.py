@@ -188,8 +188,8 @@ def closed_form_vs_pylinkage(rows: Rows, quick: bool, repeat: int) -> None:
              peer_seconds=p_wall, peer_cpu=p_cpu)
 
 
-def _decode(packed: dict[str, Any]) -> np.ndarray:
-    flat = np.frombuffer(base64.b64decode(packed["base64"]), packed["dtype"])
+def _decode(packed: dict[str, Any], b64decode: Callable[[str], bytes]) -> np.ndarray:
+    flat = np.frombuffer(b64decode(packed["base64"]), packed["dtype"])
     return flat.reshape(packed["shape"])
 
 
@@ -197,11 +197,18 @@ def through_http(rows: Rows, quick: bool, repeat: int) -> None:
     """The configuration-space endpoint on the dense crank-rocker (the service in a uvicorn
     process of its own): points received and parsed by the client, per second, for the default
     form (``json.loads``; and orjson's loads) and the compact one (``json.loads`` and base64
-    into numpy arrays)."""
+    into numpy arrays: the standard library's ``base64.b64decode``, and pybase64's SIMD
+    decoder, a dependency of the service). Beside each, the CPU time of this process (the
+    client's share) and, for the default form, what ``json.loads`` alone costs on the answer's
+    bytes (no server, no transfer): the bound the default form cannot pass."""
     import httpx
     import orjson
+    import pybase64
 
     from service.mappers import linkage_out
+
+    def fast_b64decode(text: str) -> bytes:
+        return pybase64.b64decode(text, validate=True)
 
     step = 7.5e-4 if quick else 7.5e-5
     linkage = linkage_out(build_preset("four-bar", LENGTHS)).model_dump(mode="json",
@@ -216,34 +223,54 @@ def through_http(rows: Rows, quick: bool, repeat: int) -> None:
             r.raise_for_status()
             return r.content
 
-        def default(loads: Callable[[bytes], Any]) -> int:
-            comps = loads(receive(None))["components"]
+        def count(comps: list[dict[str, Any]]) -> int:
             return sum(len(next(iter(c["positions"].values()))) for c in comps)
 
-        def compact() -> int:
+        def default(loads: Callable[[bytes], Any]) -> int:
+            return count(loads(receive(None))["components"])
+
+        def compact(b64decode: Callable[[str], bytes]) -> int:
             comps = json.loads(receive("compact"))["components"]
-            return sum(len(_decode(c["positions"])) + 0 * _decode(c["angles"]).size
-                       for c in comps)
+            return sum(len(_decode(c["positions"], b64decode))
+                       + 0 * _decode(c["angles"], b64decode).size for c in comps)
 
         n = default(json.loads)  # warm-up: a worker, imports
-        assert compact() == n
-        size = {form: len(receive(form)) for form in (None, "compact")}
-        t_recv, _, _ = timed(lambda: receive(None), repeat)
-        t_json, _, _ = timed(lambda: default(json.loads), repeat)
+        assert compact(base64.b64decode) == compact(fast_b64decode) == n
+        body = {form: receive(form) for form in (None, "compact")}
+        size = {form: len(b) for form, b in body.items()}
+        t_recv, c_recv, _ = timed(lambda: receive(None), repeat)
+        t_json, c_json, _ = timed(lambda: default(json.loads), repeat)
         t_orjson, _, _ = timed(lambda: default(orjson.loads), repeat)
-        t_compact_recv, _, _ = timed(lambda: receive("compact"), repeat)
-        t_compact, _, _ = timed(compact, repeat)
+        t_loads, c_loads, _ = timed(lambda: count(json.loads(body[None])["components"]), repeat)
+        t_oloads, c_oloads, _ = timed(lambda: count(orjson.loads(body[None])["components"]),
+                                      repeat)
+        t_compact_recv, c_compact_recv, _ = timed(lambda: receive("compact"), repeat)
+        t_compact, c_compact, _ = timed(lambda: compact(base64.b64decode), repeat)
+        t_fast, c_fast, _ = timed(lambda: compact(fast_b64decode), repeat)
     detail = f"{n} points, {size[None] / 1e6:.1f} MB"
     rows.add("through HTTP, points/s received and parsed by the client, default JSON",
              "164 k/s", ">= 1 M/s", f"{rate(n, t_json)} with `json.loads`, {rate(n, t_orjson)} "
-             f"with `orjson.loads`, {rate(n, t_recv)} received only ({detail})",
+             f"with `orjson.loads`, {rate(n, t_recv)} received only ({detail}); parsing alone, "
+             f"no server: {rate(n, t_loads)} `json.loads` (CPU {rate(n, c_loads)}), "
+             f"{rate(n, t_oloads)} `orjson.loads` (CPU {rate(n, c_oloads)})",
              met=n / t_json >= 1e6, points=n, bytes=size[None], seconds_received=t_recv,
-             seconds_json=t_json, seconds_orjson=t_orjson)
+             cpu_received=c_recv, seconds_json=t_json, cpu_json=c_json,
+             seconds_orjson=t_orjson, seconds_json_loads_only=t_loads,
+             cpu_json_loads_only=c_loads, seconds_orjson_loads_only=t_oloads,
+             cpu_orjson_loads_only=c_oloads)
+    compact_detail = (f"{rate(n, t_compact_recv)} received only (client CPU "
+                      f"{1e3 * c_compact_recv:.0f} ms; {n} points, "
+                      f"{size['compact'] / 1e6:.1f} MB)")
     rows.add("through HTTP, points/s received and parsed, compact (`options.points: "
-             "\"compact\"`)", "(new)", ">= 1 M/s", f"{rate(n, t_compact)} decoded into numpy, "
-             f"{rate(n, t_compact_recv)} received only ({n} points, "
-             f"{size['compact'] / 1e6:.1f} MB)", met=n / t_compact >= 1e6, points=n,
-             bytes=size["compact"], seconds_received=t_compact_recv, seconds=t_compact)
+             "\"compact\"`), `base64.b64decode`", "(new)", ">= 1 M/s",
+             f"{rate(n, t_compact)} decoded into numpy (client CPU {1e3 * c_compact:.0f} ms), "
+             + compact_detail, met=n / t_compact >= 1e6, points=n, bytes=size["compact"],
+             seconds_received=t_compact_recv, cpu_received=c_compact_recv, seconds=t_compact,
+             cpu=c_compact)
+    rows.add("through HTTP, points/s received and parsed, compact, `pybase64.b64decode`",
+             "(new)", ">= 1 M/s", f"{rate(n, t_fast)} decoded into numpy (client CPU "
+             f"{1e3 * c_fast:.0f} ms), " + compact_detail, met=n / t_fast >= 1e6, points=n,
+             bytes=size["compact"], seconds=t_fast, cpu=c_fast)
 
 
 def gate_slice(rows: Rows, quick: bool) -> None:

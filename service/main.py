@@ -17,7 +17,7 @@ from service.metrics import Metrics
 from service.middleware import RequestContext
 from service.routers import analysis, design, figures, health, jobs, presets
 from service.tasks import JobManager
-from service.workers import EnginePool
+from service.workers import EnginePool, tune_malloc
 
 VIEWER = Path(__file__).parent / "viewer"
 
@@ -41,6 +41,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # on the first start after an install), so that the workers load it from the cache.
         await run_in_threadpool(trace_kernel.prepare)
         await run_in_threadpool(dyads_kernel.prepare)  # the closed form's loops, likewise
+        # the service process reads and sends the workers' answers: megabytes per request
+        tune_malloc()
         await run_in_threadpool(pool.start)
         try:
             yield

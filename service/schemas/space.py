@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, Field
 
@@ -117,6 +117,10 @@ class PackedArray(BaseModel):
                              "for angles")
     dtype: Literal["<f8"] = Field(description="little-endian IEEE 754 float64, C order")
     base64: str = Field(description="the array's bytes in base64 (RFC 4648, with padding)")
+
+    #: base64 needs no JSON escaping: service.serialise.dumps_parts copies it into the answer
+    #: as it is (megabytes per component) instead of passing it through orjson.
+    raw_json_fields: ClassVar[tuple[str, ...]] = ("base64",)
 
 
 class ComponentOut(BaseModel):

@@ -74,6 +74,27 @@ def test_every_answer_serialises_to_pydantics_json(app, name, params):
             "adjustable": ["r1", "L1", "L2"], "options": FAST}), settings))
 
 
+@pytest.mark.parametrize("points", [None, "compact"])
+def test_parts_join_to_the_same_bytes(points):
+    """dumps_parts: the compact arrays' base64 spliced in as chunks of their own, the rest
+    orjson's; together byte for byte what dumps gives (and so pydantic's JSON data)."""
+    settings = get_settings()
+    lk = _linkage("four-bar", L1=0.5, L2=1.2, L3=1.0)
+    answer = jobs.configuration_space(SpaceRequest.model_validate(
+        {"linkage": lk, "options": {**FAST, "step_max": 1e-3, "points": points}}), settings)
+    parts = serialise.dumps_parts(answer)
+    assert b"".join(parts) == serialise.dumps(answer)
+    packed = [a for comp in answer.components for a in (comp.positions, comp.angles)]
+    if points == "compact":
+        # text, base64, text, base64, ...: every packed array spliced, none through orjson
+        assert parts[1::2] == [a.base64.encode() for a in packed]
+        assert all(p.endswith(b'"base64":"') for p in parts[:-1:2])
+    else:
+        assert len(parts) == 1
+    plain = {"a": [1.5, "x\x00y"]}  # a NUL in a string is escaped, never taken for a splice
+    assert serialise.dumps_parts(plain) == [serialise.dumps(plain)]
+
+
 def test_non_finite_numbers_are_null_as_before():
     """NaN and +-Infinity were ``null`` in pydantic's JSON (ser_json_inf_nan="null"); they
     still are, in fields, in extra keys and in numpy arrays, and the output is valid JSON."""
@@ -96,6 +117,8 @@ def _decode(packed: dict[str, Any]) -> np.ndarray:
 
 @pytest.mark.parametrize(("name", "params", "options"), [
     ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}, {"step_max": 1e-3}),  # closed form
+    # dense: answers of megabytes, which come back from the worker through a file
+    ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}, {"step_max": 2.5e-4}),
     ("four-bar", {}, {}),  # critical lengths: tracer, open segments between branch points
     ("three-rotor", {}, {}),
     ("kl-chain", {"n": 6}, {}),
