@@ -50,6 +50,14 @@ XTOL = 1e-15
 #: The deadline is checked every this many iterations.
 DEADLINE_EVERY = 8
 
+#: A linkage whose median bar length is outside ``[1 / UNIT_RANGE, UNIT_RANGE]`` is refined in
+#: units of a power of two near that length (an exact rescaling). The cost weighs the length
+#: rows (in length units) against the dimensionless stress rows: at lengths of 1e12 the
+#: rounding of the length rows (about 1e-4) hides the stress rows, and a start stopped with
+#: ``sigma_min / sigma_max`` about 1e-8, on the edge of ``rank_rtol`` (the equilateral
+#: four-bar drawn at 1e12 lost a branch point to "regular").
+UNIT_RANGE = 2.0**10
+
 
 class BatchedAugmentedSystem:
     """``F(x)``, ``dF/dx`` and the second-order term ``sum_i f_i Hess f_i`` of the augmented
@@ -278,6 +286,28 @@ def levenberg_marquardt(
     return x, finished
 
 
+def unit_length(cons: Constraints) -> float:
+    """The unit of the batched refinement: 1 for median bar lengths within ``UNIT_RANGE`` of
+    1, else the power of two nearest to the median (module constant ``UNIT_RANGE``)."""
+    median = float(np.median(cons.linkage.lengths[cons.bars]))
+    if 1.0 / UNIT_RANGE <= median <= UNIT_RANGE:
+        return 1.0
+    return float(2.0 ** round(np.log2(median)))
+
+
+_IN_UNITS: weakref.WeakKeyDictionary[Constraints, Constraints] = weakref.WeakKeyDictionary()
+
+
+def _in_units(cons: Constraints, unit: float) -> Constraints:
+    """``cons`` with every position and length divided by ``unit`` (a power of two: exact)."""
+    scaled = _IN_UNITS.get(cons)
+    if scaled is None:
+        lk = cons.linkage
+        scaled = _IN_UNITS[cons] = Constraints(
+            lk.with_positions(lk.positions / unit).with_lengths(lk.lengths / unit))
+    return scaled
+
+
 def refine_critical_batch(
     cons: Constraints, us: np.ndarray, tol: Tolerances, sigmas: np.ndarray | None = None,
     deadline: Deadline = NEVER,
@@ -289,15 +319,17 @@ def refine_critical_batch(
     if not len(us):
         return []
     system = batched_system(cons)
+    unit = unit_length(cons)
+    work = system if unit == 1.0 else batched_system(_in_units(cons, unit))
     if sigmas is None:
         s0 = start_stresses(cons, us)
     else:
         s0 = np.asarray(sigmas, dtype=float)
         s0 = s0 / np.linalg.norm(s0, axis=1, keepdims=True)
-    x, finished = levenberg_marquardt(system, np.concatenate([us, s0], axis=1),
+    x, finished = levenberg_marquardt(work, np.concatenate([us / unit, s0], axis=1),
                                       deadline=deadline)
     m = cons.n_free
-    u, s = x[:, :m], x[:, m:]
+    u, s = x[:, :m] * unit, x[:, m:]
     s = s / np.linalg.norm(s, axis=1, keepdims=True)
     vec = system.vectors(u)
     jac = system.jacobians(u)

@@ -375,3 +375,27 @@ def test_projections_at_once_are_the_projections_one_by_one(name, params, monkey
             agree += np.linalg.norm(lk.coordinates(ref.positions) - u) <= 1e-9 * scale
     # (rounding: an SVD against lstsq's may tip one near-tie decision of the line search)
     assert agree >= ok.sum() - 1
+
+
+@pytest.mark.parametrize("scale", [2.0**-40, 1e-12, 1e-6, 1e6, 1e12, 2.0**40])
+def test_batched_refinement_is_scale_free(scale):
+    """The equilateral four-bar drawn at any scale has the same three branch points (scaled):
+    far from unit lengths the batched refinement works in units of a power of two near the
+    median length (at 1e12 the lengths' rounding had hidden the stress rows, and one branch
+    point stopped 1e-8 short of critical and was classified "regular")."""
+    from engine.tolerances import scaled_tolerances
+
+    unit_lk = build_preset("four-bar")
+    lk = unit_lk.with_positions(unit_lk.positions * scale).with_lengths(unit_lk.lengths * scale)
+    assert critical_batched.unit_length(Constraints(unit_lk)) == 1.0
+    unit = find_critical_points(unit_lk, TOL, SpaceOptions(random_starts=4))
+    got = find_critical_points(lk, scaled_tolerances(scale), SpaceOptions(random_starts=4))
+    assert got.search.complete
+    assert [cp.analysis.kind for cp in got.critical_points] == ["branch"] * 3
+    expected = sorted(tuple(np.round(cp.u, 6)) for cp in unit.critical_points)
+    found = sorted(tuple(np.round(cp.u / scale, 6)) for cp in got.critical_points)
+    np.testing.assert_allclose(found, expected, atol=1e-6)
+    cons = Constraints(lk)
+    for cp in got.critical_points:
+        sv = np.linalg.svd(cons.jacobian(cp.u, sparse=False), compute_uv=False)
+        assert sv[-1] <= 1e-2 * TOL.rank_rtol * sv[0]  # well inside the rank test
