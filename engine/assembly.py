@@ -130,6 +130,105 @@ def assemblies_at(
     return out, truncated
 
 
+#: Partial assemblies held at once by :func:`assemblies_at_angles` (all angles, one level of the
+#: plan); past it, the angles with the largest trees are left to :func:`assemblies_at`.
+MAX_BATCHED_ASSEMBLIES = 1 << 16
+
+
+def assemblies_at_angles(
+    linkage: Linkage, rotor: int, plan: list[Step], angles: np.ndarray, budget: int
+) -> list[tuple[list[np.ndarray], bool]]:
+    """:func:`assemblies_at` at every angle of ``angles`` at once: the same assemblies (the same
+    arithmetic, array-wise), in the same order, with the same truncation flags.
+
+    The plan is walked level by level over all angles' partial assemblies at once; children
+    are listed second intersection first, which is the order in which :func:`assemblies_at`'s
+    depth-first stack finds them, so every level lists its nodes in depth-first order. The
+    budget keeps an angle's first ``budget`` assemblies; its flag is that of the depth-first
+    search, which stops with its stack not empty exactly when some node of the tree (a later
+    assembly or a dead end) comes after the last one kept: a right sibling of one of its
+    ancestors. Angles whose trees would hold more than :data:`MAX_BATCHED_ASSEMBLIES` nodes in
+    all on one level are left to :func:`assemblies_at` itself.
+    """
+    angles = np.asarray(angles, dtype=float).reshape(-1)
+    n_angles = len(angles)
+    pin, tip = (int(x) for x in linkage.ends[rotor])
+    if not linkage.fixed[pin].all():
+        pin, tip = tip, pin
+    base = np.array(linkage.positions, dtype=float)
+    length = float(linkage.lengths[rotor])
+    pos = np.repeat(base[None], n_angles, axis=0)  # (N, V, 2)
+    pos[:, tip] = base[pin] + length * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    owner = np.arange(n_angles)  # the angle of each partial assembly
+    scalar = np.zeros(n_angles, dtype=bool)  # angles left to assemblies_at
+    # per level below the root: each node's owner and the index of its parent one level up
+    owners: list[np.ndarray] = []
+    parents: list[np.ndarray] = []
+    for step in plan:
+        if step.axis >= 0:
+            other = 1 - step.axis
+            off = pos[:, step.vertex, other] - pos[:, step.a, other]
+            disc = step.ra**2 - off**2
+            keep = disc >= 0
+            root = np.sqrt(np.where(keep, disc, 0.0))
+            first = pos[:, step.vertex].copy()
+            second = first.copy()
+            first[:, step.axis] = pos[:, step.a, step.axis] + 1.0 * root
+            second[:, step.axis] = pos[:, step.a, step.axis] + -1.0 * root
+        else:
+            c0, c1 = pos[:, step.a], pos[:, step.b]
+            delta = c1 - c0
+            dist = np.hypot(delta[:, 0], delta[:, 1])
+            nonzero = dist != 0.0
+            safe = np.where(nonzero, dist, 1.0)
+            along = (safe**2 + step.ra**2 - step.rb**2) / (2 * safe)
+            h2 = step.ra**2 - along**2
+            keep = nonzero & (h2 >= 0)
+            e = delta / safe[:, None]
+            normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
+            mid = c0 + along[:, None] * e
+            root = np.sqrt(np.where(keep, h2, 0.0))
+            first = mid + (1.0 * root)[:, None] * normal
+            second = mid + (-1.0 * root)[:, None] * normal
+        rows = np.flatnonzero(keep)
+        if 2 * len(rows) > MAX_BATCHED_ASSEMBLIES:
+            # the largest trees go to the depth-first search; the others stay batched
+            size = np.bincount(owner[rows], minlength=n_angles)
+            scalar |= size > (MAX_BATCHED_ASSEMBLIES // 2) // n_angles
+            rows = rows[~scalar[owner[rows]]]
+        # children in depth-first order: each parent's second intersection, then its first
+        children = np.repeat(pos[rows], 2, axis=0)
+        children[0::2, step.vertex] = second[rows]
+        children[1::2, step.vertex] = first[rows]
+        pos, owner = children, np.repeat(owner[rows], 2)
+        owners.append(owner)
+        parents.append(np.repeat(rows, 2))
+    count = np.bincount(owner, minlength=n_angles)
+    starts = np.concatenate([[0], np.cumsum(count)])
+    # the last node of every angle on every level (-1: none)
+    lasts = []
+    for own in owners:
+        last = np.full(n_angles, -1)
+        last[own] = np.arange(len(own))  # the last write per angle wins: its last node
+        lasts.append(last)
+    out: list[tuple[list[np.ndarray], bool]] = []
+    for k in range(n_angles):
+        if scalar[k]:
+            out.append(assemblies_at(linkage, rotor, plan, float(angles[k]), budget))
+            continue
+        stop = starts[k] + min(int(count[k]), budget)
+        truncated = False
+        if count[k] >= budget > 0:
+            node = int(stop) - 1  # the last assembly kept, then its ancestors
+            for level in range(len(plan) - 1, -1, -1):
+                if lasts[level][k] > node:
+                    truncated = True
+                    break
+                node = int(parents[level][node])
+        out.append((list(pos[starts[k]:stop]), truncated))
+    return out
+
+
 def iter_projected_random_starts(
     linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
 ) -> Iterator[np.ndarray]:
@@ -213,23 +312,30 @@ def iter_seeds(
             continue
         swept.append(linkage.bar_ids[rotor])
         report["angles_per_rotor"] = angles
-        for angle in grid:
-            found, cut = assemblies_at(linkage, rotor, plan, float(angle), budget)
-            if cut:
-                report["assemblies_truncated"] = True
-            if not found:
-                continue
-            # every assembly of this angle checked at once (the same residual as
-            # cons.max_residual of its coordinates, one vectorised expression)
-            stack = np.array(found, dtype=float)  # (F, V, d)
+        # every angle's assemblies enumerated at once (the same ones, in the same order, as
+        # assemblies_at angle by angle) and checked at once (the same residual as
+        # cons.max_residual of their coordinates, one vectorised expression); the report still
+        # follows the consumer angle by angle
+        swept_angles = assemblies_at_angles(linkage, rotor, plan, grid, budget)
+        everything = [a for found, _ in swept_angles for a in found]
+        if everything:
+            stack = np.array(everything, dtype=float)  # (F, V, d)
             vec = stack[:, ends[:, 0]] - stack[:, ends[:, 1]]
             res = np.max(np.abs(np.sqrt(np.einsum("kij,kij->ki", vec, vec)) - targets), axis=1,
                          initial=0.0)
+            good = res <= max(1e3 * tol.residual_atol, 1e-7)
             us = stack[:, free]
-            for k in np.flatnonzero(res <= max(1e3 * tol.residual_atol, 1e-7)):
-                counts["seeds"] += 1
-                report.update(counts)
-                yield us[k]
+        start = 0
+        for found, cut in swept_angles:
+            if cut:
+                report["assemblies_truncated"] = True
+            stop = start + len(found)
+            for k in range(start, stop):
+                if good[k]:
+                    counts["seeds"] += 1
+                    report.update(counts)
+                    yield us[k]
+            start = stop
     # The random projections come last, drawn from one generator in order: stopping early
     # never changes the seeds that were generated.
     for u in iter_projected_random_starts(linkage, tol, random_starts, rng):
