@@ -92,6 +92,10 @@ class Explorer:
         self.report: dict[str, object] = {}
         self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
             else None
+        #: per traced curve (by identity; the curve is held so its id stays its own): its
+        #: points and tangents as arrays and their k-d tree, built once for every seed chunk
+        #: :meth:`on_curve` tests against it
+        self._curve_arrays: dict[int, tuple[Curve, np.ndarray, np.ndarray, cKDTree]] = {}
 
     def out_of_time(self) -> bool:
         """True (and remembered) once the deadline has passed: the search stops there."""
@@ -182,10 +186,14 @@ class Explorer:
         its ``NEAREST`` nearest within the step bound (:func:`pass_minima`), and a point
         counts as on the curve only when a hyperplane correction lands on it."""
         assert self.batched is not None  # only called for small linkages
-        pts = np.array(curve.points)
-        tans = np.array(curve.tangents)
+        cached = self._curve_arrays.get(id(curve))
+        if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
+            pts = np.array(curve.points)
+            cached = (curve, pts, np.array(curve.tangents), cKDTree(pts))
+            self._curve_arrays[id(curve)] = cached
+        _, pts, tans, tree = cached
         k = min(NEAREST, len(pts))
-        dist, idx = cKDTree(pts).query(us, k=k)
+        dist, idx = tree.query(us, k=k)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
         candidate = (dist <= self.h_max) & pass_minima(pts, us, idx, dist)
         on = np.zeros(len(us), dtype=bool)

@@ -203,3 +203,40 @@ def test_batched_seed_loop_traces_what_the_one_at_a_time_loop_traces(name):
     for a, b in zip(fast.curves, ref.curves, strict=True):
         assert a.stop == b.stop and len(a.points) == len(b.points)
         assert np.allclose(a.points[0], b.points[0])
+
+
+class _NoCache(dict):
+    """A curve-array cache that never keeps anything: every test rebuilds its arrays."""
+
+    def __setitem__(self, key, value):
+        pass
+
+
+@pytest.mark.parametrize("name", ["four-bar", "three-rotor", "gated chain", "kl-chain 6"])
+def test_the_curve_array_cache_changes_no_membership_test(name):
+    """on_curve with each traced curve's arrays and k-d tree built once (the explorer's cache)
+    marks the same seeds, and the seed loop traces the same curves, as with them rebuilt for
+    every call."""
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4 if "kl" in name else 32)
+    runs = []
+    for cached in (True, False):
+        ex = _Explorer(lk, TOL, opt)
+        if not cached:
+            ex._curve_arrays = _NoCache()
+        ex.trace_all(lk.coordinates())
+        runs.append(ex)
+    fast, ref = runs
+    assert fast._curve_arrays and not ref._curve_arrays
+    assert fast.report == ref.report
+    assert len(fast.curves) == len(ref.curves) > 0
+    for a, b in zip(fast.curves, ref.curves, strict=True):
+        assert a.stop == b.stop
+        assert np.array_equal(np.array(a.points), np.array(b.points))
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)
+    for curve in fast.curves:
+        first = fast.on_curve(stack, curve)
+        again = fast.on_curve(stack, curve)  # from the cache
+        assert np.array_equal(first, ref.on_curve(stack, curve))
+        assert np.array_equal(again, first)
