@@ -26,7 +26,6 @@ import json
 import os
 import platform
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -45,6 +44,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from bench.bench_points import LENGTHS, pylinkage_points  # noqa: E402
 from bench.bench_space import kl_start, kl_trace  # noqa: E402
+from bench.harness import best_of_cpu as timed  # noqa: E402
 from bench.harness import served_process  # noqa: E402
 from engine import trace_kernel  # noqa: E402
 from engine.configuration_space import SpaceOptions, explore  # noqa: E402
@@ -56,18 +56,6 @@ from engine.trace import TraceOptions  # noqa: E402
 SPACE = "/v1/analysis/configuration-space"
 #: The rows, in the issue's order (``--only`` picks some).
 ROWS = ("tracer", "kl", "closed-form", "http", "gate", "slice", "margin", "critical")
-
-
-def timed(fn: Callable[[], Any], repeat: int = 1) -> tuple[float, float, Any]:
-    """Best wall-clock and best CPU time (this process) of ``repeat`` runs, and the last
-    output."""
-    wall, cpu, out = float("inf"), float("inf"), None
-    for _ in range(max(1, repeat)):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall = min(wall, time.perf_counter() - w0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu, out
 
 
 def machine() -> dict[str, Any]:
