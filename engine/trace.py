@@ -29,6 +29,13 @@ from engine.tolerances import CORRECT_TIGHT, Tolerances
 #: The tracer looks at its deadline every this many passes of its loop.
 DEADLINE_EVERY = 16
 
+#: With a ``stop`` check the compiled kernel hands back at most this many points at first, then
+#: twice as many each call up to ``STOP_CHUNK_MAX``: the check runs on the points handed back,
+#: so a curve it stops early is not traced on to the kernel's buffer (tens of thousands of
+#: points) first.
+STOP_CHUNK_MIN = 32
+STOP_CHUNK_MAX = 4096
+
 #: ``Curve.stop`` of a trace that its deadline ended.
 STOP_TIME = "time"
 
@@ -254,15 +261,19 @@ def trace_curve(
     compiled = trace_kernel.enabled()
     # a deadline that can never expire is never looked at (no hand-back every 16 passes)
     watch = deadline.at != float("inf") or deadline.stop is not None
+    chunk = STOP_CHUNK_MIN
     while len(curve.points) < options.max_points:
         if compiled:
             # the regular passes in compiled code; it hands back the pass it cannot finish
             # as this loop would (then run below) or a due deadline check
             checked = -1
             while True:
+                room = options.max_points - len(curve.points)
+                if stop is not None:
+                    room, chunk = min(room, chunk), min(2 * chunk, STOP_CHUNK_MAX)
                 adv = trace_kernel.advance(
                     cons, cons.n_free <= SPARSE_LU_MIN_FREE, u, t, t_in, sign, h, arc, budget,
-                    tried_at_u, options.max_points - len(curve.points), u0=u0, close=close,
+                    tried_at_u, room, u0=u0, close=close,
                     close_after=close_after, h_max=lim.h_max, h_min=lim.h_min,
                     collapse=STEP_COLLAPSE * lim.h_max, strain_tol=options.strain_tol,
                     residual_atol=tol.residual_atol, cos_turn=float(np.cos(options.max_turn)),

@@ -270,6 +270,36 @@ def test_curve_with_small_steps_and_stop_matches(monkeypatch: pytest.MonkeyPatch
     assert_same_curve(fast, slow, cons)
 
 
+def test_a_stop_check_is_handed_points_in_growing_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a stop check the kernel hands back 32, 64, ... points: a curve stopped early is not
+    traced on to the kernel's buffer first, and a check that never stops changes nothing."""
+    calls: list[int] = []
+    advance = trace_kernel.advance
+
+    def counted(*a: object, **k: object) -> trace_kernel.Advance:
+        out = advance(*a, **k)  # type: ignore[arg-type]
+        calls.append(len(out.points))
+        return out
+
+    monkeypatch.setattr(trace_kernel, "advance", counted)
+    opt = TraceOptions(step_max=2e-3)
+    params = {"L1": 0.5, "L2": 1.2, "L3": 1.0}
+    cons, free = _trace("four-bar", params, "numba", monkeypatch, opt)
+    assert len(calls) == 1  # one call without a check
+    calls.clear()
+    _, checked = _trace("four-bar", params, "numba", monkeypatch, opt,
+                        stop=lambda a, b, t: None)
+    assert calls[:3] == [tr.STOP_CHUNK_MIN, 2 * tr.STOP_CHUNK_MIN, 4 * tr.STOP_CHUNK_MIN]
+    assert max(calls) <= tr.STOP_CHUNK_MAX
+    assert checked.stop == free.stop == "closed"
+    assert_same_curve(checked, free, cons)
+    calls.clear()
+    _, early = _trace("four-bar", params, "numba", monkeypatch, opt,
+                      stop=lambda a, b, t: "early" if len(calls) else None)
+    # stopped at the first point handed back, after the kernel traced 32 points (not 3,441)
+    assert early.stop == "early" and len(early.points) == 2 and calls == [tr.STOP_CHUNK_MIN]
+
+
 @pytest.mark.parametrize("max_points", [1, 2, 57])
 def test_point_budget_matches(max_points: int, monkeypatch: pytest.MonkeyPatch) -> None:
     opt = TraceOptions(max_points=max_points)
