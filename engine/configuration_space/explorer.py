@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Iterable
+from collections.abc import Iterator
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import iter_seeds
+from engine.assembly import iter_random_seeds, iter_seeds
 from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.budget import NEVER, Deadline, granted
 from engine.configuration_space.results import (
@@ -212,24 +212,47 @@ class Explorer:
         # Seeds are generated on demand: once the component budget is reached the rest (on long
         # chains the costly random projections) is never computed; the report then counts the
         # seeds generated up to that point.
+        batch = self.batched is not None
         found = iter_seeds(
             self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
+            with_random=not batch,
         )
         truncated = False
         first = [start] if start is not None else []
-        # Small linkages: every seed is generated (they are cheap) and tested in chunks, each
-        # against every curve traced so far in one batch per curve (``tested`` counts the
-        # curves a seed has been tested against), so a seed reached in the loop below is tested
-        # against every traced curve. Large ones take seeds lazily and test them one by one.
-        batch = self.batched is not None
-        points: Iterable[np.ndarray] = list(itertools.chain(first, found)) if batch \
-            else itertools.chain(first, found)
-        stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
-        batch = batch and len(stack) > 0
+        # Small linkages: the rotor sweeps' seeds are generated up front (they are cheap) and
+        # tested in chunks, each against every curve traced so far in one batch per curve
+        # (``tested`` counts the curves a seed has been tested against), so a seed reached in
+        # the loop below is tested against every traced curve; the random projections (the
+        # costly seeds, last in order) are appended when the loop reaches them, as the lazy
+        # path generates them. Large ones take seeds lazily and test them one by one.
+        m = self.cons.n_free
+        stack = np.array(list(itertools.chain(first, found)) if batch else [],
+                         dtype=float).reshape(-1, m)
+        tail = iter_random_seeds(self.linkage, self.tol, self.report, self.opt.random_starts,
+                                 self.opt.seed) if batch else None
         covered = np.zeros(len(stack), dtype=bool)
         tested = np.zeros(len(stack), dtype=int)
-        for n, u in enumerate(points):
+
+        def points() -> Iterator[tuple[int, np.ndarray]]:
+            nonlocal stack, covered, tested, tail
+            if not batch:
+                yield from enumerate(itertools.chain(first, found))
+                return
+            n = 0
+            while True:
+                if n == len(stack) and tail is not None:
+                    more = np.array(list(tail), dtype=float).reshape(-1, m)
+                    tail = None
+                    stack = np.concatenate([stack, more])
+                    covered = np.concatenate([covered, np.zeros(len(more), dtype=bool)])
+                    tested = np.concatenate([tested, np.zeros(len(more), dtype=int)])
+                if n >= len(stack):
+                    return
+                yield n, stack[n]
+                n += 1
+
+        for n, u in points():
             if self.out_of_time():
                 break
             # progress: seeds tested (all known for small linkages) or components traced

@@ -240,3 +240,56 @@ def test_the_curve_array_cache_changes_no_membership_test(name):
         again = fast.on_curve(stack, curve)  # from the cache
         assert np.array_equal(first, ref.on_curve(stack, curve))
         assert np.array_equal(again, first)
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+@pytest.mark.parametrize("budget", [4, 32])
+def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
+        name, budget, monkeypatch):
+    """The small linkages' seed loop with the random projections appended only when the loop
+    reaches them, against the loop over every seed generated up front (as it was): the same
+    curves, point for point; the same report, but for the counts of the seeds generated when
+    the component budget stops the loop before the random ones (then never projected)."""
+    import engine.configuration_space.explorer as explorer_module
+    from engine import assembly
+
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=budget)
+    fast = _Explorer(lk, TOL, opt)
+    fast.trace_all(lk.coordinates())
+    assert fast.batched is not None
+
+    def everything(*args, with_random=True):
+        return assembly.iter_seeds(*args, with_random=True)
+
+    def nothing(*args):
+        return iter(())
+
+    monkeypatch.setattr(explorer_module, "iter_seeds", everything)
+    monkeypatch.setattr(explorer_module, "iter_random_seeds", nothing)
+    ref = _Explorer(lk, TOL, opt)
+    ref.trace_all(lk.coordinates())
+    assert ref.report["random_starts_projected"] > 0
+    assert len(fast.curves) == len(ref.curves) > 0
+    for a, b in zip(fast.curves, ref.curves, strict=True):
+        assert a.stop == b.stop
+        assert np.array_equal(np.array(a.points), np.array(b.points))
+    counts = {"seeds", "random_starts_projected"}
+    same = set(ref.report) - (counts if ref.report["component_budget_reached"] else set())
+    assert {k: fast.report[k] for k in same} == {k: ref.report[k] for k in same}
+    assert set(fast.report) == set(ref.report)
+    if ref.report["component_budget_reached"]:
+        skipped = ref.report["random_starts_projected"] - fast.report["random_starts_projected"]
+        assert fast.report["seeds"] == ref.report["seeds"] - skipped
+    # and the explorations: the same critical points and components
+    for search in (explore, find_critical_points):
+        monkeypatch.undo()
+        one = search(lk, TOL, replace(opt, closed_form=False))
+        monkeypatch.setattr(explorer_module, "iter_seeds", everything)
+        monkeypatch.setattr(explorer_module, "iter_random_seeds", nothing)
+        two = search(lk, TOL, replace(opt, closed_form=False))
+        assert len(one.critical_points) == len(two.critical_points)
+        for p, q in zip(one.critical_points, two.critical_points, strict=True):
+            assert np.array_equal(p.u, q.u) and p.kind == q.kind
+        if search is explore:
+            assert len(one.components) == len(two.components)
