@@ -275,6 +275,9 @@ class Explorer:
             if curve is None:
                 continue
             self.curves.append(curve)
+            if not batch:  # on_traced asks the tree; on_curve keeps its own per curve
+                self._rebuild_tree()
+        if batch and self.curves:
             self._rebuild_tree()
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated

@@ -293,3 +293,28 @@ def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
             assert np.array_equal(p.u, q.u) and p.kind == q.kind
         if search is explore:
             assert len(one.components) == len(two.components)
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_the_seed_loop_builds_the_tree_of_its_curves_once(name, monkeypatch):
+    """Small linkages' seed loop builds the k-d tree of the traced curves once, at its end
+    (on_curve keeps a tree per curve): the tree the search asks afterwards (critical_search's
+    near misses) is the one the one-at-a-time loop, which asks it, rebuilds after every curve."""
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
+    builds = {}
+    rebuild = _Explorer._rebuild_tree
+
+    def counted(self):
+        builds[id(self)] = builds.get(id(self), 0) + 1
+        rebuild(self)
+
+    monkeypatch.setattr(_Explorer, "_rebuild_tree", counted)
+    fast, ref = _Explorer(lk, TOL, opt), _Explorer(lk, TOL, opt)
+    ref.batched = None
+    for ex in (fast, ref):
+        ex.trace_all(lk.coordinates())
+    assert builds[id(fast)] == 1 and builds[id(ref)] == len(ref.curves) == len(fast.curves) > 0
+    assert np.array_equal(fast.tree_owner, ref.tree_owner)
+    assert np.array_equal(fast.tree_first, ref.tree_first)
+    assert np.array_equal(fast.tree.data, ref.tree.data)
