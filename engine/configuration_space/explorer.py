@@ -48,6 +48,11 @@ SEED_CHUNK = 128
 #: these, only the closest point of each pass of a curve near the point is tested.
 NEAREST = 16
 
+#: The k-d tree query of :meth:`Explorer.on_curve` looks this far (relative to the step bound,
+#: beyond which no point is a candidate), a little further so that rounding in the tree's
+#: distance test drops no neighbour at the bound.
+QUERY_BOUND_REL = 1.25
+
 
 def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray, dist: np.ndarray,
                 first: np.ndarray | int = 0, last: np.ndarray | int | None = None) -> np.ndarray:
@@ -193,11 +198,20 @@ class Explorer:
             self._curve_arrays[id(curve)] = cached
         _, pts, tans, tree = cached
         k = min(NEAREST, len(pts))
-        dist, idx = tree.query(us, k=k)
+        # Only neighbours within the step bound can be candidates: the query looks no further
+        # (most seeds are far from a given curve, and the pruned search is an order of
+        # magnitude faster); those it finds are the same nearest ones, in the same order, and
+        # the rest (none, distance inf) are no candidates either way.
+        dist, idx = tree.query(us, k=k, distance_upper_bound=QUERY_BOUND_REL * self.h_max)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
-        candidate = (dist <= self.h_max) & pass_minima(pts, us, idx, dist)
+        near = dist <= self.h_max
+        idx = np.where(near, idx, 0)  # (missing neighbours are numbered len(pts))
+        candidate = np.zeros_like(near)
+        close = np.flatnonzero(near.any(axis=1))  # (pass minima row by row: only these)
+        candidate[close] = near[close] & pass_minima(pts, us[close], idx[close], dist[close])
         on = np.zeros(len(us), dtype=bool)
-        for r in range(k):  # nearest pass first; the next only where that one failed
+        # nearest pass first; the next only where that one failed
+        for r in np.flatnonzero(candidate.any(axis=0)):
             which = np.flatnonzero(~on & candidate[:, r])
             if not len(which):
                 continue

@@ -318,3 +318,69 @@ def test_the_seed_loop_builds_the_tree_of_its_curves_once(name, monkeypatch):
     assert np.array_equal(fast.tree_owner, ref.tree_owner)
     assert np.array_equal(fast.tree_first, ref.tree_first)
     assert np.array_equal(fast.tree.data, ref.tree.data)
+
+
+def _on_curve_full_query(ex, us, curve):
+    """Explorer.on_curve as it was: the 16 nearest curve points however far, pass minima of
+    every row, every rank of neighbour."""
+    from scipy.spatial import cKDTree
+
+    from engine.configuration_space.explorer import NEAREST, pass_minima
+    from engine.tolerances import SAME_POINT_REL
+
+    pts, tans = np.array(curve.points), np.array(curve.tangents)
+    k = min(NEAREST, len(pts))
+    dist, idx = cKDTree(pts).query(us, k=k)
+    dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+    candidate = (dist <= ex.h_max) & pass_minima(pts, us, idx, dist)
+    on = np.zeros(len(us), dtype=bool)
+    for r in range(k):
+        which = np.flatnonzero(~on & candidate[:, r])
+        if not len(which):
+            continue
+        p, t = pts[idx[which, r]], tans[idx[which, r]]
+        u = us[which]
+        v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+        w, ok = ex.batched.correct(v, t, ex.tol)
+        on[which[ok & (np.linalg.norm(w - u, axis=1) <= SAME_POINT_REL * ex.scale)]] = True
+    return on
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_the_bounded_curve_query_marks_what_the_full_query_marks(name, monkeypatch):
+    """on_curve's k-d tree query stops at (a little beyond) the step bound, and only rows and
+    ranks of neighbours with a candidate are looked at: the same points are on each curve as
+    with the 16 nearest points looked up however far and every row and rank tested (the code
+    it replaces), for the seeds, for points at about the step bound from the curves and for
+    points of the curves between their traced points."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    assert ex.curves
+    rng = np.random.default_rng(7)
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)
+    pts = np.vstack([np.array(c.points) for c in ex.curves])
+    pick = pts[rng.integers(0, len(pts), 200)]
+    away = rng.normal(size=pick.shape)
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    near = pick + ex.h_max * rng.uniform(0.9, 1.1, (len(pick), 1)) * away
+    on_it = pick + 1e-3 * ex.h_max * away  # (projected or not: some land, some do not)
+    # points of the curves between their traced points (up to a step from the nearest)
+    between = []
+    for c in ex.curves:
+        a, b, t = np.array(c.points[:-1]), np.array(c.points[1:]), np.array(c.tangents[:-1])
+        w, ok = ex.batched.correct(a + rng.uniform(0.2, 0.8, (len(a), 1)) * (b - a), t, TOL)
+        between.append(w[ok])
+    us = np.vstack([stack, near, on_it, pts[::7], *between])
+    fast = [ex.on_curve(us, c) for c in ex.curves]
+    ref = [_on_curve_full_query(ex, us, c) for c in ex.curves]
+    for a, b in zip(fast, ref, strict=True):
+        assert np.array_equal(a, b)
+    monkeypatch.setattr(explorer_module, "QUERY_BOUND_REL", np.inf)
+    for c, b in zip(ex.curves, ref, strict=True):
+        assert np.array_equal(ex.on_curve(us, c), b)
+    assert any(a.any() for a in ref) and not all(a.all() for a in ref)
