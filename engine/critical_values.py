@@ -501,10 +501,6 @@ class _CurveTracing:
         p = x[-2:][None, :]
         return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves)
 
-    def seed_at(self, p0: np.ndarray) -> None:
-        """Trace every new curve through the critical configurations near lengths ``p0``."""
-        self.take([self.starts_at(p0)])
-
     def starts_at(self, p0: np.ndarray) -> np.ndarray:
         """The starts (K, M + E + 2) of the seed lengths ``p0``: every critical point (refined,
         with its stress) and near miss that the exploration at ``p0`` reaches, at ``p0``."""

@@ -260,7 +260,7 @@ def _same_slice(fast, slow) -> None:
 def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
         name, params, axes, method, monkeypatch):
     """The slice's seeds moved onto ``G = 0`` one column of seed lengths at once (one batch)
-    against one seed's starts at a time (as ``_CurveTracing.seed_at`` took them)."""
+    against one seed's starts at a time (as the seed loop took them before)."""
     from engine.critical_values import _CurveTracing
 
     lk = build_preset(name, params)
