@@ -277,6 +277,8 @@ def iter_seeds(
     random_starts: int = 16,
     seed: int = 0,
     max_rotors: int = 4,
+    *,
+    with_random: bool = True,
 ) -> Iterator[np.ndarray]:
     """The seeds of :func:`seeds`, in the same order, generated on demand.
 
@@ -284,12 +286,13 @@ def iter_seeds(
     the seeds it never looks at: on long chains the random projections are by far the most
     expensive part (dense least squares from far-off starts, most of which fail). ``report``
     is filled as generation proceeds; its counts describe the seeds generated so far.
+    ``with_random=False``: the rotor sweeps' seeds only; :func:`iter_random_seeds` (same
+    ``report``, ``random_starts`` and ``seed``) then gives the rest, when it is wanted.
     """
     cons = Constraints(linkage)
     ends = linkage.ends[cons.bars]
     targets = linkage.lengths[cons.bars]
     free = ~np.asarray(linkage.fixed, dtype=bool)
-    rng = np.random.default_rng(seed)
     swept: list[str] = []
     offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
     grid = 2 * np.pi * (np.arange(angles) + offset) / angles
@@ -336,8 +339,24 @@ def iter_seeds(
                     report.update(counts)
                     yield us[k]
             start = stop
+    if with_random:
+        yield from iter_random_seeds(linkage, tol, report, random_starts, seed)
+
+
+def iter_random_seeds(
+    linkage: Linkage,
+    tol: Tolerances,
+    report: dict[str, object],
+    random_starts: int = 16,
+    seed: int = 0,
+) -> Iterator[np.ndarray]:
+    """The seeds that end :func:`iter_seeds`, after its rotor sweeps: the random projections,
+    counted on in ``report`` (as filled by ``iter_seeds(..., with_random=False)``)."""
     # The random projections come last, drawn from one generator in order: stopping early
     # never changes the seeds that were generated.
+    rng = np.random.default_rng(seed)
+    counts = {k: v if isinstance(v := report.get(k), int) else 0
+              for k in ("seeds", "random_starts_projected")}
     for u in iter_projected_random_starts(linkage, tol, random_starts, rng):
         counts["seeds"] += 1
         counts["random_starts_projected"] += 1

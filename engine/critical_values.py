@@ -397,12 +397,20 @@ def critical_value_slice(
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
         grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
                 for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
-        for k, p0 in enumerate(grid):
-            if dl.expired():
-                tracing.timed_out = True
+        # One column of seed lengths at a time: the explorations first, then all their starts
+        # onto G = 0 in one batch (a pure function of each start), then taken in seed order
+        # (the same curves as seed by seed; a deadline still leaves the earlier columns' curves).
+        for col in range(0, len(grid), seeds_per_axis):
+            starts = []
+            for k in range(col, min(col + seeds_per_axis, len(grid))):
+                if dl.expired():
+                    tracing.timed_out = True
+                    break
+                dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
+                starts.append(tracing.starts_at(grid[k]))
+            tracing.take(starts)
+            if tracing.timed_out and dl.expired():
                 break
-            dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
-            tracing.seed_at(p0)
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
     curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
@@ -493,8 +501,9 @@ class _CurveTracing:
         p = x[-2:][None, :]
         return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves)
 
-    def seed_at(self, p0: np.ndarray) -> None:
-        """Trace every new curve through the critical configurations near lengths ``p0``."""
+    def starts_at(self, p0: np.ndarray) -> np.ndarray:
+        """The starts (K, M + E + 2) of the seed lengths ``p0``: every critical point (refined,
+        with its stress) and near miss that the exploration at ``p0`` reaches, at ``p0``."""
         lengths = self.linkage.lengths.copy()
         lengths[self.ax[0].bar], lengths[self.ax[1].bar] = p0
         at = self.linkage.with_lengths(lengths)
@@ -502,7 +511,7 @@ class _CurveTracing:
         res = find_critical_points(at, self.tol, self.seed_opt, start_on_space=False,
                                    deadline=self.deadline)
         cons = Constraints(at)
-        starts: list[tuple[np.ndarray, np.ndarray]] = []
+        starts: list[np.ndarray] = []
         found: list[tuple[np.ndarray, np.ndarray | None]] = (
             [(cp.u, None) for cp in res.critical_points]
             + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
@@ -511,12 +520,16 @@ class _CurveTracing:
             if s0 is None:  # (a near miss's configuration is refined already, with its stress)
                 ref = refine_critical(cons, u0, self.tol)
                 u0, s0 = ref.u, ref.sigma
-            starts.append((u0, s0))
-        if not starts:
+            starts.append(np.concatenate([u0, s0, p0]))
+        return np.array(starts, dtype=float).reshape(-1, self.sys.n)
+
+    def take(self, starts: list[np.ndarray]) -> None:
+        """Every new curve through the starts of some seed lengths (:meth:`starts_at`, one
+        array per seed, in seed order): all of them moved onto ``G = 0`` at once, then each
+        followed unless a curve traced before it (from this or an earlier seed) has it."""
+        if not starts or not sum(len(s) for s in starts):
             return
-        # every start onto G = 0 at once (a pure function of the start), then in order
-        xs = _onto_solutions_batch(self.sys, np.array([np.concatenate([u0, s0, p0])
-                                                       for u0, s0 in starts]))
+        xs = _onto_solutions_batch(self.sys, np.concatenate(starts))
         for x in xs:
             self.seeds_tried += 1
             if np.max(np.abs(self.sys.g(x))) > 1e-9 or self.known(x):

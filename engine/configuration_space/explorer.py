@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Iterable
+from collections.abc import Iterator
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import iter_seeds
+from engine.assembly import iter_random_seeds, iter_seeds
 from engine.batched import BATCH_MAX_FREE, BatchedConstraints
 from engine.budget import NEVER, Deadline, granted
 from engine.configuration_space.results import (
@@ -47,6 +47,11 @@ SEED_CHUNK = 128
 #: Nearest curve points looked at when testing whether a point lies on traced curves; of
 #: these, only the closest point of each pass of a curve near the point is tested.
 NEAREST = 16
+
+#: The k-d tree query of :meth:`Explorer.on_curve` looks this far (relative to the step bound,
+#: beyond which no point is a candidate), a little further so that rounding in the tree's
+#: distance test drops no neighbour at the bound.
+QUERY_BOUND_REL = 1.25
 
 
 def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray, dist: np.ndarray,
@@ -193,11 +198,20 @@ class Explorer:
             self._curve_arrays[id(curve)] = cached
         _, pts, tans, tree = cached
         k = min(NEAREST, len(pts))
-        dist, idx = tree.query(us, k=k)
+        # Only neighbours within the step bound can be candidates: the query looks no further
+        # (most seeds are far from a given curve, and the pruned search is an order of
+        # magnitude faster); those it finds are the same nearest ones, in the same order, and
+        # the rest (none, distance inf) are no candidates either way.
+        dist, idx = tree.query(us, k=k, distance_upper_bound=QUERY_BOUND_REL * self.h_max)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
-        candidate = (dist <= self.h_max) & pass_minima(pts, us, idx, dist)
+        near = dist <= self.h_max
+        idx = np.where(near, idx, 0)  # (missing neighbours are numbered len(pts))
+        candidate = np.zeros_like(near)
+        close = np.flatnonzero(near.any(axis=1))  # (pass minima row by row: only these)
+        candidate[close] = near[close] & pass_minima(pts, us[close], idx[close], dist[close])
         on = np.zeros(len(us), dtype=bool)
-        for r in range(k):  # nearest pass first; the next only where that one failed
+        # nearest pass first; the next only where that one failed
+        for r in np.flatnonzero(candidate.any(axis=0)):
             which = np.flatnonzero(~on & candidate[:, r])
             if not len(which):
                 continue
@@ -212,24 +226,47 @@ class Explorer:
         # Seeds are generated on demand: once the component budget is reached the rest (on long
         # chains the costly random projections) is never computed; the report then counts the
         # seeds generated up to that point.
+        batch = self.batched is not None
         found = iter_seeds(
             self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
+            with_random=not batch,
         )
         truncated = False
         first = [start] if start is not None else []
-        # Small linkages: every seed is generated (they are cheap) and tested in chunks, each
-        # against every curve traced so far in one batch per curve (``tested`` counts the
-        # curves a seed has been tested against), so a seed reached in the loop below is tested
-        # against every traced curve. Large ones take seeds lazily and test them one by one.
-        batch = self.batched is not None
-        points: Iterable[np.ndarray] = list(itertools.chain(first, found)) if batch \
-            else itertools.chain(first, found)
-        stack = np.array(points) if batch else np.zeros((0, self.cons.n_free))
-        batch = batch and len(stack) > 0
+        # Small linkages: the rotor sweeps' seeds are generated up front (they are cheap) and
+        # tested in chunks, each against every curve traced so far in one batch per curve
+        # (``tested`` counts the curves a seed has been tested against), so a seed reached in
+        # the loop below is tested against every traced curve; the random projections (the
+        # costly seeds, last in order) are appended when the loop reaches them, as the lazy
+        # path generates them. Large ones take seeds lazily and test them one by one.
+        m = self.cons.n_free
+        stack = np.array(list(itertools.chain(first, found)) if batch else [],
+                         dtype=float).reshape(-1, m)
+        tail = iter_random_seeds(self.linkage, self.tol, self.report, self.opt.random_starts,
+                                 self.opt.seed) if batch else None
         covered = np.zeros(len(stack), dtype=bool)
         tested = np.zeros(len(stack), dtype=int)
-        for n, u in enumerate(points):
+
+        def points() -> Iterator[tuple[int, np.ndarray]]:
+            nonlocal stack, covered, tested, tail
+            if not batch:
+                yield from enumerate(itertools.chain(first, found))
+                return
+            n = 0
+            while True:
+                if n == len(stack) and tail is not None:
+                    more = np.array(list(tail), dtype=float).reshape(-1, m)
+                    tail = None
+                    stack = np.concatenate([stack, more])
+                    covered = np.concatenate([covered, np.zeros(len(more), dtype=bool)])
+                    tested = np.concatenate([tested, np.zeros(len(more), dtype=int)])
+                if n >= len(stack):
+                    return
+                yield n, stack[n]
+                n += 1
+
+        for n, u in points():
             if self.out_of_time():
                 break
             # progress: seeds tested (all known for small linkages) or components traced
@@ -252,6 +289,9 @@ class Explorer:
             if curve is None:
                 continue
             self.curves.append(curve)
+            if not batch:  # on_traced asks the tree; on_curve keeps its own per curve
+                self._rebuild_tree()
+        if batch and self.curves:
             self._rebuild_tree()
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated

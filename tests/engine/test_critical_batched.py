@@ -287,7 +287,7 @@ def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
 ])
 def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
     """The seeds of a slice (near misses and critical points at sample lengths, as
-    ``_CurveTracing.seed_at`` takes them) moved onto ``G = 0`` all at once and one at a time:
+    ``_CurveTracing.starts_at`` makes them) moved onto ``G = 0`` all at once and one at a time:
     the same points (the same Gauss-Newton iteration, and the same fallback)."""
     from engine.critical_values import (
         _BatchedSystem,

@@ -233,3 +233,49 @@ def test_unknown_refine_method():
     lk = build_preset("four-bar")
     with pytest.raises(ValueError, match="unknown method"):
         refine_critical(Constraints(lk), lk.coordinates(), Tolerances(), method="qr")
+
+
+SEEDED = [
+    ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], "auto"),
+    ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], "auto"),
+    ("four-bar", {"L1": 0.5, "L2": 1.3, "L3": 0.9}, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)],
+     "traced"),
+]
+
+
+def _same_slice(fast, slow) -> None:
+    """The same curves (within a small fraction of the step), regions and seed counts."""
+    assert fast.search["complete"] == slow.search["complete"]
+    assert len(fast.curves) == len(slow.curves) > 0
+    assert _hausdorff(fast.curves, slow.curves) <= 1e-3 * float(fast.search["step"])
+    for key in ("seed_lengths", "seed_configurations", "curves", "regions_explored"):
+        assert fast.search[key] == slow.search[key]
+    assert [(r.point, r.components, r.signature, r.cells) for r in fast.regions] == \
+        [(r.point, r.components, r.signature, r.cells) for r in slow.regions]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "params", "axes", "method"), SEEDED,
+                         ids=[c[0] for c in SEEDED])
+def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
+        name, params, axes, method, monkeypatch):
+    """The slice's seeds moved onto ``G = 0`` one column of seed lengths at once (one batch)
+    against one seed's starts at a time (as the seed loop took them before)."""
+    from engine.critical_values import _CurveTracing
+
+    lk = build_preset(name, params)
+    opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
+    fast = critical_value_slice(lk, axes, resolution=16, options=opt, method=method)
+    batches: list[int] = []
+    take = _CurveTracing.take
+
+    def one_by_one(self, starts):
+        for s in starts:
+            batches.append(len(s))
+            take(self, [s])
+
+    monkeypatch.setattr(_CurveTracing, "take", one_by_one)
+    slow = critical_value_slice(lk, axes, resolution=16, options=opt, method=method)
+    assert len(batches) == slow.search["seed_lengths"] == 25
+    assert sum(batches) == slow.search["seed_configurations"]
+    _same_slice(fast, slow)

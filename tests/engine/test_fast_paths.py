@@ -240,3 +240,147 @@ def test_the_curve_array_cache_changes_no_membership_test(name):
         again = fast.on_curve(stack, curve)  # from the cache
         assert np.array_equal(first, ref.on_curve(stack, curve))
         assert np.array_equal(again, first)
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+@pytest.mark.parametrize("budget", [4, 32])
+def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
+        name, budget, monkeypatch):
+    """The small linkages' seed loop with the random projections appended only when the loop
+    reaches them, against the loop over every seed generated up front (as it was): the same
+    curves, point for point; the same report, but for the counts of the seeds generated when
+    the component budget stops the loop before the random ones (then never projected)."""
+    import engine.configuration_space.explorer as explorer_module
+    from engine import assembly
+
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=budget)
+    fast = _Explorer(lk, TOL, opt)
+    fast.trace_all(lk.coordinates())
+    assert fast.batched is not None
+
+    def everything(*args, with_random=True):
+        return assembly.iter_seeds(*args, with_random=True)
+
+    def nothing(*args):
+        return iter(())
+
+    monkeypatch.setattr(explorer_module, "iter_seeds", everything)
+    monkeypatch.setattr(explorer_module, "iter_random_seeds", nothing)
+    ref = _Explorer(lk, TOL, opt)
+    ref.trace_all(lk.coordinates())
+    assert ref.report["random_starts_projected"] > 0
+    assert len(fast.curves) == len(ref.curves) > 0
+    for a, b in zip(fast.curves, ref.curves, strict=True):
+        assert a.stop == b.stop
+        assert np.array_equal(np.array(a.points), np.array(b.points))
+    counts = {"seeds", "random_starts_projected"}
+    same = set(ref.report) - (counts if ref.report["component_budget_reached"] else set())
+    assert {k: fast.report[k] for k in same} == {k: ref.report[k] for k in same}
+    assert set(fast.report) == set(ref.report)
+    if ref.report["component_budget_reached"]:
+        skipped = ref.report["random_starts_projected"] - fast.report["random_starts_projected"]
+        assert fast.report["seeds"] == ref.report["seeds"] - skipped
+    # and the explorations: the same critical points and components
+    for search in (explore, find_critical_points):
+        monkeypatch.undo()
+        one = search(lk, TOL, replace(opt, closed_form=False))
+        monkeypatch.setattr(explorer_module, "iter_seeds", everything)
+        monkeypatch.setattr(explorer_module, "iter_random_seeds", nothing)
+        two = search(lk, TOL, replace(opt, closed_form=False))
+        assert len(one.critical_points) == len(two.critical_points)
+        for p, q in zip(one.critical_points, two.critical_points, strict=True):
+            assert np.array_equal(p.u, q.u) and p.kind == q.kind
+        if search is explore:
+            assert len(one.components) == len(two.components)
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_the_seed_loop_builds_the_tree_of_its_curves_once(name, monkeypatch):
+    """Small linkages' seed loop builds the k-d tree of the traced curves once, at its end
+    (on_curve keeps a tree per curve): the tree the search asks afterwards (critical_search's
+    near misses) is the one the one-at-a-time loop, which asks it, rebuilds after every curve."""
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
+    builds = {}
+    rebuild = _Explorer._rebuild_tree
+
+    def counted(self):
+        builds[id(self)] = builds.get(id(self), 0) + 1
+        rebuild(self)
+
+    monkeypatch.setattr(_Explorer, "_rebuild_tree", counted)
+    fast, ref = _Explorer(lk, TOL, opt), _Explorer(lk, TOL, opt)
+    ref.batched = None
+    for ex in (fast, ref):
+        ex.trace_all(lk.coordinates())
+    assert builds[id(fast)] == 1 and builds[id(ref)] == len(ref.curves) == len(fast.curves) > 0
+    assert np.array_equal(fast.tree_owner, ref.tree_owner)
+    assert np.array_equal(fast.tree_first, ref.tree_first)
+    assert np.array_equal(fast.tree.data, ref.tree.data)
+
+
+def _on_curve_full_query(ex, us, curve):
+    """Explorer.on_curve as it was: the 16 nearest curve points however far, pass minima of
+    every row, every rank of neighbour."""
+    from scipy.spatial import cKDTree
+
+    from engine.configuration_space.explorer import NEAREST, pass_minima
+    from engine.tolerances import SAME_POINT_REL
+
+    pts, tans = np.array(curve.points), np.array(curve.tangents)
+    k = min(NEAREST, len(pts))
+    dist, idx = cKDTree(pts).query(us, k=k)
+    dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
+    candidate = (dist <= ex.h_max) & pass_minima(pts, us, idx, dist)
+    on = np.zeros(len(us), dtype=bool)
+    for r in range(k):
+        which = np.flatnonzero(~on & candidate[:, r])
+        if not len(which):
+            continue
+        p, t = pts[idx[which, r]], tans[idx[which, r]]
+        u = us[which]
+        v = p + np.einsum("ij,ij->i", u - p, t)[:, None] * t
+        w, ok = ex.batched.correct(v, t, ex.tol)
+        on[which[ok & (np.linalg.norm(w - u, axis=1) <= SAME_POINT_REL * ex.scale)]] = True
+    return on
+
+
+@pytest.mark.parametrize("name", list(LINKAGES))
+def test_the_bounded_curve_query_marks_what_the_full_query_marks(name, monkeypatch):
+    """on_curve's k-d tree query stops at (a little beyond) the step bound, and only rows and
+    ranks of neighbours with a candidate are looked at: the same points are on each curve as
+    with the 16 nearest points looked up however far and every row and rank tested (the code
+    it replaces), for the seeds, for points at about the step bound from the curves and for
+    points of the curves between their traced points."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*LINKAGES[name])
+    opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    assert ex.curves
+    rng = np.random.default_rng(7)
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)
+    pts = np.vstack([np.array(c.points) for c in ex.curves])
+    pick = pts[rng.integers(0, len(pts), 200)]
+    away = rng.normal(size=pick.shape)
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    near = pick + ex.h_max * rng.uniform(0.9, 1.1, (len(pick), 1)) * away
+    on_it = pick + 1e-3 * ex.h_max * away  # (projected or not: some land, some do not)
+    # points of the curves between their traced points (up to a step from the nearest)
+    between = []
+    for c in ex.curves:
+        a, b, t = np.array(c.points[:-1]), np.array(c.points[1:]), np.array(c.tangents[:-1])
+        w, ok = ex.batched.correct(a + rng.uniform(0.2, 0.8, (len(a), 1)) * (b - a), t, TOL)
+        between.append(w[ok])
+    us = np.vstack([stack, near, on_it, pts[::7], *between])
+    fast = [ex.on_curve(us, c) for c in ex.curves]
+    ref = [_on_curve_full_query(ex, us, c) for c in ex.curves]
+    for a, b in zip(fast, ref, strict=True):
+        assert np.array_equal(a, b)
+    monkeypatch.setattr(explorer_module, "QUERY_BOUND_REL", np.inf)
+    for c, b in zip(ex.curves, ref, strict=True):
+        assert np.array_equal(ex.on_curve(us, c), b)
+    assert any(a.any() for a in ref) and not all(a.all() for a in ref)
