@@ -418,3 +418,19 @@ def test_a_kernel_that_fails_to_compile_leaves_the_python_loop_and_says_why(monk
     monkeypatch.setattr(trace_kernel, "failure", None)
     trace_kernel._compile()
     assert trace_kernel.failure == "RuntimeError: cannot cache function: no locator available"
+
+
+def test_explorations_call_the_kernel_with_its_one_signature(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every array reaches the kernel contiguous, as in the signature that :func:`load`
+    compiles: a strided ``u0`` (the start taken from a view of a seed stack) was a second
+    signature, compiled or loaded from numba's cache during the first exploration."""
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
+    assert trace_kernel.load()
+    from engine._trace_numba import run
+
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4, max_components=8)
+    for name, params in [("four-bar", {}), ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),
+                         ("three-rotor", {}), ("kl-chain", {"n": 10})]:
+        explore(build_preset(name, params), options=opt)
+    assert len(run.signatures) == 1
