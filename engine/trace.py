@@ -177,12 +177,29 @@ class Curve:
     logdets: list[float] = field(default_factory=list)
     stop: str = ""
     stop_index: int | None = None
+    #: :meth:`array`'s arrays: per field, the list and its length they were built from
+    _arrays: dict[str, tuple[list[object], int, np.ndarray]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
 
     def append(self, u: np.ndarray, t: np.ndarray, sign: int, logdet: float) -> None:
         self.points.append(u)
         self.tangents.append(t)
         self.signs.append(sign)
         self.logdets.append(logdet)
+
+    def array(self, name: str) -> np.ndarray:
+        """``np.array`` of the field ``name`` (``points``, ``tangents``, ``signs`` or
+        ``logdets``), read-only, built once: again only when the field is another list or
+        has grown (a traced curve's thousands of rows are converted once, not by every
+        step of the search that reads them)."""
+        values = getattr(self, name)
+        cached = self._arrays.get(name)
+        if cached is not None and cached[0] is values and cached[1] == len(values):
+            return cached[2]
+        out = np.array(values)
+        out.flags.writeable = False
+        self._arrays[name] = (values, len(values), out)
+        return out
 
 
 StopCheck = Callable[[np.ndarray, np.ndarray, np.ndarray], str | None]

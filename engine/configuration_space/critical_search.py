@@ -32,11 +32,11 @@ def candidates(ex: Explorer) -> list[np.ndarray]:
     curve, each curve's closest approach, and (small linkages) random projected starts."""
     starts: list[np.ndarray] = []
     for curve in ex.curves:
-        pts = np.array(curve.points)
-        signs = np.array(curve.signs)
+        pts = curve.array("points")
+        signs = curve.array("signs")
         flips = np.flatnonzero(signs[1:] * signs[:-1] < 0)
         starts += [0.5 * (pts[i] + pts[i + 1]) for i in flips]
-        logd = np.array(curve.logdets)
+        logd = curve.array("logdets")
         if len(logd) >= 3:
             deep = np.median(logd) - np.log(30.0)
             mins = np.flatnonzero(

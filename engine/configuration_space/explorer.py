@@ -86,9 +86,13 @@ class Explorer:
                 loc=("options", "step_max"),
             )
         self.curves: list[Curve] = []
-        self.tree: cKDTree | None = None
-        self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
-        self.tree_first: np.ndarray = np.zeros(0, dtype=int)
+        self._tree: cKDTree | None = None
+        self._tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self._tree_first: np.ndarray = np.zeros(0, dtype=int)
+        #: the k-d tree of every curve's points is built when first read after the curves
+        #: changed (small linkages test seeds against each curve's own tree: the search may
+        #: never read it, or only once all curves are traced)
+        self._tree_stale = False
         self.report: dict[str, object] = {}
         self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
             else None
@@ -123,11 +127,43 @@ class Explorer:
                             time_budget_s=granted(self.deadline))
 
     def _rebuild_tree(self) -> None:
-        pts = [np.array(c.points) for c in self.curves]
-        self.tree = cKDTree(np.vstack(pts))
-        self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+        """The curves changed: the tree is rebuilt when next read."""
+        self._tree_stale = True
+
+    def _fresh_tree(self) -> None:
+        if not self._tree_stale:
+            return
+        self._tree_stale = False
+        if not self.curves:
+            self._tree = None
+            return
+        pts = [c.array("points") for c in self.curves]
+        self._tree = cKDTree(np.vstack(pts))
+        self._tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
         # index of each curve's first point in the tree: a point's offset in its curve
-        self.tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+        self._tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+    @property
+    def tree(self) -> cKDTree | None:
+        """The k-d tree of the points of every traced curve (None before the first)."""
+        self._fresh_tree()
+        return self._tree
+
+    @tree.setter
+    def tree(self, value: cKDTree | None) -> None:
+        self._tree, self._tree_stale = value, False
+
+    @property
+    def tree_owner(self) -> np.ndarray:
+        """The curve owning each point of :attr:`tree`."""
+        self._fresh_tree()
+        return self._tree_owner
+
+    @property
+    def tree_first(self) -> np.ndarray:
+        """Index in :attr:`tree` of each curve's first point."""
+        self._fresh_tree()
+        return self._tree_first
 
     def _tree_point(self, i: int) -> tuple[Curve, int]:
         """The curve owning tree point ``i`` and the point's index along it."""
@@ -138,9 +174,10 @@ class Explorer:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
         correction from the closest point of some pass of a curve near ``u`` (among its
         ``NEAREST`` nearest curve points) towards ``u`` lands on ``u``."""
-        if self.tree is None:
+        tree = self.tree
+        if tree is None:
             return False
-        dist, idx = self.tree.query(u, k=min(NEAREST, self.tree.n))
+        dist, idx = tree.query(u, k=min(NEAREST, tree.n))
         dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
         near = dist <= self.h_max
         dist, idx = dist[near], idx[near]
@@ -149,7 +186,7 @@ class Explorer:
         owner = self.tree_owner[idx]
         first = self.tree_first[owner]
         last = first + np.array([len(self.curves[o].points) for o in owner]) - 1
-        tested = pass_minima(self.tree.data, u[None], idx[None], dist[None], first, last)[0]
+        tested = pass_minima(tree.data, u[None], idx[None], dist[None], first, last)[0]
         for i in idx[tested]:
             curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
@@ -188,8 +225,8 @@ class Explorer:
         assert self.batched is not None  # only called for small linkages
         cached = self._curve_arrays.get(id(curve))
         if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
-            pts = np.array(curve.points)
-            cached = (curve, pts, np.array(curve.tangents), cKDTree(pts))
+            pts = curve.array("points")
+            cached = (curve, pts, curve.array("tangents"), cKDTree(pts))
             self._curve_arrays[id(curve)] = cached
         _, pts, tans, tree = cached
         k = min(NEAREST, len(pts))

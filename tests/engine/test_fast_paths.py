@@ -240,3 +240,81 @@ def test_the_curve_array_cache_changes_no_membership_test(name):
         again = fast.on_curve(stack, curve)  # from the cache
         assert np.array_equal(first, ref.on_curve(stack, curve))
         assert np.array_equal(again, first)
+
+
+def test_a_curves_arrays_are_its_lists_converted():
+    """``Curve.array``: ``np.array`` of the field, read-only, built once, rebuilt when the
+    field grows or is replaced by another list."""
+    lk = build_preset("four-bar", {"L2": 1.2})
+    ex = _Explorer(lk, TOL, FAST)
+    curve = ex.trace_from(lk.coordinates())
+    assert curve is not None and len(curve.points) > 10
+    for name in ("points", "tangents", "signs", "logdets"):
+        arr = curve.array(name)
+        assert np.array_equal(arr, np.array(getattr(curve, name)))
+        assert not arr.flags.writeable
+        assert curve.array(name) is arr  # built once
+    before = curve.array("points")
+    curve.append(curve.points[0] + 1.0, curve.tangents[0], 1, 0.0)
+    grown = curve.array("points")
+    assert len(grown) == len(before) + 1
+    assert np.array_equal(grown, np.array(curve.points))
+    curve.points = curve.points[:5]
+    assert np.array_equal(curve.array("points"), np.array(curve.points[:5]))
+
+
+def _eager_tree(ex) -> None:
+    """The explorer's tree as it was built before it became lazy: at once, from the lists."""
+    from scipy.spatial import cKDTree
+
+    pts = [np.array(c.points) for c in ex.curves]
+    ex.tree = cKDTree(np.vstack(pts))
+    ex._tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+    ex._tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+
+def _random_four_bars(count: int, seed: int) -> list[tuple[str, dict[str, float]]]:
+    rng = np.random.default_rng(seed)
+    out: list[tuple[str, dict[str, float]]] = []
+    while len(out) < count:
+        l1, l2, l3 = (float(x) for x in rng.uniform(0.3, 2.2, 3))
+        links = sorted([1.0, l1, l2, l3])
+        if links[3] < links[0] + links[1] + links[2]:
+            out.append(("four-bar", {"L1": l1, "L2": l2, "L3": l3}))
+    return out
+
+
+@pytest.mark.parametrize("case", [LINKAGES[k] for k in ("four-bar", "equilateral four-bar",
+                                                        "three-rotor", "kl-chain 6")]
+                         + _random_four_bars(3, seed=151))
+def test_the_lazy_tree_and_curve_arrays_change_no_exploration(case, monkeypatch):
+    """The explorer's k-d tree built when first read (and the curves' arrays built once)
+    gives the same tree, and the same exploration (components, critical points, segments,
+    near misses, report), as the tree built from the lists after every traced curve."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    lazy = (ex.tree.data.copy(), ex.tree_owner.copy(), ex.tree_first.copy())
+    _eager_tree(ex)
+    assert np.array_equal(lazy[0], ex.tree.data)
+    assert np.array_equal(lazy[1], ex.tree_owner)
+    assert np.array_equal(lazy[2], ex.tree_first)
+    fast = explore(lk, TOL, opt)
+    monkeypatch.setattr(explorer_module.Explorer, "_rebuild_tree", _eager_tree)
+    ref = explore(lk, TOL, opt)
+    assert fast.search == ref.search
+    assert len(fast.components) == len(ref.components)
+    for a, b in zip(fast.components, ref.components, strict=True):
+        assert np.array_equal(a.points, b.points)
+        assert (a.closed, a.through_start, a.critical_points, a.segments) == \
+            (b.closed, b.through_start, b.critical_points, b.segments)
+    assert [(c.kind, c.u.tolist()) for c in fast.critical_points] == \
+        [(c.kind, c.u.tolist()) for c in ref.critical_points]
+    assert [(s.start, s.start_ray, s.end, s.end_ray, s.points.tolist()) for s in fast.segments] \
+        == [(s.start, s.start_ray, s.end, s.end_ray, s.points.tolist()) for s in ref.segments]
+    assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
+        [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
