@@ -48,6 +48,10 @@ SEED_CHUNK = 128
 #: these, only the closest point of each pass of a curve near the point is tested.
 NEAREST = 16
 
+#: :meth:`Explorer.on_curve` asks its k-d tree for neighbours within this many ``h_max``
+#: (those within ``h_max`` are the ones tested).
+NEAR_BOUND = 2.0
+
 
 def pass_minima(points: np.ndarray, us: np.ndarray, idx: np.ndarray, dist: np.ndarray,
                 first: np.ndarray | int = 0, last: np.ndarray | int | None = None) -> np.ndarray:
@@ -217,22 +221,57 @@ class Explorer:
             )
         return curve
 
+    def _curve_cache(self, curve: Curve) -> tuple[Curve, np.ndarray, np.ndarray, cKDTree]:
+        """``curve``, its points and tangents as arrays and the k-d tree of its points (built
+        once per curve, again only if it grew)."""
+        cached = self._curve_arrays.get(id(curve))
+        if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
+            pts = curve.array("points")
+            cached = (curve, pts, curve.array("tangents"), cKDTree(pts))
+            self._curve_arrays[id(curve)] = cached
+        return cached
+
+    def nearest_points(self, us: np.ndarray) -> list[tuple[Curve, int]] | None:
+        """The traced curve point nearest to each row of ``us`` (K, M): its curve and its
+        index along it (None before any curve), all rows in one query per tree. Small
+        linkages ask each curve's own k-d tree (:meth:`on_curve` has built them), so the tree
+        of all curves is never built; large ones :attr:`tree`."""
+        us = np.asarray(us, dtype=float).reshape(-1, self.cons.n_free)
+        if self.batched is None:
+            tree = self.tree
+            if tree is None:
+                return None
+            _, idx = tree.query(us)
+            return [self._tree_point(int(i)) for i in np.atleast_1d(idx)]
+        if not self.curves:
+            return None
+        best = np.full(len(us), np.inf)
+        owner = np.zeros(len(us), dtype=int)
+        where = np.zeros(len(us), dtype=int)
+        for k, curve in enumerate(self.curves):
+            d, i = self._curve_cache(curve)[3].query(us)
+            closer = np.atleast_1d(d) < best  # (the first curve on a tie)
+            best[closer] = np.atleast_1d(d)[closer]
+            owner[closer], where[closer] = k, np.atleast_1d(i)[closer]
+        return [(self.curves[int(k)], int(i)) for k, i in zip(owner, where, strict=True)]
+
     def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
         """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
         linkages): each point is tested from the closest point of each pass of ``curve`` among
         its ``NEAREST`` nearest within the step bound (:func:`pass_minima`), and a point
         counts as on the curve only when a hyperplane correction lands on it."""
         assert self.batched is not None  # only called for small linkages
-        cached = self._curve_arrays.get(id(curve))
-        if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
-            pts = curve.array("points")
-            cached = (curve, pts, curve.array("tangents"), cKDTree(pts))
-            self._curve_arrays[id(curve)] = cached
-        _, pts, tans, tree = cached
+        _, pts, tans, tree = self._curve_cache(curve)
         k = min(NEAREST, len(pts))
-        dist, idx = tree.query(us, k=k)
+        # only curve points within the step bound are tested: the search looks no further
+        # (missing neighbours come back at an infinite distance, index len(pts)), which
+        # spares it most of the tree for seeds far from the curve; the bound has room above
+        # h_max for the tree's rounding of distances
+        dist, idx = tree.query(us, k=k, distance_upper_bound=NEAR_BOUND * self.h_max)
         dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
-        candidate = (dist <= self.h_max) & pass_minima(pts, us, idx, dist)
+        near = dist <= self.h_max
+        idx = np.where(near, idx, 0)  # (indices of missing neighbours are never used)
+        candidate = near & pass_minima(pts, us, idx, dist)
         on = np.zeros(len(us), dtype=bool)
         for r in range(k):  # nearest pass first; the next only where that one failed
             which = np.flatnonzero(~on & candidate[:, r])

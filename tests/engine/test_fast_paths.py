@@ -318,3 +318,67 @@ def test_the_lazy_tree_and_curve_arrays_change_no_exploration(case, monkeypatch)
         == [(s.start, s.start_ray, s.end, s.end_ray, s.points.tolist()) for s in ref.segments]
     assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
         [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
+
+
+def _tree_nearest(ex, us):
+    """The nearest traced points from the k-d tree of all curves, one query per point (before
+    ``nearest_points``)."""
+    out = []
+    for u in np.asarray(us).reshape(-1, ex.cons.n_free):
+        _, i = ex.tree.query(u)
+        out.append(ex._tree_point(int(i)))
+    return out
+
+
+@pytest.mark.parametrize("case", [LINKAGES[k] for k in ("four-bar", "equilateral four-bar",
+                                                        "three-rotor", "gated chain",
+                                                        "kl-chain 6")]
+                         + _random_four_bars(3, seed=152))
+def test_bounded_neighbour_search_and_per_curve_nearest_change_nothing(case, monkeypatch):
+    """``on_curve`` asking its k-d tree only for neighbours within ``NEAR_BOUND h_max`` marks
+    the same points as with every one of the ``NEAREST`` nearest (an unbounded query), for
+    seeds and for points scattered near and far from the curves; ``nearest_points`` from each
+    curve's own tree, all points at once, are the tree of all curves' nearest points one by
+    one; whole explorations are the same with the unbounded queries and the tree of all
+    curves queried point by point."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    assert ex.curves
+    rng = np.random.default_rng(9)
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)
+    pts = np.vstack([c.array("points") for c in ex.curves])
+    picks = pts[rng.integers(0, len(pts), 64)]
+    probes = [stack] + [picks + s * ex.h_max * rng.normal(size=picks.shape)
+                        for s in (0.0, 0.01, 0.5, 1.0, 3.0)]
+    for us in probes:
+        for curve in ex.curves:
+            bounded = ex.on_curve(us, curve)
+            with monkeypatch.context() as m:
+                m.setattr(explorer_module, "NEAR_BOUND", np.inf)
+                assert np.array_equal(bounded, ex.on_curve(us, curve))
+        for rows in (us[:1], us[:32]):
+            got, ref = ex.nearest_points(rows), _tree_nearest(ex, rows)
+            assert len(got) == len(ref) == len(rows)
+            assert all(a[0] is b[0] and a[1] == b[1] for a, b in zip(got, ref, strict=True))
+    fast = explore(lk, TOL, opt)
+    monkeypatch.setattr(explorer_module, "NEAR_BOUND", np.inf)
+    monkeypatch.setattr(explorer_module.Explorer, "nearest_points", _tree_nearest)
+    ref = explore(lk, TOL, opt)
+    assert fast.search == ref.search
+    assert len(fast.components) == len(ref.components)
+    for a, b in zip(fast.components, ref.components, strict=True):
+        assert np.array_equal(a.points, b.points)
+        assert (a.closed, a.critical_points, a.segments) == (b.closed, b.critical_points,
+                                                              b.segments)
+    assert [(c.kind, c.u.tolist()) for c in fast.critical_points] == \
+        [(c.kind, c.u.tolist()) for c in ref.critical_points]
+    assert [(s.start, s.end, s.points.tolist()) for s in fast.segments] == \
+        [(s.start, s.end, s.points.tolist()) for s in ref.segments]
+    assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
+        [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
