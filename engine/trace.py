@@ -180,12 +180,38 @@ class Curve:
     #: :meth:`array`'s arrays: per field, the list and its length they were built from
     _arrays: dict[str, tuple[list[object], int, np.ndarray]] = field(
         default_factory=dict, init=False, repr=False, compare=False)
+    #: per field, the list and the blocks (arrays) that :meth:`append` and :meth:`extend`
+    #: added to it: :meth:`array` concatenates them while they are the whole list
+    _blocks: dict[str, tuple[list[object], list[np.ndarray]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
+
+    def _add_block(self, name: str, block: np.ndarray) -> None:
+        values = getattr(self, name)
+        kept = self._blocks.get(name)
+        if kept is None or kept[0] is not values:
+            kept = self._blocks[name] = (values, [])
+        kept[1].append(block)
 
     def append(self, u: np.ndarray, t: np.ndarray, sign: int, logdet: float) -> None:
         self.points.append(u)
         self.tangents.append(t)
         self.signs.append(sign)
         self.logdets.append(logdet)
+        for name, value in (("points", u), ("tangents", t), ("signs", sign),
+                            ("logdets", logdet)):
+            self._add_block(name, np.array([value]))
+
+    def extend(self, points: np.ndarray, tangents: np.ndarray, signs: np.ndarray,
+               logdets: np.ndarray) -> None:
+        """Append the rows of ``points`` (n, M), ``tangents`` (n, M), ``signs`` (n,) and
+        ``logdets`` (n,) (the fields stay lists of rows, ints and floats)."""
+        self.points.extend(points)
+        self.tangents.extend(tangents)
+        self.signs.extend(signs.tolist())
+        self.logdets.extend(logdets.tolist())
+        for name, block in (("points", points), ("tangents", tangents), ("signs", signs),
+                            ("logdets", logdets)):
+            self._add_block(name, block)
 
     def array(self, name: str) -> np.ndarray:
         """``np.array`` of the field ``name`` (``points``, ``tangents``, ``signs`` or
@@ -196,7 +222,13 @@ class Curve:
         cached = self._arrays.get(name)
         if cached is not None and cached[0] is values and cached[1] == len(values):
             return cached[2]
-        out = np.array(values)
+        kept = self._blocks.get(name)
+        if kept is not None and kept[0] is values and kept[1] and \
+                sum(len(b) for b in kept[1]) == len(values):
+            # the list is exactly the blocks added to it: joined, not rebuilt row by row
+            out = np.concatenate(kept[1])
+        else:
+            out = np.array(values)
         out.flags.writeable = False
         self._arrays[name] = (values, len(values), out)
         return out
@@ -298,10 +330,7 @@ def trace_curve(
                     deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
                     cross_ahead=cons.n_free <= 600)
                 if stop is None:
-                    curve.points.extend(adv.points)
-                    curve.tangents.extend(adv.tangents)
-                    curve.signs.extend(adv.signs.tolist())
-                    curve.logdets.extend(adv.logdets.tolist())
+                    curve.extend(adv.points, adv.tangents, adv.signs, adv.logdets)
                 else:  # the stop check on every committed point, as below
                     prev = u
                     for k in range(len(adv.points)):
@@ -412,10 +441,7 @@ def _attempt(
 def _append_crossing(curve: Curve, c: np.ndarray, t: np.ndarray, sign: int) -> None:
     """Record the critical point ``c`` crossed with tangent ``t``: the determinant vanishes
     there (``log|det| = -inf``), and ``sign`` is the one beyond it."""
-    curve.points.append(c)
-    curve.tangents.append(t)
-    curve.signs.append(sign)
-    curve.logdets.append(-np.inf)
+    curve.append(c, t, sign, -np.inf)
 
 
 def _cross_ahead(

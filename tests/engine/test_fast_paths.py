@@ -382,3 +382,45 @@ def test_bounded_neighbour_search_and_per_curve_nearest_change_nothing(case, mon
         [(s.start, s.end, s.points.tolist()) for s in ref.segments]
     assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
         [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
+
+
+@pytest.mark.parametrize("path", ["numba", "numpy"])
+@pytest.mark.parametrize("case", [("four-bar", {"L2": 1.2}), ("four-bar", {}),
+                                  ("three-rotor", {}), ("kl-chain", {"n": 6})]
+                         + _random_four_bars(2, seed=153))
+def test_curve_arrays_joined_from_blocks_are_the_lists_converted(case, path, monkeypatch):
+    """``Curve.array`` joins the blocks the tracer added (the compiled kernel's chunks, the
+    Python loop's single points, crossed critical points) instead of converting the lists
+    row by row: bit for bit the same arrays, same dtypes, on the traced curves of
+    explorations (closed and open, with and without crossings) and the segments' curves;
+    and after a list is changed behind its back, the conversion of the list."""
+    import engine.trace as trace_module
+    from engine import trace_kernel
+
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+    if path == "numba":
+        assert trace_kernel.load()
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    curves: list = []
+    original = trace_module.trace_curve
+
+    def keep(*args, **kwargs):
+        curve = original(*args, **kwargs)
+        curves.append(curve)
+        return curve
+
+    monkeypatch.setattr("engine.configuration_space.explorer.trace_curve", keep)
+    monkeypatch.setattr("engine.configuration_space.segments.trace_curve", keep)
+    explore(lk, TOL, opt)
+    assert curves
+    for curve in curves:
+        for name in ("points", "tangents", "signs", "logdets"):
+            ref = np.array(getattr(curve, name))
+            got = curve.array(name)
+            assert got.dtype == ref.dtype and got.shape == ref.shape
+            np.testing.assert_array_equal(got, ref)
+    curve = curves[0]
+    curve.points.append(curve.points[0] + 1.0)  # behind the blocks' back
+    np.testing.assert_array_equal(curve.array("points"), np.array(curve.points))
