@@ -180,26 +180,30 @@ class Curve:
     #: :meth:`array`'s arrays: per field, the list and its length they were built from
     _arrays: dict[str, tuple[list[object], int, np.ndarray]] = field(
         default_factory=dict, init=False, repr=False, compare=False)
-    #: per field, the list and the blocks (arrays) that :meth:`append` and :meth:`extend`
-    #: added to it: :meth:`array` concatenates them while they are the whole list
-    _blocks: dict[str, tuple[list[object], list[np.ndarray]]] = field(
+    #: per field, the list and the blocks that :meth:`append` and :meth:`extend` added to
+    #: it: the arrays :meth:`extend` was given, and counts of single items :meth:`append`
+    #: added one after another; :meth:`array` joins them while they are the whole list
+    _blocks: dict[str, tuple[list[object], list[np.ndarray | int]]] = field(
         default_factory=dict, init=False, repr=False, compare=False)
 
-    def _add_block(self, name: str, block: np.ndarray) -> None:
+    def _add_block(self, name: str, block: np.ndarray | int) -> None:
         values = getattr(self, name)
         kept = self._blocks.get(name)
         if kept is None or kept[0] is not values:
             kept = self._blocks[name] = (values, [])
-        kept[1].append(block)
+        blocks = kept[1]
+        if isinstance(block, int) and blocks and isinstance(blocks[-1], int):
+            blocks[-1] += block
+        else:
+            blocks.append(block)
 
     def append(self, u: np.ndarray, t: np.ndarray, sign: int, logdet: float) -> None:
         self.points.append(u)
         self.tangents.append(t)
         self.signs.append(sign)
         self.logdets.append(logdet)
-        for name, value in (("points", u), ("tangents", t), ("signs", sign),
-                            ("logdets", logdet)):
-            self._add_block(name, np.array([value]))
+        for name in ("points", "tangents", "signs", "logdets"):
+            self._add_block(name, 1)
 
     def extend(self, points: np.ndarray, tangents: np.ndarray, signs: np.ndarray,
                logdets: np.ndarray) -> None:
@@ -224,9 +228,15 @@ class Curve:
             return cached[2]
         kept = self._blocks.get(name)
         if kept is not None and kept[0] is values and kept[1] and \
-                sum(len(b) for b in kept[1]) == len(values):
-            # the list is exactly the blocks added to it: joined, not rebuilt row by row
-            out = np.concatenate(kept[1])
+                sum(b if isinstance(b, int) else len(b) for b in kept[1]) == len(values):
+            # the list is exactly the blocks added to it: joined (runs of single items
+            # converted as a slice of the list), not rebuilt row by row
+            parts, at = [], 0
+            for b in kept[1]:
+                n = b if isinstance(b, int) else len(b)
+                parts.append(np.array(values[at:at + n]) if isinstance(b, int) else b)
+                at += n
+            out = np.concatenate(parts)
         else:
             out = np.array(values)
         out.flags.writeable = False
