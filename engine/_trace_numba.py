@@ -62,7 +62,12 @@ def _squared_lengths_ext(ext, gi, gj, out):
 @njit(cache=True)
 def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
     """Constraints.jacobian_values."""
-    ext = _extended(u, fixed)
+    _jac_values_ext(_extended(u, fixed), gi, gj, rows, sign, axes, out)
+
+
+@njit(cache=True)
+def _jac_values_ext(ext, gi, gj, rows, sign, axes, out):
+    """:func:`_jac_values` of ``ext = [u, fixed]``."""
     for e in range(rows.shape[0]):
         a = rows[e]
         x = axes[e]
@@ -267,6 +272,19 @@ def _band_solve22(ab, n, piv, b):
 @njit(cache=True)
 def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
             entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp):
+    """:func:`_factor_into` with work arrays of its own."""
+    m = u.shape[0]
+    ext = np.empty(m + fixed.shape[0])
+    ext[m:] = fixed
+    return _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
+                        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+                        lay_pos, lay_rp, ext, np.zeros(0, dtype=np.int64), np.zeros(0))
+
+
+@njit(cache=True)
+def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
+                 entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp,
+                 ext, empty_i, empty_f):
     """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
     logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
     otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
@@ -274,12 +292,15 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
 
     The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
     [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
-    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with)."""
+    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with).
+
+    Work arrays from the caller: ``ext`` (M + F,) with the fixed coordinates after ``M``
+    (``[u, fixed]`` is written into it), ``empty_i`` and ``empty_f`` empty (returned where a
+    path has no such array)."""
     m = u.shape[0]
-    empty_i = np.zeros(0, dtype=np.int64)
-    empty_f = np.zeros(0)
+    ext[:m] = u
     if dense:
-        _jac_values(u, fixed, gi, gj, rows, sign, axes, vals)
+        _jac_values_ext(ext, gi, gj, rows, sign, axes, vals)
         kl = m - 1
         ku = m - 1
         off = kl + ku
@@ -340,7 +361,6 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
-    ext = _extended(u, fixed)
     for e in range(nnz):  # Constraints.jacobian_values, straight into the band
         a = rows[e]
         x = axes[e]
@@ -397,16 +417,19 @@ def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
 
 @njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
-             lengths, targets, sq, sq_ready):
+             lengths, targets, sq, sq_ready, ext, rhs):
     """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``):
     (w, ok, iterations that reached ``atol``).
-    ``sq_ready``: ``sq`` already holds the squared lengths at ``v``."""
+    ``sq_ready``: ``sq`` already holds the squared lengths at ``v``. Work arrays from the
+    caller: ``ext`` (M + F,) with the fixed coordinates after ``M`` (``w`` is its first
+    ``M`` entries: a view, valid until the next call with the same ``ext``) and ``rhs``
+    (M,)."""
     ea = lengths.shape[0]
     m = v.shape[0]
-    ext = _extended(v, fixed)  # w is ext[:m]: the gathers read it without a copy per iteration
+    ext[:m] = v  # w is ext[:m]: the gathers read it without a copy per iteration
     w = ext[:m]
+    rhs[:] = 0.0
     prev = np.inf
-    rhs = np.zeros(m)
     tight = CORRECT_TIGHT * atol
     within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
@@ -423,18 +446,18 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
         if within < 0 and res <= atol:
             within = it - 1
         if res <= tight:
-            return w.copy(), True, it - 1 if within < 0 else within
+            return w, True, it - 1 if within < 0 else within
         norm = math.sqrt(norm)
         if norm > 0.7 * prev or norm != norm:
-            return w.copy(), res <= atol, it if within < 0 else within
+            return w, res <= atol, it if within < 0 else within
         prev = norm
         if dense:
             rhs[0] = 0.0
             for a in range(ea):
                 rhs[a + 1] = -(sq[a] - targets[a])
-            dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
+            _band_solve(ab, m, kl, ku, piv, rhs)  # _solve's dense path, in place
             for c in range(m):
-                w[c] += dw[c]
+                w[c] += rhs[c]
         else:  # _solve fused: the right-hand side straight into the band order, one buffer
             rhs[row_pos[0]] = 0.0
             for a in range(ea):
@@ -452,7 +475,7 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
         r = abs(math.sqrt(sq[a]) - lengths[a])
         if r > res or r != r:
             res = r if r == r else np.inf
-    return w.copy(), res <= atol, 12 if within < 0 else within
+    return w, res <= atol, 12 if within < 0 else within
 
 
 @njit(cache=True)
@@ -501,10 +524,25 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     s3 = 0
     l3 = 0.0
     step = 0.0
-    st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor(
+    # work arrays of every pass, allocated once: [v, fixed], [w, fixed] (the corrector's
+    # iterate), [u, fixed] of a factorisation, the corrector's right-hand side, the tangent's
+    # solve, and the empty arrays of the dense factorisation
+    nf = fixed.shape[0]
+    ext_v = np.empty(m + nf)
+    ext_w = np.empty(m + nf)
+    ext_f = np.empty(m + nf)
+    ext_v[m:] = fixed
+    ext_w[m:] = fixed
+    ext_f[m:] = fixed
+    v = ext_v[:m]
+    rhs = np.empty(m)
+    ybuf = np.empty(m)
+    empty_i = np.zeros(0, dtype=np.int64)
+    empty_f = np.zeros(0)
+    st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor_into(
         u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
         entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+        lay_rp, ext_f, empty_i, empty_f)
     lay_rp = rp
     ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
     if st != _OK:
@@ -518,8 +556,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             event = _EV_DEADLINE
             break
         # --- one attempt (engine.trace._attempt) ---
-        v = u + h * t
-        _squared_lengths(v, fixed, gi, gj, sq)
+        for c in range(m):
+            v[c] = u[c] + h * t[c]
+        _squared_lengths_ext(ext_v, gi, gj, sq)
         strain = 0.0
         for a in range(ea):
             s = abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a]
@@ -532,12 +571,12 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         iters = 0
         if not shrink:
             w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
-                                    fixed, gi, gj, lengths, targets, sq, True)
+                                    fixed, gi, gj, lengths, targets, sq, True, ext_w, rhs)
             if not ok:
-                st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor(
+                st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor_into(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
                     col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+                    lay_rp, ext_f, empty_i, empty_f)
                 lay_rp = rp2
                 if st2 == _DECLINE:
                     decline = True
@@ -546,7 +585,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                 else:
                     w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
                                             gam2, dense, atol, fixed, gi, gj, lengths,
-                                            targets, sq, False)
+                                            targets, sq, False, ext_w, rhs)
             if not decline:
                 dist = 0.0
                 for c in range(m):
@@ -557,10 +596,10 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             event = _EV_PASS
             break
         if not shrink:
-            st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor(
+            st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor_into(
                 w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
                 entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+                lay_rp, ext_f, empty_i, empty_f)
             lay_rp = rp3
             if st3 == _DECLINE:
                 event = _EV_PASS
@@ -568,10 +607,14 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             if st3 == _SINGULAR:
                 shrink = True
             else:
-                if dense:
-                    y = _solve(ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3, dense, e1)
+                y = ybuf
+                if dense:  # _solve's dense path, into ybuf
+                    for c in range(m):
+                        y[c] = e1[c]
+                    _band_solve(ab3, m, kl3, ku3, piv3, y)
                 else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
-                    y = y03 / gam3
+                    for c in range(m):
+                        y[c] = y03[c] / gam3
                 ny = 0.0
                 for c in range(m):
                     ny += y[c] * y[c]
@@ -579,7 +622,8 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                 if not np.isfinite(ny) or ny == 0.0:
                     shrink = True
                 else:
-                    tw = y / ny
+                    for c in range(m):
+                        tw[c] = y[c] / ny
                     dot = 0.0
                     for c in range(m):
                         dot += tw[c] * t[c]

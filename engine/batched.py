@@ -36,7 +36,8 @@ class BatchedConstraints:
 
     def bar_vectors(self, us: np.ndarray) -> np.ndarray:
         """``p_i - p_j`` (K, Ea, d)."""
-        pos = np.broadcast_to(self.base, (len(us), *self.base.shape)).copy()
+        pos = np.empty((len(us), *self.base.shape))
+        pos[:] = self.base
         pos[:, self.free] = us
         return pos[:, self.i] - pos[:, self.j]
 
@@ -99,6 +100,84 @@ class BatchedConstraints:
         return w, ok
 
 
+#: The steps of a backtracking line search: ``t = 1, 1/2, 1/4, ...`` while ``t > 1e-10`` (as
+#: :func:`engine.constraints._line_search` halves it; powers of two, so exactly its values).
+BACKTRACK = 0.5 ** np.arange(34)
+assert BACKTRACK[-1] > 1e-10 >= 0.5 * BACKTRACK[-1]
+
+#: Relative margin between two sums of the same nonnegative squares taken in different orders
+#: (``g @ g`` and ``einsum``): far above their rounding (``2 Ea eps``).
+SUM_ORDER_MARGIN = 1e-12
+
+
+def line_searches(
+    cons: Constraints, batch: BatchedConstraints, u: np.ndarray, steps: list[np.ndarray],
+    cost: float,
+) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
+    """:func:`engine.constraints._line_search` from ``u`` along each of ``steps``, every trial
+    point of every step evaluated in one batch: the same answers. The trial points, ``l^2``
+    and residuals are the same numbers; a trial's cost is accepted as there, by ``g @ g``
+    (whose rounding differs from the batch's sum), taken in order for the trials whose batch
+    sum is not clearly above ``cost``."""
+    if not steps:
+        return []
+    trials = u[None, None, :] + BACKTRACK[None, :, None] * np.array(steps)[:, None, :]
+    flat = trials.reshape(-1, len(u))
+    g_flat = batch.squared_lengths(flat) - cons.targets
+    rough = np.einsum("ka,ka->k", g_flat, g_flat).reshape(len(steps), len(BACKTRACK))
+    g_all = g_flat.reshape(len(steps), len(BACKTRACK), -1)
+    out: list[tuple[np.ndarray, np.ndarray, float] | None] = []
+    for n in range(len(steps)):
+        found = None
+        for k in np.flatnonzero(~(rough[n] >= cost * (1.0 + SUM_ORDER_MARGIN))):
+            g_trial = g_all[n, k].copy()  # (``@`` of a view of a larger array can round
+            cost_trial = float(g_trial @ g_trial)  # otherwise than of its own array)
+            if cost_trial < cost:
+                found = (trials[n, k].copy(), g_trial, cost_trial)
+                break
+        out.append(found)
+    return out
+
+
+def backtrack(
+    batch: BatchedConstraints, u: np.ndarray, step: np.ndarray, cost: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Backtracking from every row of ``u`` (K, M) along its ``step``: the first ``t`` of
+    :data:`BACKTRACK` at which ``|l^2 - L^2|^2`` falls below ``cost`` (K,): the points, their
+    ``l^2 - L^2`` and costs (NaN, NaN, inf where no ``t`` does).
+
+    Every trial point of every row is evaluated in one batch; the halvings are then replayed
+    on those numbers, giving what one batch per ``t`` of the rows still looking gives (the
+    tests compare the two bit for bit). The same trial points and ``l^2``; the sums of
+    squares as there: ``l^2 - L^2`` of a batch of one row is contiguous and of several rows
+    not, and einsum's sum rounds differently on the two, so both are taken and each ``t``
+    uses the one its count of rows still looking would have had."""
+    targets = batch.lengths**2
+    k, m = u.shape
+    new_u = np.full_like(u, np.nan)
+    new_g = np.full((k, len(targets)), np.nan)
+    new_cost = np.full(k, np.inf)
+    if not k:
+        return new_u, new_g, new_cost
+    trials = u[:, None, :] + BACKTRACK[None, :, None] * step[:, None, :]  # (K, T, M)
+    flat = batch.squared_lengths(trials.reshape(-1, m)) - targets  # (K T, E), several rows
+    sums = {False: np.einsum("ka,ka->k", flat, flat).reshape(k, -1)}
+    one = np.ascontiguousarray(flat)  # a batch of one row: contiguous
+    sums[True] = np.einsum("ka,ka->k", one, one).reshape(k, -1)
+    g_trials = flat.reshape(k, len(BACKTRACK), -1)
+    rows = np.arange(k)
+    for n in range(len(BACKTRACK)):
+        c = sums[len(rows) == 1][rows, n]
+        hit = c < cost[rows]
+        if hit.any():
+            r = rows[hit]
+            new_u[r], new_g[r], new_cost[r] = trials[r, n], g_trials[r, n], c[hit]
+            rows = rows[~hit]
+            if not len(rows):
+                break
+    return new_u, new_g, new_cost
+
+
 def project_many(
     cons: Constraints, us: np.ndarray, tol: Tolerances, max_iter: int = 60
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -108,7 +187,7 @@ def project_many(
     same stopping rules; an iteration in which a row needs the escapes of poor progress runs
     them with the scalar helpers for that row. Returns the projected coordinates and whether
     each met ``residual_atol`` (the tests compare with :func:`project` one start at a time)."""
-    from engine.constraints import STEP_RCOND, _escape, _line_search, _unstick
+    from engine.constraints import STEP_RCOND, _escape, _unstick
 
     batch = BatchedConstraints(cons)
     targets = batch.lengths**2
@@ -136,23 +215,8 @@ def project_many(
         coef = np.einsum("kae,ka->ke", left, -g[idx])
         coef = np.where(keep, coef / np.where(keep, sing, 1.0), 0.0)
         step = np.einsum("ke,kem->km", coef, right)
-        # backtracking: the first t = 1, 1/2, ... (> 1e-10) that lowers the cost
-        new_u = np.full_like(u[idx], np.nan)
-        new_g = np.full_like(g[idx], np.nan)
-        new_cost = np.full(len(idx), np.inf)
-        pending = np.ones(len(idx), dtype=bool)
-        t = 1.0
-        while t > 1e-10 and pending.any():
-            rows = np.flatnonzero(pending)
-            trial = u[idx[rows]] + t * step[rows]
-            g_trial = batch.squared_lengths(trial) - targets
-            c_trial = np.einsum("ka,ka->k", g_trial, g_trial)
-            hit = c_trial < cost[idx[rows]]
-            new_u[rows[hit]], new_g[rows[hit]] = trial[hit], g_trial[hit]
-            new_cost[rows[hit]] = c_trial[hit]
-            pending[rows[hit]] = False
-            t *= 0.5
-        found = ~pending
+        new_u, new_g, new_cost = backtrack(batch, u[idx], step, cost[idx])
+        found = np.isfinite(new_cost)
         good = found & (new_cost <= 0.5 * cost[idx])  # no escape needed: move, vectorised
         r = idx[good]
         u[r], g[r] = new_u[good], new_g[good]
@@ -165,9 +229,9 @@ def project_many(
                 escapes[r] += 1
                 # the truncated steps from this row's SVD (lstsq's at rcond = rc)
                 proj = left[n].T @ -g[r]
-                tries = [_line_search(cons, u[r], right[n].T @ np.where(
-                    sing[n] > rc * sing[n, 0], proj / np.where(sing[n] > 0, sing[n], 1.0), 0.0),
-                    cost[r]) for rc in (1e-4, 1e-2)]
+                tries = line_searches(cons, batch, u[r], [right[n].T @ np.where(
+                    sing[n] > rc * sing[n, 0], proj / np.where(sing[n] > 0, sing[n], 1.0), 0.0)
+                    for rc in (1e-4, 1e-2)], float(cost[r]))
                 tries += [best, _escape(cons, u[r], g[r], cost[r])]
                 done = [x for x in tries if x is not None]
                 best = min(done, key=lambda x: x[2]) if done else None

@@ -177,12 +177,71 @@ class Curve:
     logdets: list[float] = field(default_factory=list)
     stop: str = ""
     stop_index: int | None = None
+    #: :meth:`array`'s arrays: per field, the list and its length they were built from
+    _arrays: dict[str, tuple[list[object], int, np.ndarray]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
+    #: per field, the list and the blocks that :meth:`append` and :meth:`extend` added to
+    #: it: the arrays :meth:`extend` was given, and counts of single items :meth:`append`
+    #: added one after another; :meth:`array` joins them while they are the whole list
+    _blocks: dict[str, tuple[list[object], list[np.ndarray | int]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
+
+    def _add_block(self, name: str, block: np.ndarray | int) -> None:
+        values = getattr(self, name)
+        kept = self._blocks.get(name)
+        if kept is None or kept[0] is not values:
+            kept = self._blocks[name] = (values, [])
+        blocks = kept[1]
+        if isinstance(block, int) and blocks and isinstance(blocks[-1], int):
+            blocks[-1] += block
+        else:
+            blocks.append(block)
 
     def append(self, u: np.ndarray, t: np.ndarray, sign: int, logdet: float) -> None:
         self.points.append(u)
         self.tangents.append(t)
         self.signs.append(sign)
         self.logdets.append(logdet)
+        for name in ("points", "tangents", "signs", "logdets"):
+            self._add_block(name, 1)
+
+    def extend(self, points: np.ndarray, tangents: np.ndarray, signs: np.ndarray,
+               logdets: np.ndarray) -> None:
+        """Append the rows of ``points`` (n, M), ``tangents`` (n, M), ``signs`` (n,) and
+        ``logdets`` (n,) (the fields stay lists of rows, ints and floats)."""
+        self.points.extend(points)
+        self.tangents.extend(tangents)
+        self.signs.extend(signs.tolist())
+        self.logdets.extend(logdets.tolist())
+        for name, block in (("points", points), ("tangents", tangents), ("signs", signs),
+                            ("logdets", logdets)):
+            self._add_block(name, block)
+
+    def array(self, name: str) -> np.ndarray:
+        """``np.array`` of the field ``name`` (``points``, ``tangents``, ``signs`` or
+        ``logdets``), read-only, built once: again only when the field is another list or
+        has grown (a traced curve's thousands of rows are converted once, not by every
+        step of the search that reads them)."""
+        values = getattr(self, name)
+        cached = self._arrays.get(name)
+        if cached is not None and cached[0] is values and cached[1] == len(values):
+            return cached[2]
+        kept = self._blocks.get(name)
+        if kept is not None and kept[0] is values and kept[1] and \
+                sum(b if isinstance(b, int) else len(b) for b in kept[1]) == len(values):
+            # the list is exactly the blocks added to it: joined (runs of single items
+            # converted as a slice of the list), not rebuilt row by row
+            parts, at = [], 0
+            for b in kept[1]:
+                n = b if isinstance(b, int) else len(b)
+                parts.append(np.array(values[at:at + n]) if isinstance(b, int) else b)
+                at += n
+            out = np.concatenate(parts)
+        else:
+            out = np.array(values)
+        out.flags.writeable = False
+        self._arrays[name] = (values, len(values), out)
+        return out
 
 
 StopCheck = Callable[[np.ndarray, np.ndarray, np.ndarray], str | None]
@@ -281,10 +340,7 @@ def trace_curve(
                     deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
                     cross_ahead=cons.n_free <= 600)
                 if stop is None:
-                    curve.points.extend(adv.points)
-                    curve.tangents.extend(adv.tangents)
-                    curve.signs.extend(adv.signs.tolist())
-                    curve.logdets.extend(adv.logdets.tolist())
+                    curve.extend(adv.points, adv.tangents, adv.signs, adv.logdets)
                 else:  # the stop check on every committed point, as below
                     prev = u
                     for k in range(len(adv.points)):
@@ -395,10 +451,7 @@ def _attempt(
 def _append_crossing(curve: Curve, c: np.ndarray, t: np.ndarray, sign: int) -> None:
     """Record the critical point ``c`` crossed with tangent ``t``: the determinant vanishes
     there (``log|det| = -inf``), and ``sign`` is the one beyond it."""
-    curve.points.append(c)
-    curve.tangents.append(t)
-    curve.signs.append(sign)
-    curve.logdets.append(-np.inf)
+    curve.append(c, t, sign, -np.inf)
 
 
 def _cross_ahead(

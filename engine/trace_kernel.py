@@ -238,7 +238,9 @@ def _advance(
     ip = np.array([sign, budget, int(tried), int(close), int(dense), band_max_work,
                    deadline_every, checked, int(cross_ahead)], dtype=np.int64)
     d = kernel_data(cons, dense)
-    n, event = run(state_u, state_t, state_tin, np.asarray(u0, dtype=float), fp, ip,
+    # u0 contiguous like every other array: a strided view (a row of a seed stack's column
+    # selection) is another numba signature, compiled or loaded from the cache on first use
+    n, event = run(state_u, state_t, state_tin, np.ascontiguousarray(u0, dtype=float), fp, ip,
                    d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
                    d.cols, d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys,
                    d.row_rank, d.sign_perm, pts, tans, signs, logd)

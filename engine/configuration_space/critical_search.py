@@ -32,11 +32,11 @@ def candidates(ex: Explorer) -> list[np.ndarray]:
     curve, each curve's closest approach, and (small linkages) random projected starts."""
     starts: list[np.ndarray] = []
     for curve in ex.curves:
-        pts = np.array(curve.points)
-        signs = np.array(curve.signs)
+        pts = curve.array("points")
+        signs = curve.array("signs")
         flips = np.flatnonzero(signs[1:] * signs[:-1] < 0)
         starts += [0.5 * (pts[i] + pts[i + 1]) for i in flips]
-        logd = np.array(curve.logdets)
+        logd = curve.array("logdets")
         if len(logd) >= 3:
             deep = np.median(logd) - np.log(30.0)
             mins = np.flatnonzero(
@@ -72,7 +72,11 @@ def resolve(
     exact: list[CriticalPoint] = []
     misses: list[NearMiss] = []
     failed = 0
-    for ref in refined(ex, candidates):
+    found = list(refined(ex, candidates))
+    # the traced point nearest to every start that refined to no critical point, at once
+    off = [ref.u for ref in found if not ref.critical]
+    nearest = iter(ex.nearest_points(np.array(off)) or []) if off else iter([])
+    for ref in found:
         failed += not ref.critical
         if ref.critical:
             if any(np.linalg.norm(ref.u - c.u) <= SAME_POINT_REL * ex.scale for c in exact):
@@ -80,9 +84,8 @@ def resolve(
             analysis = classify(ex.linkage, ref.u, ex.tol)
             exact.append(CriticalPoint(ref.u, analysis, ref.length_residual,
                                        ref.stress_residual))
-        elif ex.tree is not None:
-            _, i = ex.tree.query(ref.u)
-            curve, offset = ex._tree_point(int(i))
+        elif (point := next(nearest, None)) is not None:
+            curve, offset = point
             on = curve.points[offset]
             misses.append(NearMiss(on, singular_gap(ex.cons, on),
                                    float(np.linalg.norm(on - ref.u)),

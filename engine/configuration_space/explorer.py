@@ -91,9 +91,13 @@ class Explorer:
                 loc=("options", "step_max"),
             )
         self.curves: list[Curve] = []
-        self.tree: cKDTree | None = None
-        self.tree_owner: np.ndarray = np.zeros(0, dtype=int)
-        self.tree_first: np.ndarray = np.zeros(0, dtype=int)
+        self._tree: cKDTree | None = None
+        self._tree_owner: np.ndarray = np.zeros(0, dtype=int)
+        self._tree_first: np.ndarray = np.zeros(0, dtype=int)
+        #: the k-d tree of every curve's points is built when first read after the curves
+        #: changed (small linkages test seeds against each curve's own tree: the search may
+        #: never read it, or only once all curves are traced)
+        self._tree_stale = False
         self.report: dict[str, object] = {}
         self.batched = BatchedConstraints(self.cons) if self.cons.n_free <= BATCH_MAX_FREE \
             else None
@@ -128,11 +132,43 @@ class Explorer:
                             time_budget_s=granted(self.deadline))
 
     def _rebuild_tree(self) -> None:
-        pts = [np.array(c.points) for c in self.curves]
-        self.tree = cKDTree(np.vstack(pts))
-        self.tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+        """The curves changed: the tree is rebuilt when next read."""
+        self._tree_stale = True
+
+    def _fresh_tree(self) -> None:
+        if not self._tree_stale:
+            return
+        self._tree_stale = False
+        if not self.curves:
+            self._tree = None
+            return
+        pts = [c.array("points") for c in self.curves]
+        self._tree = cKDTree(np.vstack(pts))
+        self._tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
         # index of each curve's first point in the tree: a point's offset in its curve
-        self.tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+        self._tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+    @property
+    def tree(self) -> cKDTree | None:
+        """The k-d tree of the points of every traced curve (None before the first)."""
+        self._fresh_tree()
+        return self._tree
+
+    @tree.setter
+    def tree(self, value: cKDTree | None) -> None:
+        self._tree, self._tree_stale = value, False
+
+    @property
+    def tree_owner(self) -> np.ndarray:
+        """The curve owning each point of :attr:`tree`."""
+        self._fresh_tree()
+        return self._tree_owner
+
+    @property
+    def tree_first(self) -> np.ndarray:
+        """Index in :attr:`tree` of each curve's first point."""
+        self._fresh_tree()
+        return self._tree_first
 
     def _tree_point(self, i: int) -> tuple[Curve, int]:
         """The curve owning tree point ``i`` and the point's index along it."""
@@ -143,9 +179,10 @@ class Explorer:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
         correction from the closest point of some pass of a curve near ``u`` (among its
         ``NEAREST`` nearest curve points) towards ``u`` lands on ``u``."""
-        if self.tree is None:
+        tree = self.tree
+        if tree is None:
             return False
-        dist, idx = self.tree.query(u, k=min(NEAREST, self.tree.n))
+        dist, idx = tree.query(u, k=min(NEAREST, tree.n))
         dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
         near = dist <= self.h_max
         dist, idx = dist[near], idx[near]
@@ -154,7 +191,7 @@ class Explorer:
         owner = self.tree_owner[idx]
         first = self.tree_first[owner]
         last = first + np.array([len(self.curves[o].points) for o in owner]) - 1
-        tested = pass_minima(self.tree.data, u[None], idx[None], dist[None], first, last)[0]
+        tested = pass_minima(tree.data, u[None], idx[None], dist[None], first, last)[0]
         for i in idx[tested]:
             curve, offset = self._tree_point(int(i))
             p, t = curve.points[offset], curve.tangents[offset]
@@ -185,18 +222,47 @@ class Explorer:
             )
         return curve
 
+    def _curve_cache(self, curve: Curve) -> tuple[Curve, np.ndarray, np.ndarray, cKDTree]:
+        """``curve``, its points and tangents as arrays and the k-d tree of its points (built
+        once per curve, again only if it grew)."""
+        cached = self._curve_arrays.get(id(curve))
+        if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
+            pts = curve.array("points")
+            cached = (curve, pts, curve.array("tangents"), cKDTree(pts))
+            self._curve_arrays[id(curve)] = cached
+        return cached
+
+    def nearest_points(self, us: np.ndarray) -> list[tuple[Curve, int]] | None:
+        """The traced curve point nearest to each row of ``us`` (K, M): its curve and its
+        index along it (None before any curve), all rows in one query per tree. Small
+        linkages ask each curve's own k-d tree (:meth:`on_curve` has built them), so the tree
+        of all curves is never built; large ones :attr:`tree`."""
+        us = np.asarray(us, dtype=float).reshape(-1, self.cons.n_free)
+        if self.batched is None:
+            tree = self.tree
+            if tree is None:
+                return None
+            _, idx = tree.query(us)
+            return [self._tree_point(int(i)) for i in np.atleast_1d(idx)]
+        if not self.curves:
+            return None
+        best = np.full(len(us), np.inf)
+        owner = np.zeros(len(us), dtype=int)
+        where = np.zeros(len(us), dtype=int)
+        for k, curve in enumerate(self.curves):
+            d, i = self._curve_cache(curve)[3].query(us)
+            closer = np.atleast_1d(d) < best  # (the first curve on a tie)
+            best[closer] = np.atleast_1d(d)[closer]
+            owner[closer], where[closer] = k, np.atleast_1d(i)[closer]
+        return [(self.curves[int(k)], int(i)) for k, i in zip(owner, where, strict=True)]
+
     def on_curve(self, us: np.ndarray, curve: Curve) -> np.ndarray:
         """:meth:`on_traced` for a stack of points (K, M) against one curve, vectorised (small
         linkages): each point is tested from the closest point of each pass of ``curve`` among
         its ``NEAREST`` nearest within the step bound (:func:`pass_minima`), and a point
         counts as on the curve only when a hyperplane correction lands on it."""
         assert self.batched is not None  # only called for small linkages
-        cached = self._curve_arrays.get(id(curve))
-        if cached is None or cached[0] is not curve or len(cached[1]) != len(curve.points):
-            pts = np.array(curve.points)
-            cached = (curve, pts, np.array(curve.tangents), cKDTree(pts))
-            self._curve_arrays[id(curve)] = cached
-        _, pts, tans, tree = cached
+        _, pts, tans, tree = self._curve_cache(curve)
         k = min(NEAREST, len(pts))
         # Only neighbours within the step bound can be candidates: the query looks no further
         # (most seeds are far from a given curve, and the pruned search is an order of

@@ -136,7 +136,7 @@ def assemble_components(
     capture = 0.05 * ex.h_max
 
     def touching(curve: Curve) -> list[int]:
-        pts = np.array(curve.points)
+        pts = curve.array("points")
         return [k for k, c in enumerate(crit)
                 if np.min(np.linalg.norm(pts - c.u, axis=1)) <= ex.h_max]
 
@@ -144,7 +144,7 @@ def assemble_components(
         near = touching(curve)
         if near and not degenerate:
             continue  # covered by the segments
-        pts = np.array(curve.points)
+        pts = curve.array("points").copy()  # the component's own array (writeable)
         closed = curve.stop == "closed"
         if closed:
             pts = np.vstack([pts, pts[:1]])

@@ -399,3 +399,86 @@ def test_batched_refinement_is_scale_free(scale):
     for cp in got.critical_points:
         sv = np.linalg.svd(cons.jacobian(cp.u, sparse=False), compute_uv=False)
         assert sv[-1] <= 1e-2 * TOL.rank_rtol * sv[0]  # well inside the rank test
+
+
+def _halving_loop(batch, u, step, cost):
+    """The backtracking that ``project_many`` ran before :func:`engine.batched.backtrack`:
+    one batch of the rows still looking per ``t = 1, 1/2, ...`` (> 1e-10)."""
+    targets = batch.lengths**2
+    new_u = np.full_like(u, np.nan)
+    new_g = np.full((len(u), len(targets)), np.nan)
+    new_cost = np.full(len(u), np.inf)
+    pending = np.ones(len(u), dtype=bool)
+    t = 1.0
+    while t > 1e-10 and pending.any():
+        rows = np.flatnonzero(pending)
+        trial = u[rows] + t * step[rows]
+        g_trial = batch.squared_lengths(trial) - targets
+        c_trial = np.einsum("ka,ka->k", g_trial, g_trial)
+        hit = c_trial < cost[rows]
+        new_u[rows[hit]], new_g[rows[hit]] = trial[hit], g_trial[hit]
+        new_cost[rows[hit]] = c_trial[hit]
+        pending[rows[hit]] = False
+        t *= 0.5
+    return new_u, new_g, new_cost
+
+
+@pytest.mark.parametrize(("name", "params"),
+                         LINKAGES + [("rotor-chain-3d", {}), ("kl-chain", {"n": 10})],
+                         ids=IDS + ["rotor-chain-3d", "kl-chain-n10"])
+def test_backtracking_and_line_searches_at_once_are_the_loops_bit_for_bit(name, params):
+    """``engine.batched.backtrack`` (every halving of every row in one batch, replayed) gives
+    bit for bit what one batch per halving gave; ``engine.batched.line_searches`` what
+    ``engine.constraints._line_search`` gives for each step: rows that hit at once, late, or
+    never (a cost nothing beats), single rows and many."""
+    from engine.batched import BatchedConstraints, backtrack, line_searches
+    from engine.constraints import _line_search
+
+    lk = _build(name, params)
+    cons = Constraints(lk)
+    batch = BatchedConstraints(cons)
+    rng = np.random.default_rng(21)
+    scale = float(np.median(lk.lengths[cons.bars]))
+    for rows in (1, 2, 7, 24):
+        for spread in (0.05, 0.5, 2.0):
+            u = lk.coordinates() + spread * scale * rng.normal(size=(rows, cons.n_free))
+            step = spread * scale * rng.normal(size=u.shape)
+            g = batch.squared_lengths(u) - batch.lengths**2
+            cost = np.einsum("ka,ka->k", g, g)
+            cost[::3] *= 1e-6  # rows that must halve far, or never find a lower cost
+            got, ref = backtrack(batch, u, step, cost), _halving_loop(batch, u, step, cost)
+            for a, b in zip(got, ref, strict=True):
+                np.testing.assert_array_equal(a, b)
+            for r in range(rows):
+                steps = [step[r], -step[r], 1e-3 * step[r]]
+                fast = line_searches(cons, batch, u[r], steps, float(cost[r]))
+                for s, res in zip(steps, fast, strict=True):
+                    slow = _line_search(cons, u[r], s, cost[r])
+                    assert (res is None) == (slow is None)
+                    if res is not None and slow is not None:
+                        np.testing.assert_array_equal(res[0], slow[0])
+                        np.testing.assert_array_equal(res[1], slow[1])
+                        assert res[2] == slow[2]
+
+
+@pytest.mark.parametrize(("name", "params"), LINKAGES + [("rotor-chain-3d", {})],
+                         ids=IDS + ["rotor-chain-3d"])
+def test_projections_are_those_of_the_halving_loop(name, params, monkeypatch):
+    """``project_many`` with the batched backtracking and line searches projects every start
+    to bit for bit the point it reached with the loops they replace."""
+    import engine.batched as batched
+    from engine.constraints import _line_search
+
+    lk = _build(name, params)
+    cons = Constraints(lk)
+    scale = float(np.median(lk.lengths[cons.bars]))
+    for seed in (0, 1, 8):
+        us = lk.coordinates() + scale * np.random.default_rng(seed).normal(size=(24, cons.n_free))
+        fast = batched.project_many(cons, us, TOL)
+        with monkeypatch.context() as m:
+            m.setattr(batched, "backtrack", _halving_loop)
+            m.setattr(batched, "line_searches", lambda cons, batch, u, steps, cost: [
+                _line_search(cons, u, s, cost) for s in steps])
+            slow = batched.project_many(cons, us, TOL)
+        np.testing.assert_array_equal(fast[0], slow[0])
+        np.testing.assert_array_equal(fast[1], slow[1])

@@ -384,3 +384,185 @@ def test_the_bounded_curve_query_marks_what_the_full_query_marks(name, monkeypat
     for c, b in zip(ex.curves, ref, strict=True):
         assert np.array_equal(ex.on_curve(us, c), b)
     assert any(a.any() for a in ref) and not all(a.all() for a in ref)
+def test_a_curves_arrays_are_its_lists_converted():
+    """``Curve.array``: ``np.array`` of the field, read-only, built once, rebuilt when the
+    field grows or is replaced by another list."""
+    lk = build_preset("four-bar", {"L2": 1.2})
+    ex = _Explorer(lk, TOL, FAST)
+    curve = ex.trace_from(lk.coordinates())
+    assert curve is not None and len(curve.points) > 10
+    for name in ("points", "tangents", "signs", "logdets"):
+        arr = curve.array(name)
+        assert np.array_equal(arr, np.array(getattr(curve, name)))
+        assert not arr.flags.writeable
+        assert curve.array(name) is arr  # built once
+    before = curve.array("points")
+    curve.append(curve.points[0] + 1.0, curve.tangents[0], 1, 0.0)
+    grown = curve.array("points")
+    assert len(grown) == len(before) + 1
+    assert np.array_equal(grown, np.array(curve.points))
+    curve.points = curve.points[:5]
+    assert np.array_equal(curve.array("points"), np.array(curve.points[:5]))
+
+
+def _eager_tree(ex) -> None:
+    """The explorer's tree as it was built before it became lazy: at once, from the lists."""
+    from scipy.spatial import cKDTree
+
+    pts = [np.array(c.points) for c in ex.curves]
+    ex.tree = cKDTree(np.vstack(pts))
+    ex._tree_owner = np.concatenate([np.full(len(p), k) for k, p in enumerate(pts)])
+    ex._tree_first = np.concatenate([[0], np.cumsum([len(p) for p in pts])[:-1]])
+
+
+def _random_four_bars(count: int, seed: int) -> list[tuple[str, dict[str, float]]]:
+    rng = np.random.default_rng(seed)
+    out: list[tuple[str, dict[str, float]]] = []
+    while len(out) < count:
+        l1, l2, l3 = (float(x) for x in rng.uniform(0.3, 2.2, 3))
+        links = sorted([1.0, l1, l2, l3])
+        if links[3] < links[0] + links[1] + links[2]:
+            out.append(("four-bar", {"L1": l1, "L2": l2, "L3": l3}))
+    return out
+
+
+@pytest.mark.parametrize("case", [LINKAGES[k] for k in ("four-bar", "equilateral four-bar",
+                                                        "three-rotor", "kl-chain 6")]
+                         + _random_four_bars(3, seed=151))
+def test_the_lazy_tree_and_curve_arrays_change_no_exploration(case, monkeypatch):
+    """The explorer's k-d tree built when first read (and the curves' arrays built once)
+    gives the same tree, and the same exploration (components, critical points, segments,
+    near misses, report), as the tree built from the lists after every traced curve."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    lazy = (ex.tree.data.copy(), ex.tree_owner.copy(), ex.tree_first.copy())
+    _eager_tree(ex)
+    assert np.array_equal(lazy[0], ex.tree.data)
+    assert np.array_equal(lazy[1], ex.tree_owner)
+    assert np.array_equal(lazy[2], ex.tree_first)
+    fast = explore(lk, TOL, opt)
+    monkeypatch.setattr(explorer_module.Explorer, "_rebuild_tree", _eager_tree)
+    ref = explore(lk, TOL, opt)
+    assert fast.search == ref.search
+    assert len(fast.components) == len(ref.components)
+    for a, b in zip(fast.components, ref.components, strict=True):
+        assert np.array_equal(a.points, b.points)
+        assert (a.closed, a.through_start, a.critical_points, a.segments) == \
+            (b.closed, b.through_start, b.critical_points, b.segments)
+    assert [(c.kind, c.u.tolist()) for c in fast.critical_points] == \
+        [(c.kind, c.u.tolist()) for c in ref.critical_points]
+    assert [(s.start, s.start_ray, s.end, s.end_ray, s.points.tolist()) for s in fast.segments] \
+        == [(s.start, s.start_ray, s.end, s.end_ray, s.points.tolist()) for s in ref.segments]
+    assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
+        [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
+
+
+def _tree_nearest(ex, us):
+    """The nearest traced points from the k-d tree of all curves, one query per point (before
+    ``nearest_points``)."""
+    out = []
+    for u in np.asarray(us).reshape(-1, ex.cons.n_free):
+        _, i = ex.tree.query(u)
+        out.append(ex._tree_point(int(i)))
+    return out
+
+
+@pytest.mark.parametrize("case", [LINKAGES[k] for k in ("four-bar", "equilateral four-bar",
+                                                        "three-rotor", "gated chain",
+                                                        "kl-chain 6")]
+                         + _random_four_bars(3, seed=152))
+def test_bounded_neighbour_search_and_per_curve_nearest_change_nothing(case, monkeypatch):
+    """``on_curve`` asking its k-d tree only for neighbours within ``QUERY_BOUND_REL h_max`` marks
+    the same points as with every one of the ``NEAREST`` nearest (an unbounded query), for
+    seeds and for points scattered near and far from the curves; ``nearest_points`` from each
+    curve's own tree, all points at once, are the tree of all curves' nearest points one by
+    one; whole explorations are the same with the unbounded queries and the tree of all
+    curves queried point by point."""
+    import engine.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    assert ex.curves
+    rng = np.random.default_rng(9)
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)
+    pts = np.vstack([c.array("points") for c in ex.curves])
+    picks = pts[rng.integers(0, len(pts), 64)]
+    probes = [stack] + [picks + s * ex.h_max * rng.normal(size=picks.shape)
+                        for s in (0.0, 0.01, 0.5, 1.0, 3.0)]
+    for us in probes:
+        for curve in ex.curves:
+            bounded = ex.on_curve(us, curve)
+            with monkeypatch.context() as m:
+                m.setattr(explorer_module, "QUERY_BOUND_REL", np.inf)
+                assert np.array_equal(bounded, ex.on_curve(us, curve))
+        for rows in (us[:1], us[:32]):
+            got, ref = ex.nearest_points(rows), _tree_nearest(ex, rows)
+            assert len(got) == len(ref) == len(rows)
+            assert all(a[0] is b[0] and a[1] == b[1] for a, b in zip(got, ref, strict=True))
+    fast = explore(lk, TOL, opt)
+    monkeypatch.setattr(explorer_module, "QUERY_BOUND_REL", np.inf)
+    monkeypatch.setattr(explorer_module.Explorer, "nearest_points", _tree_nearest)
+    ref = explore(lk, TOL, opt)
+    assert fast.search == ref.search
+    assert len(fast.components) == len(ref.components)
+    for a, b in zip(fast.components, ref.components, strict=True):
+        assert np.array_equal(a.points, b.points)
+        assert (a.closed, a.critical_points, a.segments) == (b.closed, b.critical_points,
+                                                              b.segments)
+    assert [(c.kind, c.u.tolist()) for c in fast.critical_points] == \
+        [(c.kind, c.u.tolist()) for c in ref.critical_points]
+    assert [(s.start, s.end, s.points.tolist()) for s in fast.segments] == \
+        [(s.start, s.end, s.points.tolist()) for s in ref.segments]
+    assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
+        [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]
+
+
+@pytest.mark.parametrize("path", ["numba", "numpy"])
+@pytest.mark.parametrize("case", [("four-bar", {"L2": 1.2}), ("four-bar", {}),
+                                  ("three-rotor", {}), ("kl-chain", {"n": 6})]
+                         + _random_four_bars(2, seed=153))
+def test_curve_arrays_joined_from_blocks_are_the_lists_converted(case, path, monkeypatch):
+    """``Curve.array`` joins the blocks the tracer added (the compiled kernel's chunks, the
+    Python loop's single points, crossed critical points) instead of converting the lists
+    row by row: bit for bit the same arrays, same dtypes, on the traced curves of
+    explorations (closed and open, with and without crossings) and the segments' curves;
+    and after a list is changed behind its back, the conversion of the list."""
+    import engine.trace as trace_module
+    from engine import trace_kernel
+
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
+    if path == "numba":
+        assert trace_kernel.load()
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
+                       max_components=4 if "kl" in case[0] else 32)
+    curves: list = []
+    original = trace_module.trace_curve
+
+    def keep(*args, **kwargs):
+        curve = original(*args, **kwargs)
+        curves.append(curve)
+        return curve
+
+    monkeypatch.setattr("engine.configuration_space.explorer.trace_curve", keep)
+    monkeypatch.setattr("engine.configuration_space.segments.trace_curve", keep)
+    explore(lk, TOL, opt)
+    assert curves
+    for curve in curves:
+        for name in ("points", "tangents", "signs", "logdets"):
+            ref = np.array(getattr(curve, name))
+            got = curve.array(name)
+            assert got.dtype == ref.dtype and got.shape == ref.shape
+            np.testing.assert_array_equal(got, ref)
+    curve = curves[0]
+    curve.points.append(curve.points[0] + 1.0)  # behind the blocks' back
+    np.testing.assert_array_equal(curve.array("points"), np.array(curve.points))

@@ -418,3 +418,59 @@ def test_a_kernel_that_fails_to_compile_leaves_the_python_loop_and_says_why(monk
     monkeypatch.setattr(trace_kernel, "failure", None)
     trace_kernel._compile()
     assert trace_kernel.failure == "RuntimeError: cannot cache function: no locator available"
+
+
+def test_explorations_call_the_kernel_with_its_one_signature(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every array reaches the kernel contiguous, as in the signature that :func:`load`
+    compiles: a strided ``u0`` (the start taken from a view of a seed stack) was a second
+    signature, compiled or loaded from numba's cache during the first exploration."""
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
+    assert trace_kernel.load()
+    from engine._trace_numba import run
+
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4, max_components=8)
+    for name, params in [("four-bar", {}), ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),
+                         ("three-rotor", {}), ("kl-chain", {"n": 10})]:
+        explore(build_preset(name, params), options=opt)
+    assert len(run.signatures) == 1
+
+
+@pytest.mark.parametrize(("name", "params", "dense"), [
+    ("four-bar", {}, True), ("three-rotor", {}, True), ("rotor-chain-3d", {}, True),
+    ("kl-chain", {"n": 30}, False), ("gated-kl-chain", {"n": 30, "gate": 15}, False),
+])
+def test_factorisations_into_shared_work_arrays_are_those_with_their_own(
+        name: str, params: dict, dense: bool) -> None:
+    """The kernel's loop factorises into work arrays it keeps for the whole call
+    (``_factor_into``): one after another into the same arrays, each factorisation is bit
+    for bit the one made with arrays of its own (``_factor``), and solves alike."""
+    from engine._trace_numba import _factor, _factor_into, _solve
+
+    lk = build_preset(name, params)
+    cons = Constraints(lk)
+    d = trace_kernel.kernel_data(cons, dense)
+    rng = np.random.default_rng(4)
+    z = first_order(lk).zero_modes[0]
+    common = (d.fixed_values, d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes,
+              d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank, d.sign_perm)
+    ext = np.empty(cons.n_free + len(d.fixed_values))
+    ext[cons.n_free:] = d.fixed_values
+    empty_i, empty_f = np.zeros(0, dtype=np.int64), np.zeros(0)
+    lay_a, lay_b = np.full(4, -1, dtype=np.int64), np.full(4, -1, dtype=np.int64)
+    pos_a, pos_b = (np.empty(len(d.rows), dtype=np.int64) for _ in range(2))
+    rp_a = rp_b = np.zeros(0, dtype=np.int64)
+    for _ in range(6):
+        u = lk.coordinates() + 0.05 * rng.normal(size=cons.n_free)
+        row = z + 0.3 * rng.normal(size=cons.n_free)
+        row /= np.linalg.norm(row)
+        own = _factor(u, row, dense, 10**6, *common, np.empty(len(d.rows)), lay_a, pos_a, rp_a)
+        shared = _factor_into(u, row, dense, 10**6, *common, np.empty(len(d.rows)), lay_b,
+                              pos_b, rp_b, ext, empty_i, empty_f)
+        rp_a, rp_b = own[7], shared[7]
+        for a, b in zip(own, shared, strict=True):
+            np.testing.assert_array_equal(a, b)
+        rhs = rng.normal(size=cons.n_free)
+        np.testing.assert_array_equal(_solve(*own[1:5], own[7], d.col_pos, *own[8:], dense, rhs),
+                                      _solve(*shared[1:5], shared[7], d.col_pos, *shared[8:],
+                                             dense, rhs))
