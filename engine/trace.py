@@ -525,6 +525,19 @@ def segment_distance(a: np.ndarray, b: np.ndarray, target: np.ndarray) -> float:
     return float(np.linalg.norm(closest_on_segment(a, b, target) - target))
 
 
+def distances_to_segment(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Distances from each of ``targets`` (K, M) to the segment ``[a, b]``, vectorised over the
+    targets (``segment_distance`` of each row, to rounding)."""
+    ab = b - a
+    denom = float(ab @ ab)
+    if denom == 0.0:
+        s = np.zeros(len(targets))
+    else:
+        s = np.clip((targets - a) @ ab / denom, 0.0, 1.0)
+    gap = a + s[:, None] * ab - targets
+    return np.sqrt(np.einsum("ij,ij->i", gap, gap))
+
+
 def polyline_distance(points: np.ndarray, target: np.ndarray) -> float:
     """Distance from ``target`` to the polyline through ``points`` (n, M), vectorised over
     its segments (one point: the distance to it)."""

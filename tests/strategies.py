@@ -62,13 +62,28 @@ def squared_lengths_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
+def squared_lengths_jacobian_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
+    """d(l^2)/du of the active bars (E, M), bar by bar: 2 (p_i - p_j) at i, its negative at j,
+    read at the free coordinates (independent of engine.constraints)."""
+    pos = linkage.positions_of(u)
+    rows = []
+    for (i, j), active in zip(linkage.ends, linkage.active, strict=True):
+        if active:
+            grad = np.zeros(pos.shape)
+            grad[i] += 2.0 * (pos[i] - pos[j])
+            grad[j] -= 2.0 * (pos[i] - pos[j])
+            rows.append(grad[~linkage.fixed])
+    return np.array(rows).reshape(len(rows), int(np.count_nonzero(~linkage.fixed)))
+
+
 def nearest_solution(linkage: Linkage, u0: np.ndarray, starts: int = 8) -> np.ndarray:
     """Nearest point to ``u0`` with l = L, by SLSQP from ``u0`` and seeded nearby starts (a
     start at a symmetric point can stall); independent of engine.constraints."""
     from scipy.optimize import minimize
 
     targets = linkage.lengths[linkage.active] ** 2
-    constraint = {"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets}
+    constraint = {"type": "eq", "fun": lambda x: squared_lengths_reference(linkage, x) - targets,
+                  "jac": lambda x: squared_lengths_jacobian_reference(linkage, x)}
     rng = np.random.default_rng(12345)
     scale = 0.05 * float(np.median(linkage.lengths))
     best = None

@@ -14,8 +14,8 @@ from engine.trace import (
     STOP_TIME,
     Curve,
     correct,
+    distances_to_segment,
     polyline_distance,
-    segment_distance,
     trace_curve,
 )
 
@@ -28,7 +28,7 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
     complete = True
     h0 = 0.05 * ex.h_max
     capture = 0.05 * ex.h_max
-    centres = [c.u for c in crit]
+    centres = np.array([c.u for c in crit])
     for i, cp in enumerate(crit):
         if cp.kind != "branch":
             continue
@@ -47,12 +47,8 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
 
             def stop(a: np.ndarray, b: np.ndarray, t: np.ndarray, _i: int = i,
                      _w: np.ndarray = w) -> str | None:
-                for j, c in enumerate(centres):
-                    if j == _i and np.linalg.norm(b - _w) < 2 * h0:
-                        continue
-                    if segment_distance(a, b, c) <= capture:
-                        return f"critical:{j}"
-                return None
+                j = captured(a, b, centres, capture, _i, _w, 2 * h0)
+                return None if j is None else f"critical:{j}"
 
             curve = trace_curve(ex.cons, w, ray, ex.tol, ex.opt.trace, stop=stop,
                                 close=False, deadline=ex.deadline)
@@ -70,6 +66,18 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
             pts = np.vstack([cp.u, np.array(curve.points[:-1]), crit[j].u])
             out.append(Segment(i, r, j, end_ray, pts))
     return out, complete
+
+
+def captured(a: np.ndarray, b: np.ndarray, centres: np.ndarray, capture: float, own: int,
+             start: np.ndarray, leave: float) -> int | None:
+    """The first critical point (row of ``centres``) within ``capture`` of the step ``[a, b]``,
+    or None; the ray's own point ``own`` only once ``b`` is ``leave`` or more from the ray's
+    ``start``. One vectorised pass over the centres (a step of a segment's tracing)."""
+    near = distances_to_segment(a, b, centres) <= capture
+    if near[own] and np.linalg.norm(b - start) < leave:
+        near[own] = False
+    hits = np.flatnonzero(near)
+    return int(hits[0]) if len(hits) else None
 
 
 def _arrival_ray(cp: CriticalPoint, near: np.ndarray) -> int:

@@ -12,7 +12,11 @@ from engine.errors import NoNearbySolution
 from engine.linkage import BarSpec, VertexSpec, build_linkage
 from engine.rigidity import first_order
 from engine.tolerances import Tolerances
-from tests.strategies import random_linkages, squared_lengths_reference
+from tests.strategies import (
+    random_linkages,
+    squared_lengths_jacobian_reference,
+    squared_lengths_reference,
+)
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)
 
@@ -50,6 +54,8 @@ def test_jacobian_matches_central_differences(linkage):
     sparse = cons.jacobian(u, sparse=True).toarray()
     np.testing.assert_allclose(dense, fd, atol=1e-7)
     np.testing.assert_array_equal(dense, sparse)
+    # the tests' own reference Jacobian (nearest_solution's SLSQP constraint), bar by bar
+    np.testing.assert_allclose(squared_lengths_jacobian_reference(linkage, u), fd, atol=1e-7)
 
 
 @SETTINGS

@@ -123,6 +123,50 @@ def augmented_residual(lk, x):
     return np.concatenate([rows, force[free], [s @ s - 1]])
 
 
+def augmented_jacobian(lk, x):
+    """The Jacobian of :func:`augmented_residual` (rows: lengths, forces at the free
+    coordinates, the stress norm; columns: ``u``, ``s``), bar by bar like it."""
+    m = lk.n_free
+    u, s = x[:m], x[m:]
+    pos = lk.positions_of(u)
+    n_v, dim = pos.shape
+    free = (~lk.fixed).ravel()
+    e = len(lk.ends)
+    lengths = np.zeros((e, n_v * dim))
+    force_pos = np.zeros((n_v * dim, n_v * dim))
+    force_s = np.zeros((n_v * dim, e))
+    eye = np.eye(dim)
+    for k, (i, j) in enumerate(lk.ends):
+        d = pos[i] - pos[j]
+        si, sj = slice(i * dim, (i + 1) * dim), slice(j * dim, (j + 1) * dim)
+        lengths[k, si] += 2 * d
+        lengths[k, sj] -= 2 * d
+        force_pos[si, si] += s[k] * eye
+        force_pos[si, sj] -= s[k] * eye
+        force_pos[sj, si] -= s[k] * eye
+        force_pos[sj, sj] += s[k] * eye
+        force_s[si, k] += d
+        force_s[sj, k] -= d
+    return np.vstack([
+        np.hstack([lengths[:, free], np.zeros((e, e))]),
+        np.hstack([force_pos[free][:, free], force_s[free]]),
+        np.concatenate([np.zeros(m), 2 * s])[None, :],
+    ])
+
+
+def test_the_augmented_jacobian_is_the_residuals():
+    """The reference's Jacobian against central differences of the reference's residual."""
+    rng = np.random.default_rng(3)
+    for lk in (build_preset("three-rotor"), build_preset("four-bar", {"L2": 1.3})):
+        for _ in range(3):
+            x = np.concatenate([lk.coordinates() + rng.normal(size=lk.n_free),
+                                rng.normal(size=lk.n_bars)])
+            h = 1e-6
+            fd = np.array([(augmented_residual(lk, x + h * e) - augmented_residual(lk, x - h * e))
+                           / (2 * h) for e in np.eye(x.size)]).T
+            assert np.allclose(augmented_jacobian(lk, x), fd, atol=1e-7)
+
+
 def independent_critical_points(lk, starts: int, seed: int) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
     found: list[np.ndarray] = []
@@ -130,7 +174,8 @@ def independent_critical_points(lk, starts: int, seed: int) -> list[np.ndarray]:
     for _ in range(starts):
         x0 = np.concatenate([lk.coordinates() + rng.normal(size=m), rng.normal(size=e)])
         res = least_squares(lambda x: augmented_residual(lk, x), x0, method="lm", xtol=1e-15,
-                            ftol=1e-15, gtol=1e-15, max_nfev=4000)
+                            ftol=1e-15, gtol=1e-15, max_nfev=4000,
+                            jac=lambda x: augmented_jacobian(lk, x))
         if np.max(np.abs(res.fun)) < 1e-10:
             u = res.x[:m]
             if all(np.linalg.norm(u - f) > 1e-6 for f in found):
