@@ -114,42 +114,91 @@ def _band_lu(ab, n, kl, ku, piv):
 def _band_lu22(ab, n, piv):
     """:func:`_band_lu_from` for ``kl = ku = 2`` on the columns ``j < n - 4`` (where every
     column has both multipliers and four columns to its right): the same operations in the
-    same order, the loops unrolled and the row interchange done unconditionally (a no-op
-    without a pivot: no data-dependent branch). Returns the next column, -1 at a zero pivot."""
-    for j in range(n - 4):
-        a4 = ab[4, j]
-        a5 = ab[5, j]
-        a6 = ab[6, j]
+    same order, with the active window (rows ``j .. j + 2``, columns ``j .. j + 4``) held in
+    registers and shifted one column on, so that a column's updates are not stored and
+    reloaded by the next (the elimination is a chain of dependencies), the row interchange
+    as selects (no data-dependent branch). Returns the next column, -1 at a zero pivot
+    (``ab`` then as the loop leaves it)."""
+    if n <= 4:
+        return 0
+    # x{r}{c} = A[j + r, j + c] = ab[4 + r - c, j + c]
+    x00, x01, x02, x03, x04 = ab[4, 0], ab[3, 1], ab[2, 2], ab[1, 3], ab[0, 4]
+    x10, x11, x12, x13, x14 = ab[5, 0], ab[4, 1], ab[3, 2], ab[2, 3], ab[1, 4]
+    x20, x21, x22, x23, x24 = ab[6, 0], ab[5, 1], ab[4, 2], ab[3, 3], ab[2, 4]
+    j = 0
+    while j < n - 4:
         p = 0
-        best = abs(a4)
-        pv = a4
-        if abs(a5) > best:
-            best = abs(a5)
+        best = abs(x00)
+        pv = x00
+        if abs(x10) > best:
+            best = abs(x10)
             p = 1
-            pv = a5
-        if abs(a6) > best:
+            pv = x10
+        if abs(x20) > best:
             p = 2
-            pv = a6
+            pv = x20
         piv[j] = j + p
         if pv == 0.0:
+            _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+                     x20, x21, x22, x23, x24)
             return -1
-        for k in range(5):
-            c = j + k
-            x = ab[4 - k, c]
-            ab[4 - k, c] = ab[4 - k + p, c]
-            ab[4 - k + p, c] = x
-        rpiv = 1.0 / ab[4, j]
-        l1 = ab[5, j] * rpiv
-        l2 = ab[6, j] * rpiv
+        s1 = p == 1
+        s2 = p == 2
+        t0, t1, t2, t3, t4 = x00, x01, x02, x03, x04
+        x00 = x10 if s1 else (x20 if s2 else x00)
+        x01 = x11 if s1 else (x21 if s2 else x01)
+        x02 = x12 if s1 else (x22 if s2 else x02)
+        x03 = x13 if s1 else (x23 if s2 else x03)
+        x04 = x14 if s1 else (x24 if s2 else x04)
+        x10, x11, x12, x13, x14 = (t0 if s1 else x10), (t1 if s1 else x11), \
+            (t2 if s1 else x12), (t3 if s1 else x13), (t4 if s1 else x14)
+        x20, x21, x22, x23, x24 = (t0 if s2 else x20), (t1 if s2 else x21), \
+            (t2 if s2 else x22), (t3 if s2 else x23), (t4 if s2 else x24)
+        ab[4, j] = x00
+        ab[3, j + 1] = x01
+        ab[2, j + 2] = x02
+        ab[1, j + 3] = x03
+        ab[0, j + 4] = x04
+        rpiv = 1.0 / x00
+        l1 = x10 * rpiv
+        l2 = x20 * rpiv
         ab[5, j] = l1
         ab[6, j] = l2
-        for k in range(1, 5):
-            c = j + k
-            f = ab[4 - k, c]
-            if f != 0.0:
-                ab[5 - k, c] -= l1 * f
-                ab[6 - k, c] -= l2 * f
-    return max(n - 4, 0)
+        if x01 != 0.0:
+            x11 -= l1 * x01
+            x21 -= l2 * x01
+        if x02 != 0.0:
+            x12 -= l1 * x02
+            x22 -= l2 * x02
+        if x03 != 0.0:
+            x13 -= l1 * x03
+            x23 -= l2 * x03
+        if x04 != 0.0:
+            x14 -= l1 * x04
+            x24 -= l2 * x04
+        # one column on: rows j + 1, j + 2 stay in registers, row j + 3 comes in
+        x00, x01, x02, x03 = x11, x12, x13, x14
+        x10, x11, x12, x13 = x21, x22, x23, x24
+        x20, x21, x22, x23 = ab[6, j + 1], ab[5, j + 2], ab[4, j + 3], ab[3, j + 4]
+        if j + 5 < n:
+            x04, x14, x24 = ab[0, j + 5], ab[1, j + 5], ab[2, j + 5]
+        else:
+            x04, x14, x24 = 0.0, 0.0, 0.0
+        j += 1
+    _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+             x20, x21, x22, x23, x24)
+    return j
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+             x20, x21, x22, x23, x24):
+    """Store the window of :func:`_band_lu22` at column ``j`` back into ``ab``."""
+    ab[4, j], ab[3, j + 1], ab[2, j + 2], ab[1, j + 3] = x00, x01, x02, x03
+    ab[5, j], ab[4, j + 1], ab[3, j + 2], ab[2, j + 3] = x10, x11, x12, x13
+    ab[6, j], ab[5, j + 1], ab[4, j + 2], ab[3, j + 3] = x20, x21, x22, x23
+    if j + 4 < n:
+        ab[0, j + 4], ab[1, j + 4], ab[2, j + 4] = x04, x14, x24
 
 
 @njit(cache=True)
