@@ -69,6 +69,100 @@ def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
         out[e] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
 
 
+@njit(cache=True, boundscheck=False)
+def _band_values(flat, u, fixed, gi, gj, rows, sign, axes, pos):
+    """Constraints.jacobian_values straight into the band: ``flat`` the band's storage in
+    one row, ``pos`` the flat index of each entry (the gathers read ``u`` or ``fixed``
+    directly: no ``[u, fixed]`` copy)."""
+    m = u.shape[0]
+    for e in range(rows.shape[0]):
+        a = rows[e]
+        x = axes[e]
+        i = gi[a, x]
+        j = gj[a, x]
+        ui = u[i] if i < m else fixed[i - m]
+        uj = u[j] if j < m else fixed[j - m]
+        flat[pos[e]] = 2.0 * sign[e] * (ui - uj)
+
+
+@njit(cache=True, boundscheck=False)
+def _dot(a, b):
+    """``a . b`` in four partial sums (the additions are not one chain of dependencies)."""
+    m = a.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        s0 += a[c] * b[c]
+        s1 += a[c + 1] * b[c + 1]
+        s2 += a[c + 2] * b[c + 2]
+        s3 += a[c + 3] * b[c + 3]
+        c += 4
+    while c < m:
+        s0 += a[c] * b[c]
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False)
+def _dist2(a, b):
+    """``|a - b|^2`` in four partial sums."""
+    m = a.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        d0 = a[c] - b[c]
+        d1 = a[c + 1] - b[c + 1]
+        d2 = a[c + 2] - b[c + 2]
+        d3 = a[c + 3] - b[c + 3]
+        s0 += d0 * d0
+        s1 += d1 * d1
+        s2 += d2 * d2
+        s3 += d3 * d3
+        c += 4
+    while c < m:
+        d0 = a[c] - b[c]
+        s0 += d0 * d0
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False)
+def _segment_distance(a, b, target):
+    """engine.trace.segment_distance: from ``target`` to the segment ``[a, b]``."""
+    m = a.shape[0]
+    ab = _dist2(b, a)
+    n0 = 0.0
+    n1 = 0.0
+    c = 0
+    while c + 2 <= m:
+        n0 += (target[c] - a[c]) * (b[c] - a[c])
+        n1 += (target[c + 1] - a[c + 1]) * (b[c + 1] - a[c + 1])
+        c += 2
+    if c < m:
+        n0 += (target[c] - a[c]) * (b[c] - a[c])
+    num = n0 + n1
+    s = 0.0 if ab == 0.0 else min(1.0, max(0.0, num / ab))
+    g0 = 0.0
+    g1 = 0.0
+    c = 0
+    while c + 2 <= m:
+        e0 = a[c] + s * (b[c] - a[c]) - target[c]
+        e1 = a[c + 1] + s * (b[c + 1] - a[c + 1]) - target[c + 1]
+        g0 += e0 * e0
+        g1 += e1 * e1
+        c += 2
+    if c < m:
+        e0 = a[c] + s * (b[c] - a[c]) - target[c]
+        g0 += e0 * e0
+    return math.sqrt(g0 + g1)
+
+
 @njit(cache=True)
 def _diagonal(ab, off, piv, n):
     """After the LU: the number of sign flips (negative pivots and row interchanges) and
@@ -322,8 +416,9 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
     (engine.lu.BorderedFactor).
 
     The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
-    [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
-    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with)."""
+    [k, kl, ku, ins]``, ``lay_pos`` the flat index in the band (band row times ``m`` plus
+    column) of each entry, ``lay_rp`` the band row of each row (a new array whenever ``k``
+    changes: a factorisation keeps the one it was made with)."""
     m = u.shape[0]
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros(0)
@@ -372,9 +467,10 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
                 kl = diff
             if -diff > ku:
                 ku = -diff
-        for e in range(nnz):
+        for e in range(nnz):  # flat index into the band: (band row) * m + column
             r = entry_rank[e]
-            lay_pos[e] = kl + ku + r + (1 if r >= ins else 0) - entry_col[e]
+            lay_pos[e] = (kl + ku + r + (1 if r >= ins else 0) - entry_col[e]) * m \
+                + entry_col[e]
         row_pos = np.empty(m, dtype=np.int64)
         row_pos[0] = ins
         for a in range(row_rank.shape[0]):
@@ -389,11 +485,7 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
-    ext = _extended(u, fixed)
-    for e in range(nnz):  # Constraints.jacobian_values, straight into the band
-        a = rows[e]
-        x = axes[e]
-        ab[lay_pos[e], entry_col[e]] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
+    _band_values(ab.reshape(-1), u, fixed, gi, gj, rows, sign, axes, lay_pos)
     ab[off + ins - ck, ck] = 1.0
     piv = np.empty(m, dtype=np.int64)
     if not _band_lu(ab, m, kl, ku, piv):
@@ -411,9 +503,7 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
         y0[c] = b[col_pos[c]]
     d = row.copy()
     d[k] -= 1.0
-    gamma = 1.0
-    for c in range(m):
-        gamma += d[c] * y0[c]
+    gamma = 1.0 + _dot(d, y0)
     if gamma == 0.0 or not np.isfinite(gamma):
         return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, y0, d, gamma
     sgn = base_sign * (1 if gamma > 0 else -1)
@@ -445,6 +535,81 @@ def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
 
 
 @njit(cache=True)
+def _within(sq, lengths, atol, tight):
+    """``(max |sqrt(sq) - L| <= atol, ... <= tight)`` (a NaN is within neither) as counts of
+    the bars outside: no data-dependent branch, so the loop vectorises."""
+    over_a = 0
+    over_t = 0
+    for a in range(lengths.shape[0]):
+        r = abs(math.sqrt(sq[a]) - lengths[a])
+        over_a += not (r <= atol)
+        over_t += not (r <= tight)
+    return over_a == 0, over_t == 0
+
+
+@njit(cache=True)
+def _strained(sq, lengths, strain_tol):
+    """``max |sqrt(sq) - L| / L > strain_tol`` (a NaN strains), without a branch per bar."""
+    over = 0
+    for a in range(lengths.shape[0]):
+        over += not (abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a] <= strain_tol)
+    return over > 0
+
+
+@njit(cache=True, boundscheck=False)
+def _gap(sq, targets, pos, rhs):
+    """``rhs[pos] = -(sq - targets)``; returns ``|sq - targets|^2`` (four partial sums: the
+    additions are not one chain of dependencies)."""
+    ea = sq.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    a = 0
+    while a + 4 <= ea:
+        g0 = sq[a] - targets[a]
+        g1 = sq[a + 1] - targets[a + 1]
+        g2 = sq[a + 2] - targets[a + 2]
+        g3 = sq[a + 3] - targets[a + 3]
+        rhs[pos[a]] = -g0
+        rhs[pos[a + 1]] = -g1
+        rhs[pos[a + 2]] = -g2
+        rhs[pos[a + 3]] = -g3
+        s0 += g0 * g0
+        s1 += g1 * g1
+        s2 += g2 * g2
+        s3 += g3 * g3
+        a += 4
+    while a < ea:
+        g0 = sq[a] - targets[a]
+        rhs[pos[a]] = -g0
+        s0 += g0 * g0
+        a += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False)
+def _dot_gather(d, b, col_pos):
+    """``sum_c d[c] b[col_pos[c]]`` in four partial sums."""
+    m = d.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        s0 += d[c] * b[col_pos[c]]
+        s1 += d[c + 1] * b[col_pos[c + 1]]
+        s2 += d[c + 2] * b[col_pos[c + 2]]
+        s3 += d[c + 3] * b[col_pos[c + 3]]
+        c += 4
+    while c < m:
+        s0 += d[c] * b[col_pos[c]]
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
              lengths, targets, sq, sq_ready):
     """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``):
@@ -456,52 +621,36 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
     w = ext[:m]
     prev = np.inf
     rhs = np.zeros(m)
+    # the band row of each bar's right-hand side entry (dense: the row after the first)
+    pos = np.arange(1, ea + 1) if dense else row_pos[1:]
     tight = CORRECT_TIGHT * atol
     within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
         if it > 1 or not sq_ready:
             _squared_lengths_ext(ext, gi, gj, sq)
-        res = 0.0
-        norm = 0.0
-        for a in range(ea):
-            r = abs(math.sqrt(sq[a]) - lengths[a])
-            if r > res or r != r:
-                res = r if r == r else np.inf
-            g = sq[a] - targets[a]
-            norm += g * g
-        if within < 0 and res <= atol:
+        ok_atol, ok_tight = _within(sq, lengths, atol, tight)
+        if within < 0 and ok_atol:
             within = it - 1
-        if res <= tight:
+        if ok_tight:
             return w.copy(), True, it - 1 if within < 0 else within
-        norm = math.sqrt(norm)
+        # -(l^2 - L^2) straight into the right-hand side (band order), and its norm
+        norm = math.sqrt(_gap(sq, targets, pos, rhs))
         if norm > 0.7 * prev or norm != norm:
-            return w.copy(), res <= atol, it if within < 0 else within
+            return w.copy(), ok_atol, it if within < 0 else within
         prev = norm
         if dense:
             rhs[0] = 0.0
-            for a in range(ea):
-                rhs[a + 1] = -(sq[a] - targets[a])
             dw = _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs)
             for c in range(m):
                 w[c] += dw[c]
-        else:  # _solve fused: the right-hand side straight into the band order, one buffer
+        else:  # _solve fused: the right-hand side already in the band order, one buffer
             rhs[row_pos[0]] = 0.0
-            for a in range(ea):
-                rhs[row_pos[a + 1]] = -(sq[a] - targets[a])
             _band_solve(ab, m, kl, ku, piv, rhs)
-            s = 0.0
-            for c in range(m):
-                s += d[c] * rhs[col_pos[c]]
-            s /= gamma
+            s = _dot_gather(d, rhs, col_pos) / gamma
             for c in range(m):
                 w[c] += rhs[col_pos[c]] - y0[c] * s
     _squared_lengths_ext(ext, gi, gj, sq)
-    res = 0.0
-    for a in range(ea):
-        r = abs(math.sqrt(sq[a]) - lengths[a])
-        if r > res or r != r:
-            res = r if r == r else np.inf
-    return w.copy(), res <= atol, 12 if within < 0 else within
+    return w.copy(), _within(sq, lengths, atol, atol)[0], 12 if within < 0 else within
 
 
 @njit(cache=True)
@@ -569,12 +718,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         # --- one attempt (engine.trace._attempt) ---
         v = u + h * t
         _squared_lengths(v, fixed, gi, gj, sq)
-        strain = 0.0
-        for a in range(ea):
-            s = abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a]
-            if s > strain or s != s:
-                strain = s if s == s else np.inf
-        shrink = strain > strain_tol
+        shrink = _strained(sq, lengths, strain_tol)
         decline = False
         w = v
         ok = False
@@ -597,10 +741,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                                             gam2, dense, atol, fixed, gi, gj, lengths,
                                             targets, sq, False)
             if not decline:
-                dist = 0.0
-                for c in range(m):
-                    dist += (w[c] - v[c]) ** 2
-                if not ok or math.sqrt(dist) > 0.5 * h:
+                if not ok or math.sqrt(_dist2(w, v)) > 0.5 * h:
                     shrink = True
         if decline:
             event = _EV_PASS
@@ -621,18 +762,12 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                     y = _solve(ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3, dense, e1)
                 else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
                     y = y03 / gam3
-                ny = 0.0
-                for c in range(m):
-                    ny += y[c] * y[c]
-                ny = math.sqrt(ny)
+                ny = math.sqrt(_dot(y, y))
                 if not np.isfinite(ny) or ny == 0.0:
                     shrink = True
                 else:
                     tw = y / ny
-                    dot = 0.0
-                    for c in range(m):
-                        dot += tw[c] * t[c]
-                    if dot < cos_turn:
+                    if _dot(tw, t) < cos_turn:
                         shrink = True
                     elif not (s3 == sgn or sgn == 0):
                         if h > h_cross:
@@ -641,10 +776,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                             event = _EV_PASS  # a crossing: the Python loop decides
                             break
         if not shrink:
-            step = 0.0
-            for c in range(m):
-                step += (w[c] - u[c]) ** 2
-            step = math.sqrt(step)
+            step = math.sqrt(_dist2(w, u))
             if step > h_max:
                 shrink = True
         if shrink:
@@ -654,16 +786,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         arc_new = arc + step
         if close and arc_new > close_after:
             # segment_distance(u, w, u0) <= 0.5 h_max: the Python loop tests the closing
-            ab_ = 0.0
-            num = 0.0
-            for c in range(m):
-                ab_ += (w[c] - u[c]) ** 2
-                num += (u0[c] - u[c]) * (w[c] - u[c])
-            s_ = 0.0 if ab_ == 0.0 else min(1.0, max(0.0, num / ab_))
-            gap = 0.0
-            for c in range(m):
-                gap += (u[c] + s_ * (w[c] - u[c]) - u0[c]) ** 2
-            if math.sqrt(gap) <= 0.5 * h_max:
+            if _segment_distance(u, w, u0) <= 0.5 * h_max:
                 event = _EV_PASS
                 break
         # commit
