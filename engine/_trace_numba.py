@@ -166,9 +166,11 @@ def _segment_distance(a, b, target):
 @njit(cache=True)
 def _diagonal(ab, off, piv, n):
     """After the LU: the number of sign flips (negative pivots and row interchanges) and
-    ``log|det|``, and the diagonal replaced by the reciprocals of the pivots (for
-    :func:`_band_solve`); flips -1 when a pivot is not finite. One logarithm per block of the
-    product instead of one per pivot (which would cost about what the band LU does)."""
+    ``log|det|``, the diagonal replaced by the reciprocals of the pivots and every row of
+    ``U`` off the diagonal scaled by it (``U = D U'``, ``U'`` unit upper triangular: the back
+    substitution of :func:`_band_solve` then has one product on its chain of dependencies per
+    column instead of two); flips -1 when a pivot is not finite. One logarithm per block of
+    the product instead of one per pivot (which would cost about what the band LU does)."""
     flips = 0
     out = 0.0
     prod = 1.0
@@ -188,7 +190,10 @@ def _diagonal(ab, off, piv, n):
             if prod > 1e100 or prod < 1e-100:
                 out += math.log(prod)
                 prod = 1.0
-        ab[off, j] = 1.0 / ab[off, j]
+        r = 1.0 / ab[off, j]
+        ab[off, j] = r
+        for c in range(j + 1, min(j + off, n - 1) + 1):
+            ab[off + j - c, c] *= r
     return flips, out + math.log(prod)
 
 
@@ -331,8 +336,9 @@ def _band_lu_from(ab, n, kl, ku, piv, j0):
 @njit(cache=True)
 def _band_solve(ab, n, kl, ku, piv, b):
     """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
-    pivots (:func:`_diagonal`): multiplications on the back substitution's chain of
-    dependencies instead of divisions. A chain's band (``kl = ku = 2``) goes through
+    pivots and whose ``U`` is scaled by them (:func:`_diagonal`): ``x = U'^{-1} D^{-1}
+    L^{-1} P b``, no division and one product per column on the back substitution's chain of
+    dependencies. A chain's band (``kl = ku = 2``) goes through
     :func:`_band_solve22`."""
     if kl == 2 and ku == 2:
         _band_solve22(ab, n, piv, b)
@@ -355,8 +361,8 @@ def _band_solve_any(ab, n, kl, ku, piv, b):
         if bj != 0.0:
             for i in range(1, km + 1):
                 b[j + i] -= ab[off + i, j] * bj
+        b[j] = bj * ab[off, j]  # D^{-1}: off the back substitution's chain
     for j in range(n - 1, -1, -1):
-        b[j] *= ab[off, j]
         bj = b[j]
         if bj != 0.0:
             for i in range(max(0, j - off), j):
@@ -379,7 +385,7 @@ def _band_solve22(ab, n, piv, b):
         b0 = b1 if p == 1 else (b2 if p == 2 else b0)
         b1 = t if p == 1 else b1
         b2 = t if p == 2 else b2
-        b[j] = b0
+        b[j] = b0 * ab[4, j]  # D^{-1}: off the back substitution's chain
         if j + 1 < n:
             b1 -= ab[5, j] * b0
         if j + 2 < n:
@@ -387,14 +393,14 @@ def _band_solve22(ab, n, piv, b):
         b0 = b1
         b1 = b2
         b2 = b[j + 3] if j + 3 < n else 0.0
-    # backward, U (reciprocal diagonal in row 4): r0..r4 = b[j], ..., b[j - 4]
+    # backward, U' (unit diagonal, rows scaled by _diagonal): r0..r4 = b[j], ..., b[j - 4]
     r0 = b[n - 1] if n > 0 else 0.0
     r1 = b[n - 2] if n > 1 else 0.0
     r2 = b[n - 3] if n > 2 else 0.0
     r3 = b[n - 4] if n > 3 else 0.0
     r4 = b[n - 5] if n > 4 else 0.0
     for j in range(n - 1, -1, -1):
-        x = r0 * ab[4, j]
+        x = r0
         b[j] = x
         r1 -= ab[3, j] * x
         r2 -= ab[2, j] * x
