@@ -70,19 +70,13 @@ def _jac_values(u, fixed, gi, gj, rows, sign, axes, out):
 
 
 @njit(cache=True, boundscheck=False)
-def _band_values(flat, u, fixed, gi, gj, rows, sign, axes, pos):
+def _band_values(flat, ext, entry_i, entry_j, sign, pos):
     """Constraints.jacobian_values straight into the band: ``flat`` the band's storage in
-    one row, ``pos`` the flat index of each entry (the gathers read ``u`` or ``fixed``
-    directly: no ``[u, fixed]`` copy)."""
-    m = u.shape[0]
-    for e in range(rows.shape[0]):
-        a = rows[e]
-        x = axes[e]
-        i = gi[a, x]
-        j = gj[a, x]
-        ui = u[i] if i < m else fixed[i - m]
-        uj = u[j] if j < m else fixed[j - m]
-        flat[pos[e]] = 2.0 * sign[e] * (ui - uj)
+    one row, ``pos`` the flat index of each entry, ``entry_i, entry_j`` the indices into
+    ``ext = [u, fixed]`` of the coordinates whose difference it is (one gather each instead
+    of the bar's and the axis' and then the gather's)."""
+    for e in range(pos.shape[0]):
+        flat[pos[e]] = 2.0 * sign[e] * (ext[entry_i[e]] - ext[entry_j[e]])
 
 
 @njit(cache=True, boundscheck=False)
@@ -163,7 +157,7 @@ def _segment_distance(a, b, target):
     return math.sqrt(g0 + g1)
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=False)
 def _diagonal(ab, off, piv, n):
     """After the LU: the number of sign flips (negative pivots and row interchanges) and
     ``log|det|``, the diagonal replaced by the reciprocals of the pivots and every row of
@@ -178,11 +172,9 @@ def _diagonal(ab, off, piv, n):
         a = ab[off, j]
         if not np.isfinite(a):
             return -1, 0.0
-        if a < 0:
-            flips += 1
-            a = -a
-        if piv[j] != j:
-            flips += 1
+        # (no branch on the signs: they are data, and a mispredicted branch costs more)
+        flips += int(a < 0) + int(piv[j] != j)
+        a = abs(a)
         if a > 1e100 or a < 1e-100:
             out += math.log(a)
         else:
@@ -192,8 +184,14 @@ def _diagonal(ab, off, piv, n):
                 prod = 1.0
         r = 1.0 / ab[off, j]
         ab[off, j] = r
-        for c in range(j + 1, min(j + off, n - 1) + 1):
-            ab[off + j - c, c] *= r
+        if off == 4 and j + 4 < n:  # a chain's band (kl = ku = 2), unrolled
+            ab[3, j + 1] *= r
+            ab[2, j + 2] *= r
+            ab[1, j + 3] *= r
+            ab[0, j + 4] *= r
+        else:
+            for c in range(j + 1, min(j + off, n - 1) + 1):
+                ab[off + j - c, c] *= r
     return flips, out + math.log(prod)
 
 
@@ -414,8 +412,9 @@ def _band_solve22(ab, n, piv, b):
 
 
 @njit(cache=True)
-def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-            entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp):
+def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+            entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+            lay_pos, lay_rp):
     """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
     logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
     otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
@@ -491,7 +490,7 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
-    _band_values(ab.reshape(-1), u, fixed, gi, gj, rows, sign, axes, lay_pos)
+    _band_values(ab.reshape(-1), _extended(u, fixed), entry_i, entry_j, sign, lay_pos)
     ab[off + ins - ck, ck] = 1.0
     piv = np.empty(m, dtype=np.int64)
     if not _band_lu(ab, m, kl, ku, piv):
@@ -661,7 +660,7 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
 
 @njit(cache=True)
 def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign, axes,
-        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
         out_pts, out_tan, out_sign, out_logdet):
     """Committed passes of engine.trace.trace_curve (see engine.trace_kernel.advance).
 
@@ -706,9 +705,8 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     l3 = 0.0
     step = 0.0
     st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor(
-        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-        entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i, entry_j,
+        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp)
     lay_rp = rp
     ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
     if st != _OK:
@@ -735,8 +733,8 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             if not ok:
                 st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                    col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+                    entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+                    vals, lay, lay_pos, lay_rp)
                 lay_rp = rp2
                 if st2 == _DECLINE:
                     decline = True
@@ -754,9 +752,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             break
         if not shrink:
             st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor(
-                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-                entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp)
+                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+                entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+                lay_pos, lay_rp)
             lay_rp = rp3
             if st3 == _DECLINE:
                 event = _EV_PASS

@@ -142,8 +142,8 @@ def test_compiled_factor_matches_dense_lu(name: str, params: dict, dense: bool) 
         row /= np.linalg.norm(row)
         st, ab, piv, kl, ku, sign, logdet, rp, y0, dv, gam = _factor(
             u, row, dense, 10**6, d.fixed_values, d.gather_i, d.gather_j, d.rows, d.cols,
-            d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
-            d.sign_perm, vals, lay, lay_pos, lay_rp)
+            d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank, d.entry_col, d.keys,
+            d.row_rank, d.sign_perm, vals, lay, lay_pos, lay_rp)
         lay_rp = rp
         mat = np.vstack([row, cons.jacobian(u, sparse=False)])
         ref_sign, ref_logdet = np.linalg.slogdet(mat)
@@ -292,17 +292,17 @@ def test_band_values_are_the_bordered_band(name: str, params: dict) -> None:
         row = 0.01 * rng.normal(size=cons.n_free)
         row[k] = 1.0  # the largest entry: the unit row is e_k
         out = _factor(u, row, False, 10**6, d.fixed_values, d.gather_i, d.gather_j, d.rows,
-                      d.cols, d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys,
-                      d.row_rank, d.sign_perm, np.empty(len(d.rows)), lay, lay_pos,
-                      np.zeros(0, dtype=np.int64))
+                      d.cols, d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank,
+                      d.entry_col, d.keys, d.row_rank, d.sign_perm, np.empty(len(d.rows)), lay,
+                      lay_pos, np.zeros(0, dtype=np.int64))
         assert lay[0] == k
         band = cons.unit_bordered_band(u, int(k), 10**6)
         assert band is not None
         ref, kl, ku = band[0], band[1], band[2]
         assert (out[3], out[4]) == (kl, ku)
         mine = np.zeros_like(ref)
-        _band_values(mine.reshape(-1), u, d.fixed_values, d.gather_i, d.gather_j, d.rows,
-                     d.sign, d.axes, lay_pos)
+        _band_values(mine.reshape(-1), np.concatenate([u, d.fixed_values]), d.entry_i,
+                     d.entry_j, d.sign, lay_pos)
         ck = d.col_pos[k]
         mine[kl + ku + lay[3] - ck, ck] = 1.0
         assert np.array_equal(mine, ref)
@@ -325,8 +325,9 @@ def test_chain_band_curves_match_python_loop(name: str, params: dict, band: tupl
     d = trace_kernel.kernel_data(cons, False)
     z = first_order(lk).zero_modes[0]
     out = _factor(lk.coordinates(), z / np.linalg.norm(z), False, 10**6, d.fixed_values,
-                  d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes, d.col_pos,
-                  d.entry_rank, d.entry_col, d.keys, d.row_rank, d.sign_perm,
+                  d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes, d.entry_i,
+                  d.entry_j, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
+                  d.sign_perm,
                   np.empty(len(d.rows)), np.full(4, -1, dtype=np.int64),
                   np.empty(len(d.rows), dtype=np.int64), np.zeros(0, dtype=np.int64))
     assert out[0] == 0 and (out[3], out[4]) == band
