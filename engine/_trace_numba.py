@@ -207,7 +207,7 @@ def _band_lu(ab, n, kl, ku, piv):
     return _band_lu_from(ab, n, kl, ku, piv, j0)
 
 
-@njit(cache=True, boundscheck=False)
+@njit(cache=True, fastmath={"contract"}, boundscheck=False)
 def _band_lu22(ab, n, piv):
     """:func:`_band_lu_from` for ``kl = ku = 2`` on the columns ``j < n - 4`` (where every
     column has both multipliers and four columns to its right): the same operations in the
@@ -298,7 +298,7 @@ def _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
         ab[0, j + 4], ab[1, j + 4], ab[2, j + 4] = x04, x14, x24
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _band_lu_from(ab, n, kl, ku, piv, j0):
     """gbtf2 from column ``j0`` on (the columns before it done)."""
     off = kl + ku
@@ -344,7 +344,7 @@ def _band_solve(ab, n, kl, ku, piv, b):
         _band_solve_any(ab, n, kl, ku, piv, b)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _band_solve_any(ab, n, kl, ku, piv, b):
     """:func:`_band_solve` for any band."""
     off = kl + ku
@@ -367,7 +367,7 @@ def _band_solve_any(ab, n, kl, ku, piv, b):
                 b[i] -= ab[off + i - j, j] * bj
 
 
-@njit(cache=True, boundscheck=False)
+@njit(cache=True, fastmath={"contract"}, boundscheck=False)
 def _band_solve22(ab, n, piv, b):
     """:func:`_band_solve` for ``kl = ku = 2`` with the window of ``b`` that a column touches
     held in registers (the substitutions are chains of dependencies: no store and reload of
