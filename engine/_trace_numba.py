@@ -74,12 +74,106 @@ def _jac_values_ext(ext, gi, gj, rows, sign, axes, out):
         out[e] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=False)
+def _band_values(flat, ext, entry_i, entry_j, sign, pos):
+    """Constraints.jacobian_values straight into the band: ``flat`` the band's storage in
+    one row, ``pos`` the flat index of each entry, ``entry_i, entry_j`` the indices into
+    ``ext = [u, fixed]`` of the coordinates whose difference it is (one gather each instead
+    of the bar's and the axis' and then the gather's)."""
+    for e in range(pos.shape[0]):
+        flat[pos[e]] = 2.0 * sign[e] * (ext[entry_i[e]] - ext[entry_j[e]])
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _dot(a, b):
+    """``a . b`` in four partial sums (the additions are not one chain of dependencies).
+
+    This and the other small reductions below are inlined (``inline="always"``) where
+    :func:`run` and :func:`_correct` use them: as calls they made the kernel on a small
+    dense linkage (the crank-rocker's curve) about 1.7 times slower."""
+    m = a.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        s0 += a[c] * b[c]
+        s1 += a[c + 1] * b[c + 1]
+        s2 += a[c + 2] * b[c + 2]
+        s3 += a[c + 3] * b[c + 3]
+        c += 4
+    while c < m:
+        s0 += a[c] * b[c]
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _dist2(a, b):
+    """``|a - b|^2`` in four partial sums."""
+    m = a.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        d0 = a[c] - b[c]
+        d1 = a[c + 1] - b[c + 1]
+        d2 = a[c + 2] - b[c + 2]
+        d3 = a[c + 3] - b[c + 3]
+        s0 += d0 * d0
+        s1 += d1 * d1
+        s2 += d2 * d2
+        s3 += d3 * d3
+        c += 4
+    while c < m:
+        d0 = a[c] - b[c]
+        s0 += d0 * d0
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _segment_distance(a, b, target):
+    """engine.trace.segment_distance: from ``target`` to the segment ``[a, b]``."""
+    m = a.shape[0]
+    ab = _dist2(b, a)
+    n0 = 0.0
+    n1 = 0.0
+    c = 0
+    while c + 2 <= m:
+        n0 += (target[c] - a[c]) * (b[c] - a[c])
+        n1 += (target[c + 1] - a[c + 1]) * (b[c + 1] - a[c + 1])
+        c += 2
+    if c < m:
+        n0 += (target[c] - a[c]) * (b[c] - a[c])
+    num = n0 + n1
+    s = 0.0 if ab == 0.0 else min(1.0, max(0.0, num / ab))
+    g0 = 0.0
+    g1 = 0.0
+    c = 0
+    while c + 2 <= m:
+        e0 = a[c] + s * (b[c] - a[c]) - target[c]
+        e1 = a[c + 1] + s * (b[c + 1] - a[c + 1]) - target[c + 1]
+        g0 += e0 * e0
+        g1 += e1 * e1
+        c += 2
+    if c < m:
+        e0 = a[c] + s * (b[c] - a[c]) - target[c]
+        g0 += e0 * e0
+    return math.sqrt(g0 + g1)
+
+
+@njit(cache=True, boundscheck=False)
 def _diagonal(ab, off, piv, n):
     """After the LU: the number of sign flips (negative pivots and row interchanges) and
-    ``log|det|``, and the diagonal replaced by the reciprocals of the pivots (for
-    :func:`_band_solve`); flips -1 when a pivot is not finite. One logarithm per block of the
-    product instead of one per pivot (which would cost about what the band LU does)."""
+    ``log|det|``, the diagonal replaced by the reciprocals of the pivots and every row of
+    ``U`` off the diagonal scaled by it (``U = D U'``, ``U'`` unit upper triangular: the back
+    substitution of :func:`_band_solve` then has one product on its chain of dependencies per
+    column instead of two); flips -1 when a pivot is not finite. One logarithm per block of
+    the product instead of one per pivot (which would cost about what the band LU does)."""
     flips = 0
     out = 0.0
     prod = 1.0
@@ -87,11 +181,9 @@ def _diagonal(ab, off, piv, n):
         a = ab[off, j]
         if not np.isfinite(a):
             return -1, 0.0
-        if a < 0:
-            flips += 1
-            a = -a
-        if piv[j] != j:
-            flips += 1
+        # (no branch on the signs: they are data, and a mispredicted branch costs more)
+        flips += int(a < 0) + int(piv[j] != j)
+        a = abs(a)
         if a > 1e100 or a < 1e-100:
             out += math.log(a)
         else:
@@ -99,7 +191,16 @@ def _diagonal(ab, off, piv, n):
             if prod > 1e100 or prod < 1e-100:
                 out += math.log(prod)
                 prod = 1.0
-        ab[off, j] = 1.0 / ab[off, j]
+        r = 1.0 / ab[off, j]
+        ab[off, j] = r
+        if off == 4 and j + 4 < n:  # a chain's band (kl = ku = 2), unrolled
+            ab[3, j + 1] *= r
+            ab[2, j + 2] *= r
+            ab[1, j + 3] *= r
+            ab[0, j + 4] *= r
+        else:
+            for c in range(j + 1, min(j + off, n - 1) + 1):
+                ab[off + j - c, c] *= r
     return flips, out + math.log(prod)
 
 
@@ -115,49 +216,98 @@ def _band_lu(ab, n, kl, ku, piv):
     return _band_lu_from(ab, n, kl, ku, piv, j0)
 
 
-@njit(cache=True, boundscheck=False)
+@njit(cache=True, fastmath={"contract"}, boundscheck=False)
 def _band_lu22(ab, n, piv):
     """:func:`_band_lu_from` for ``kl = ku = 2`` on the columns ``j < n - 4`` (where every
     column has both multipliers and four columns to its right): the same operations in the
-    same order, the loops unrolled and the row interchange done unconditionally (a no-op
-    without a pivot: no data-dependent branch). Returns the next column, -1 at a zero pivot."""
-    for j in range(n - 4):
-        a4 = ab[4, j]
-        a5 = ab[5, j]
-        a6 = ab[6, j]
+    same order, with the active window (rows ``j .. j + 2``, columns ``j .. j + 4``) held in
+    registers and shifted one column on, so that a column's updates are not stored and
+    reloaded by the next (the elimination is a chain of dependencies), the row interchange
+    as selects (no data-dependent branch). Returns the next column, -1 at a zero pivot
+    (``ab`` then as the loop leaves it)."""
+    if n <= 4:
+        return 0
+    # x{r}{c} = A[j + r, j + c] = ab[4 + r - c, j + c]
+    x00, x01, x02, x03, x04 = ab[4, 0], ab[3, 1], ab[2, 2], ab[1, 3], ab[0, 4]
+    x10, x11, x12, x13, x14 = ab[5, 0], ab[4, 1], ab[3, 2], ab[2, 3], ab[1, 4]
+    x20, x21, x22, x23, x24 = ab[6, 0], ab[5, 1], ab[4, 2], ab[3, 3], ab[2, 4]
+    j = 0
+    while j < n - 4:
         p = 0
-        best = abs(a4)
-        pv = a4
-        if abs(a5) > best:
-            best = abs(a5)
+        best = abs(x00)
+        pv = x00
+        if abs(x10) > best:
+            best = abs(x10)
             p = 1
-            pv = a5
-        if abs(a6) > best:
+            pv = x10
+        if abs(x20) > best:
             p = 2
-            pv = a6
+            pv = x20
         piv[j] = j + p
         if pv == 0.0:
+            _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+                     x20, x21, x22, x23, x24)
             return -1
-        for k in range(5):
-            c = j + k
-            x = ab[4 - k, c]
-            ab[4 - k, c] = ab[4 - k + p, c]
-            ab[4 - k + p, c] = x
-        rpiv = 1.0 / ab[4, j]
-        l1 = ab[5, j] * rpiv
-        l2 = ab[6, j] * rpiv
+        s1 = p == 1
+        s2 = p == 2
+        t0, t1, t2, t3, t4 = x00, x01, x02, x03, x04
+        x00 = x10 if s1 else (x20 if s2 else x00)
+        x01 = x11 if s1 else (x21 if s2 else x01)
+        x02 = x12 if s1 else (x22 if s2 else x02)
+        x03 = x13 if s1 else (x23 if s2 else x03)
+        x04 = x14 if s1 else (x24 if s2 else x04)
+        x10, x11, x12, x13, x14 = (t0 if s1 else x10), (t1 if s1 else x11), \
+            (t2 if s1 else x12), (t3 if s1 else x13), (t4 if s1 else x14)
+        x20, x21, x22, x23, x24 = (t0 if s2 else x20), (t1 if s2 else x21), \
+            (t2 if s2 else x22), (t3 if s2 else x23), (t4 if s2 else x24)
+        ab[4, j] = x00
+        ab[3, j + 1] = x01
+        ab[2, j + 2] = x02
+        ab[1, j + 3] = x03
+        ab[0, j + 4] = x04
+        rpiv = 1.0 / x00
+        l1 = x10 * rpiv
+        l2 = x20 * rpiv
         ab[5, j] = l1
         ab[6, j] = l2
-        for k in range(1, 5):
-            c = j + k
-            f = ab[4 - k, c]
-            if f != 0.0:
-                ab[5 - k, c] -= l1 * f
-                ab[6 - k, c] -= l2 * f
-    return max(n - 4, 0)
+        if x01 != 0.0:
+            x11 -= l1 * x01
+            x21 -= l2 * x01
+        if x02 != 0.0:
+            x12 -= l1 * x02
+            x22 -= l2 * x02
+        if x03 != 0.0:
+            x13 -= l1 * x03
+            x23 -= l2 * x03
+        if x04 != 0.0:
+            x14 -= l1 * x04
+            x24 -= l2 * x04
+        # one column on: rows j + 1, j + 2 stay in registers, row j + 3 comes in
+        x00, x01, x02, x03 = x11, x12, x13, x14
+        x10, x11, x12, x13 = x21, x22, x23, x24
+        x20, x21, x22, x23 = ab[6, j + 1], ab[5, j + 2], ab[4, j + 3], ab[3, j + 4]
+        if j + 5 < n:
+            x04, x14, x24 = ab[0, j + 5], ab[1, j + 5], ab[2, j + 5]
+        else:
+            x04, x14, x24 = 0.0, 0.0, 0.0
+        j += 1
+    _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+             x20, x21, x22, x23, x24)
+    return j
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=False, inline="always")
+def _flush22(ab, n, j, x00, x01, x02, x03, x04, x10, x11, x12, x13, x14,
+             x20, x21, x22, x23, x24):
+    """Store the window of :func:`_band_lu22` at column ``j`` back into ``ab``."""
+    ab[4, j], ab[3, j + 1], ab[2, j + 2], ab[1, j + 3] = x00, x01, x02, x03
+    ab[5, j], ab[4, j + 1], ab[3, j + 2], ab[2, j + 3] = x10, x11, x12, x13
+    ab[6, j], ab[5, j + 1], ab[4, j + 2], ab[3, j + 3] = x20, x21, x22, x23
+    if j + 4 < n:
+        ab[0, j + 4], ab[1, j + 4], ab[2, j + 4] = x04, x14, x24
+
+
+@njit(cache=True, fastmath={"contract"})
 def _band_lu_from(ab, n, kl, ku, piv, j0):
     """gbtf2 from column ``j0`` on (the columns before it done)."""
     off = kl + ku
@@ -193,8 +343,9 @@ def _band_lu_from(ab, n, kl, ku, piv, j0):
 @njit(cache=True)
 def _band_solve(ab, n, kl, ku, piv, b):
     """gbtrs (in place), on a factorisation whose diagonal holds the reciprocals of the
-    pivots (:func:`_diagonal`): multiplications on the back substitution's chain of
-    dependencies instead of divisions. A chain's band (``kl = ku = 2``) goes through
+    pivots and whose ``U`` is scaled by them (:func:`_diagonal`): ``x = U'^{-1} D^{-1}
+    L^{-1} P b``, no division and one product per column on the back substitution's chain of
+    dependencies. A chain's band (``kl = ku = 2``) goes through
     :func:`_band_solve22`."""
     if kl == 2 and ku == 2:
         _band_solve22(ab, n, piv, b)
@@ -202,7 +353,7 @@ def _band_solve(ab, n, kl, ku, piv, b):
         _band_solve_any(ab, n, kl, ku, piv, b)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _band_solve_any(ab, n, kl, ku, piv, b):
     """:func:`_band_solve` for any band."""
     off = kl + ku
@@ -217,15 +368,15 @@ def _band_solve_any(ab, n, kl, ku, piv, b):
         if bj != 0.0:
             for i in range(1, km + 1):
                 b[j + i] -= ab[off + i, j] * bj
+        b[j] = bj * ab[off, j]  # D^{-1}: off the back substitution's chain
     for j in range(n - 1, -1, -1):
-        b[j] *= ab[off, j]
         bj = b[j]
         if bj != 0.0:
             for i in range(max(0, j - off), j):
                 b[i] -= ab[off + i - j, j] * bj
 
 
-@njit(cache=True, boundscheck=False)
+@njit(cache=True, fastmath={"contract"}, boundscheck=False)
 def _band_solve22(ab, n, piv, b):
     """:func:`_band_solve` for ``kl = ku = 2`` with the window of ``b`` that a column touches
     held in registers (the substitutions are chains of dependencies: no store and reload of
@@ -241,7 +392,7 @@ def _band_solve22(ab, n, piv, b):
         b0 = b1 if p == 1 else (b2 if p == 2 else b0)
         b1 = t if p == 1 else b1
         b2 = t if p == 2 else b2
-        b[j] = b0
+        b[j] = b0 * ab[4, j]  # D^{-1}: off the back substitution's chain
         if j + 1 < n:
             b1 -= ab[5, j] * b0
         if j + 2 < n:
@@ -249,14 +400,14 @@ def _band_solve22(ab, n, piv, b):
         b0 = b1
         b1 = b2
         b2 = b[j + 3] if j + 3 < n else 0.0
-    # backward, U (reciprocal diagonal in row 4): r0..r4 = b[j], ..., b[j - 4]
+    # backward, U' (unit diagonal, rows scaled by _diagonal): r0..r4 = b[j], ..., b[j - 4]
     r0 = b[n - 1] if n > 0 else 0.0
     r1 = b[n - 2] if n > 1 else 0.0
     r2 = b[n - 3] if n > 2 else 0.0
     r3 = b[n - 4] if n > 3 else 0.0
     r4 = b[n - 5] if n > 4 else 0.0
     for j in range(n - 1, -1, -1):
-        x = r0 * ab[4, j]
+        x = r0
         b[j] = x
         r1 -= ab[3, j] * x
         r2 -= ab[2, j] * x
@@ -270,29 +421,32 @@ def _band_solve22(ab, n, piv, b):
 
 
 @njit(cache=True)
-def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-            entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp):
+def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+            entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+            lay_pos, lay_rp):
     """:func:`_factor_into` with work arrays of its own."""
     m = u.shape[0]
     ext = np.empty(m + fixed.shape[0])
     ext[m:] = fixed
     return _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
-                        lay_pos, lay_rp, ext, np.zeros(0, dtype=np.int64), np.zeros(0))
+                        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank,
+                        sign_perm, vals, lay, lay_pos, lay_rp, ext, np.zeros(0, dtype=np.int64),
+                        np.zeros(0))
 
 
 @njit(cache=True)
-def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-                 entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp,
-                 ext, empty_i, empty_f):
+def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+                 entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+                 lay_pos, lay_rp, ext, empty_i, empty_f):
     """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
     logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
     otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
     (engine.lu.BorderedFactor).
 
     The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
-    [k, kl, ku, ins]``, ``lay_pos`` the band row of each entry, ``lay_rp`` the band row of each
-    row (a new array whenever ``k`` changes: a factorisation keeps the one it was made with).
+    [k, kl, ku, ins]``, ``lay_pos`` the flat index in the band (band row times ``m`` plus
+    column) of each entry, ``lay_rp`` the band row of each row (a new array whenever ``k``
+    changes: a factorisation keeps the one it was made with).
 
     Work arrays from the caller: ``ext`` (M + F,) with the fixed coordinates after ``M``
     (``[u, fixed]`` is written into it), ``empty_i`` and ``empty_f`` empty (returned where a
@@ -344,9 +498,10 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
                 kl = diff
             if -diff > ku:
                 ku = -diff
-        for e in range(nnz):
+        for e in range(nnz):  # flat index into the band: (band row) * m + column
             r = entry_rank[e]
-            lay_pos[e] = kl + ku + r + (1 if r >= ins else 0) - entry_col[e]
+            lay_pos[e] = (kl + ku + r + (1 if r >= ins else 0) - entry_col[e]) * m \
+                + entry_col[e]
         row_pos = np.empty(m, dtype=np.int64)
         row_pos[0] = ins
         for a in range(row_rank.shape[0]):
@@ -361,10 +516,7 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
             empty_f, 1.0
     off = kl + ku
     ab = np.zeros((2 * kl + ku + 1, m))
-    for e in range(nnz):  # Constraints.jacobian_values, straight into the band
-        a = rows[e]
-        x = axes[e]
-        ab[lay_pos[e], entry_col[e]] = 2.0 * sign[e] * (ext[gi[a, x]] - ext[gj[a, x]])
+    _band_values(ab.reshape(-1), ext, entry_i, entry_j, sign, lay_pos)
     ab[off + ins - ck, ck] = 1.0
     piv = np.empty(m, dtype=np.int64)
     if not _band_lu(ab, m, kl, ku, piv):
@@ -382,9 +534,7 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
         y0[c] = b[col_pos[c]]
     d = row.copy()
     d[k] -= 1.0
-    gamma = 1.0
-    for c in range(m):
-        gamma += d[c] * y0[c]
+    gamma = 1.0 + _dot(d, y0)
     if gamma == 0.0 or not np.isfinite(gamma):
         return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, y0, d, gamma
     sgn = base_sign * (1 if gamma > 0 else -1)
@@ -415,72 +565,132 @@ def _solve(ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, rhs):
     return x
 
 
+@njit(cache=True, inline="always")
+def _within(sq, lengths, atol, tight):
+    """``(max |sqrt(sq) - L| <= atol, ... <= tight)`` (a NaN is within neither) as counts of
+    the bars outside: no data-dependent branch, so the loop vectorises."""
+    over_a = 0
+    over_t = 0
+    for a in range(lengths.shape[0]):
+        r = abs(math.sqrt(sq[a]) - lengths[a])
+        over_a += not (r <= atol)
+        over_t += not (r <= tight)
+    return over_a == 0, over_t == 0
+
+
+@njit(cache=True, inline="always")
+def _strained(sq, lengths, strain_tol):
+    """``max |sqrt(sq) - L| / L > strain_tol`` (a NaN strains), without a branch per bar."""
+    over = 0
+    for a in range(lengths.shape[0]):
+        over += not (abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a] <= strain_tol)
+    return over > 0
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _gap(sq, targets, pos, rhs):
+    """``rhs[pos] = -(sq - targets)``; returns ``|sq - targets|^2`` (four partial sums: the
+    additions are not one chain of dependencies)."""
+    ea = sq.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    a = 0
+    while a + 4 <= ea:
+        g0 = sq[a] - targets[a]
+        g1 = sq[a + 1] - targets[a + 1]
+        g2 = sq[a + 2] - targets[a + 2]
+        g3 = sq[a + 3] - targets[a + 3]
+        rhs[pos[a]] = -g0
+        rhs[pos[a + 1]] = -g1
+        rhs[pos[a + 2]] = -g2
+        rhs[pos[a + 3]] = -g3
+        s0 += g0 * g0
+        s1 += g1 * g1
+        s2 += g2 * g2
+        s3 += g3 * g3
+        a += 4
+    while a < ea:
+        g0 = sq[a] - targets[a]
+        rhs[pos[a]] = -g0
+        s0 += g0 * g0
+        a += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, boundscheck=False, inline="always")
+def _dot_gather(d, b, col_pos):
+    """``sum_c d[c] b[col_pos[c]]`` in four partial sums."""
+    m = d.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    c = 0
+    while c + 4 <= m:
+        s0 += d[c] * b[col_pos[c]]
+        s1 += d[c + 1] * b[col_pos[c + 1]]
+        s2 += d[c + 2] * b[col_pos[c + 2]]
+        s3 += d[c + 3] * b[col_pos[c + 3]]
+        c += 4
+    while c < m:
+        s0 += d[c] * b[col_pos[c]]
+        c += 1
+    return (s0 + s1) + (s2 + s3)
+
+
 @njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
-             lengths, targets, sq, sq_ready, ext, rhs):
+             lengths, targets, sq, sq_ready, ext, rhs, pos_dense):
     """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``):
     (w, ok, iterations that reached ``atol``).
     ``sq_ready``: ``sq`` already holds the squared lengths at ``v``. Work arrays from the
     caller: ``ext`` (M + F,) with the fixed coordinates after ``M`` (``w`` is its first
-    ``M`` entries: a view, valid until the next call with the same ``ext``) and ``rhs``
-    (M,)."""
-    ea = lengths.shape[0]
+    ``M`` entries: a view, valid until the next call with the same ``ext``), ``rhs``
+    (M,) and, for the dense path, ``pos_dense = [1, ..., E]`` (the band row of each bar's
+    right-hand side entry)."""
     m = v.shape[0]
     ext[:m] = v  # w is ext[:m]: the gathers read it without a copy per iteration
     w = ext[:m]
     rhs[:] = 0.0
     prev = np.inf
+    # the band row of each bar's right-hand side entry (dense: the row after the first,
+    # ``pos_dense = [1, ..., E]`` from the caller)
+    pos = pos_dense if dense else row_pos[1:]
     tight = CORRECT_TIGHT * atol
     within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
         if it > 1 or not sq_ready:
             _squared_lengths_ext(ext, gi, gj, sq)
-        res = 0.0
-        norm = 0.0
-        for a in range(ea):
-            r = abs(math.sqrt(sq[a]) - lengths[a])
-            if r > res or r != r:
-                res = r if r == r else np.inf
-            g = sq[a] - targets[a]
-            norm += g * g
-        if within < 0 and res <= atol:
+        ok_atol, ok_tight = _within(sq, lengths, atol, tight)
+        if within < 0 and ok_atol:
             within = it - 1
-        if res <= tight:
+        if ok_tight:
             return w, True, it - 1 if within < 0 else within
-        norm = math.sqrt(norm)
+        # -(l^2 - L^2) straight into the right-hand side (band order), and its norm
+        norm = math.sqrt(_gap(sq, targets, pos, rhs))
         if norm > 0.7 * prev or norm != norm:
-            return w, res <= atol, it if within < 0 else within
+            return w, ok_atol, it if within < 0 else within
         prev = norm
         if dense:
             rhs[0] = 0.0
-            for a in range(ea):
-                rhs[a + 1] = -(sq[a] - targets[a])
             _band_solve(ab, m, kl, ku, piv, rhs)  # _solve's dense path, in place
             for c in range(m):
                 w[c] += rhs[c]
-        else:  # _solve fused: the right-hand side straight into the band order, one buffer
+        else:  # _solve fused: the right-hand side already in the band order, one buffer
             rhs[row_pos[0]] = 0.0
-            for a in range(ea):
-                rhs[row_pos[a + 1]] = -(sq[a] - targets[a])
             _band_solve(ab, m, kl, ku, piv, rhs)
-            s = 0.0
-            for c in range(m):
-                s += d[c] * rhs[col_pos[c]]
-            s /= gamma
+            s = _dot_gather(d, rhs, col_pos) / gamma
             for c in range(m):
                 w[c] += rhs[col_pos[c]] - y0[c] * s
     _squared_lengths_ext(ext, gi, gj, sq)
-    res = 0.0
-    for a in range(ea):
-        r = abs(math.sqrt(sq[a]) - lengths[a])
-        if r > res or r != r:
-            res = r if r == r else np.inf
-    return w, res <= atol, 12 if within < 0 else within
+    return w, _within(sq, lengths, atol, atol)[0], 12 if within < 0 else within
 
 
 @njit(cache=True)
 def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign, axes,
-        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
         out_pts, out_tan, out_sign, out_logdet):
     """Committed passes of engine.trace.trace_curve (see engine.trace_kernel.advance).
 
@@ -525,8 +735,9 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     l3 = 0.0
     step = 0.0
     # work arrays of every pass, allocated once: [v, fixed], [w, fixed] (the corrector's
-    # iterate), [u, fixed] of a factorisation, the corrector's right-hand side, the tangent's
-    # solve, and the empty arrays of the dense factorisation
+    # iterate), [u, fixed] of a factorisation, the corrector's right-hand side and the band
+    # rows of its entries on the dense path, the tangent's solve, and the empty arrays of the
+    # dense factorisation
     nf = fixed.shape[0]
     ext_v = np.empty(m + nf)
     ext_w = np.empty(m + nf)
@@ -536,13 +747,14 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     ext_f[m:] = fixed
     v = ext_v[:m]
     rhs = np.empty(m)
+    pos_dense = np.arange(1, ea + 1)
     ybuf = np.empty(m)
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros(0)
     st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor_into(
-        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-        entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-        lay_rp, ext_f, empty_i, empty_f)
+        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i, entry_j,
+        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp,
+        ext_f, empty_i, empty_f)
     lay_rp = rp
     ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
     if st != _OK:
@@ -559,24 +771,20 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         for c in range(m):
             v[c] = u[c] + h * t[c]
         _squared_lengths_ext(ext_v, gi, gj, sq)
-        strain = 0.0
-        for a in range(ea):
-            s = abs(math.sqrt(sq[a]) - lengths[a]) / lengths[a]
-            if s > strain or s != s:
-                strain = s if s == s else np.inf
-        shrink = strain > strain_tol
+        shrink = _strained(sq, lengths, strain_tol)
         decline = False
         w = v
         ok = False
         iters = 0
         if not shrink:
             w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
-                                    fixed, gi, gj, lengths, targets, sq, True, ext_w, rhs)
+                                    fixed, gi, gj, lengths, targets, sq, True, ext_w, rhs,
+                                    pos_dense)
             if not ok:
                 st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor_into(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                    col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-                    lay_rp, ext_f, empty_i, empty_f)
+                    entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+                    vals, lay, lay_pos, lay_rp, ext_f, empty_i, empty_f)
                 lay_rp = rp2
                 if st2 == _DECLINE:
                     decline = True
@@ -585,21 +793,18 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                 else:
                     w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
                                             gam2, dense, atol, fixed, gi, gj, lengths,
-                                            targets, sq, False, ext_w, rhs)
+                                            targets, sq, False, ext_w, rhs, pos_dense)
             if not decline:
-                dist = 0.0
-                for c in range(m):
-                    dist += (w[c] - v[c]) ** 2
-                if not ok or math.sqrt(dist) > 0.5 * h:
+                if not ok or math.sqrt(_dist2(w, v)) > 0.5 * h:
                     shrink = True
         if decline:
             event = _EV_PASS
             break
         if not shrink:
             st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor_into(
-                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, col_pos,
-                entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos,
-                lay_rp, ext_f, empty_i, empty_f)
+                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+                entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
+                lay_pos, lay_rp, ext_f, empty_i, empty_f)
             lay_rp = rp3
             if st3 == _DECLINE:
                 event = _EV_PASS
@@ -615,19 +820,13 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                 else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
                     for c in range(m):
                         y[c] = y03[c] / gam3
-                ny = 0.0
-                for c in range(m):
-                    ny += y[c] * y[c]
-                ny = math.sqrt(ny)
+                ny = math.sqrt(_dot(y, y))
                 if not np.isfinite(ny) or ny == 0.0:
                     shrink = True
                 else:
                     for c in range(m):
                         tw[c] = y[c] / ny
-                    dot = 0.0
-                    for c in range(m):
-                        dot += tw[c] * t[c]
-                    if dot < cos_turn:
+                    if _dot(tw, t) < cos_turn:
                         shrink = True
                     elif not (s3 == sgn or sgn == 0):
                         if h > h_cross:
@@ -636,10 +835,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                             event = _EV_PASS  # a crossing: the Python loop decides
                             break
         if not shrink:
-            step = 0.0
-            for c in range(m):
-                step += (w[c] - u[c]) ** 2
-            step = math.sqrt(step)
+            step = math.sqrt(_dist2(w, u))
             if step > h_max:
                 shrink = True
         if shrink:
@@ -649,16 +845,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         arc_new = arc + step
         if close and arc_new > close_after:
             # segment_distance(u, w, u0) <= 0.5 h_max: the Python loop tests the closing
-            ab_ = 0.0
-            num = 0.0
-            for c in range(m):
-                ab_ += (w[c] - u[c]) ** 2
-                num += (u0[c] - u[c]) * (w[c] - u[c])
-            s_ = 0.0 if ab_ == 0.0 else min(1.0, max(0.0, num / ab_))
-            gap = 0.0
-            for c in range(m):
-                gap += (u[c] + s_ * (w[c] - u[c]) - u0[c]) ** 2
-            if math.sqrt(gap) <= 0.5 * h_max:
+            if _segment_distance(u, w, u0) <= 0.5 * h_max:
                 event = _EV_PASS
                 break
         # commit

@@ -141,6 +141,8 @@ class KernelData(NamedTuple):
     cols: np.ndarray
     sign: np.ndarray
     axes: np.ndarray
+    entry_i: np.ndarray  # (nnz,) index into [u, fixed] of the coordinate of each entry's bar end
+    entry_j: np.ndarray  # (nnz,) ... and of the other end's (the entry is 2 sign (ext_i - ext_j))
     col_pos: np.ndarray  # (M,) band column of each column (band path only, else empty)
     entry_rank: np.ndarray  # (nnz,) band row of each entry's bar before the unit row
     entry_col: np.ndarray  # (nnz,) band column of each entry
@@ -177,6 +179,8 @@ def kernel_data(cons: Constraints, dense: bool) -> KernelData:
         np.ascontiguousarray(p.cols, dtype=np.int64),
         np.ascontiguousarray(p.sign, dtype=float),
         np.ascontiguousarray(p.axes, dtype=np.int64),
+        np.ascontiguousarray(cons._gather_i[p.rows, p.axes], dtype=np.int64),
+        np.ascontiguousarray(cons._gather_j[p.rows, p.axes], dtype=np.int64),
         col_pos, entry_rank, entry_col,
         np.ascontiguousarray(band[3], dtype=float), row_rank, int(sign_perm),
     )
@@ -242,8 +246,8 @@ def _advance(
     # selection) is another numba signature, compiled or loaded from the cache on first use
     n, event = run(state_u, state_t, state_tin, np.ascontiguousarray(u0, dtype=float), fp, ip,
                    d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
-                   d.cols, d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys,
-                   d.row_rank, d.sign_perm, pts, tans, signs, logd)
+                   d.cols, d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank,
+                   d.entry_col, d.keys, d.row_rank, d.sign_perm, pts, tans, signs, logd)
     # copies: views would keep the whole buffers alive for as long as the curve lives
     return Advance(pts[:n].copy(), tans[:n].copy(), signs[:n], logd[:n], int(event), state_u,
                    state_t, state_tin, int(ip[0]), float(fp[0]), float(fp[1]), int(ip[1]),

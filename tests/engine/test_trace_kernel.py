@@ -142,8 +142,8 @@ def test_compiled_factor_matches_dense_lu(name: str, params: dict, dense: bool) 
         row /= np.linalg.norm(row)
         st, ab, piv, kl, ku, sign, logdet, rp, y0, dv, gam = _factor(
             u, row, dense, 10**6, d.fixed_values, d.gather_i, d.gather_j, d.rows, d.cols,
-            d.sign, d.axes, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
-            d.sign_perm, vals, lay, lay_pos, lay_rp)
+            d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank, d.entry_col, d.keys,
+            d.row_rank, d.sign_perm, vals, lay, lay_pos, lay_rp)
         lay_rp = rp
         mat = np.vstack([row, cons.jacobian(u, sparse=False)])
         ref_sign, ref_logdet = np.linalg.slogdet(mat)
@@ -216,6 +216,98 @@ def test_a_zero_pivot_in_the_chain_band() -> None:
         assert np.array_equal(a1[:, :col], a2[:, :col])
 
 
+def test_kernel_reductions_match_their_loops() -> None:
+    """The corrector's and the step control's reductions without a branch per entry or with
+    partial sums against the plain expressions they replace (NaN and infinite entries
+    included: a NaN residual is within no tolerance, a NaN strain strains)."""
+    from engine._trace_numba import (
+        _dist2,
+        _dot,
+        _dot_gather,
+        _gap,
+        _segment_distance,
+        _strained,
+        _within,
+    )
+
+    rng = np.random.default_rng(5)
+    for n in list(range(0, 12)) + [99, 800]:
+        for trial in range(6):
+            lengths = rng.uniform(0.5, 2.0, n)
+            sq = lengths ** 2 + rng.normal(size=n) * 10.0 ** rng.uniform(-16, -8, n)
+            if trial == 1 and n:
+                sq[rng.integers(n)] = np.nan
+            if trial == 2 and n:
+                sq[rng.integers(n)] = np.inf
+            if trial == 3:
+                sq = lengths ** 2  # exactly on: every tolerance met
+            with np.errstate(invalid="ignore"):
+                r = np.abs(np.sqrt(sq) - lengths)
+            res = np.inf if np.isnan(r).any() else float(np.max(r, initial=0.0))
+            for atol, tight in ((1e-9, 1e-12), (1e-12, 1e-15), (1e-6, 1e-6)):
+                assert _within(sq, lengths, atol, tight) == (res <= atol, res <= tight)
+            strain = np.inf if np.isnan(r).any() else float(np.max(r / lengths, initial=0.0))
+            for tol in (1e-12, 1e-9, 1e-2):
+                assert _strained(sq, lengths, tol) == (strain > tol)
+            targets = lengths ** 2
+            pos = rng.permutation(n + 1)[:n]
+            rhs = np.full(n + 1, 7.0)
+            norm2 = _gap(sq, targets, pos, rhs)
+            g = sq - targets
+            with np.errstate(invalid="ignore"):
+                assert np.array_equal(rhs[pos], -g, equal_nan=True)
+                ref = float(np.sum(g * g))
+            assert norm2 == pytest.approx(ref, rel=1e-13, nan_ok=True)
+            a, b, c = rng.normal(size=(3, n))
+            perm = rng.permutation(n)
+            assert _dot(a, b) == pytest.approx(float(a @ b), rel=1e-12, abs=1e-12)
+            assert _dot_gather(a, b, perm) == pytest.approx(float(a @ b[perm]), rel=1e-12,
+                                                           abs=1e-12)
+            assert _dist2(a, b) == pytest.approx(float((a - b) @ (a - b)), rel=1e-13)
+            if n:
+                ref_d = tr.segment_distance(a, b, c)
+                assert _segment_distance(a, b, c) == pytest.approx(ref_d, rel=1e-12, abs=1e-14)
+                assert _segment_distance(a, a, c) == pytest.approx(
+                    float(np.linalg.norm(a - c)), rel=1e-12)
+
+
+@pytest.mark.parametrize(("name", "params"), [
+    ("kl-chain", {"n": 30}), ("kl-chain", {"n": 130, "r": 1.6, "l": 1.9}),
+    ("gated-kl-chain", {"n": 30, "gate": 15, "D": 2.3}),
+])
+def test_band_values_are_the_bordered_band(name: str, params: dict) -> None:
+    """The kernel's ``[e_k; J]`` in band storage (the Jacobian's values written through flat
+    indices straight from ``u`` and the fixed coordinates) is what
+    ``Constraints.unit_bordered_band`` builds, for every ``k``."""
+    from engine._trace_numba import _band_values, _factor
+
+    lk = build_preset(name, params)
+    cons = Constraints(lk)
+    d = trace_kernel.kernel_data(cons, False)
+    rng = np.random.default_rng(11)
+    lay = np.full(4, -1, dtype=np.int64)
+    lay_pos = np.empty(len(d.rows), dtype=np.int64)
+    for k in list(rng.choice(cons.n_free, 6, replace=False)) + [0, cons.n_free - 1]:
+        u = lk.coordinates() + 0.05 * rng.normal(size=cons.n_free)
+        row = 0.01 * rng.normal(size=cons.n_free)
+        row[k] = 1.0  # the largest entry: the unit row is e_k
+        out = _factor(u, row, False, 10**6, d.fixed_values, d.gather_i, d.gather_j, d.rows,
+                      d.cols, d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank,
+                      d.entry_col, d.keys, d.row_rank, d.sign_perm, np.empty(len(d.rows)), lay,
+                      lay_pos, np.zeros(0, dtype=np.int64))
+        assert lay[0] == k
+        band = cons.unit_bordered_band(u, int(k), 10**6)
+        assert band is not None
+        ref, kl, ku = band[0], band[1], band[2]
+        assert (out[3], out[4]) == (kl, ku)
+        mine = np.zeros_like(ref)
+        _band_values(mine.reshape(-1), np.concatenate([u, d.fixed_values]), d.entry_i,
+                     d.entry_j, d.sign, lay_pos)
+        ck = d.col_pos[k]
+        mine[kl + ku + lay[3] - ck, ck] = 1.0
+        assert np.array_equal(mine, ref)
+
+
 @pytest.mark.parametrize(("name", "params", "band"), [
     ("kl-chain", {"n": 20}, (2, 2)), ("kl-chain", {"n": 60}, (2, 2)),
     ("kl-chain", {"n": 130, "r": 1.6, "l": 1.9}, (2, 2)),
@@ -233,8 +325,9 @@ def test_chain_band_curves_match_python_loop(name: str, params: dict, band: tupl
     d = trace_kernel.kernel_data(cons, False)
     z = first_order(lk).zero_modes[0]
     out = _factor(lk.coordinates(), z / np.linalg.norm(z), False, 10**6, d.fixed_values,
-                  d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes, d.col_pos,
-                  d.entry_rank, d.entry_col, d.keys, d.row_rank, d.sign_perm,
+                  d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes, d.entry_i,
+                  d.entry_j, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
+                  d.sign_perm,
                   np.empty(len(d.rows)), np.full(4, -1, dtype=np.int64),
                   np.empty(len(d.rows), dtype=np.int64), np.zeros(0, dtype=np.int64))
     assert out[0] == 0 and (out[3], out[4]) == band
@@ -453,7 +546,8 @@ def test_factorisations_into_shared_work_arrays_are_those_with_their_own(
     rng = np.random.default_rng(4)
     z = first_order(lk).zero_modes[0]
     common = (d.fixed_values, d.gather_i, d.gather_j, d.rows, d.cols, d.sign, d.axes,
-              d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank, d.sign_perm)
+              d.entry_i, d.entry_j, d.col_pos, d.entry_rank, d.entry_col, d.keys, d.row_rank,
+              d.sign_perm)
     ext = np.empty(cons.n_free + len(d.fixed_values))
     ext[cons.n_free:] = d.fixed_values
     empty_i, empty_f = np.zeros(0, dtype=np.int64), np.zeros(0)
