@@ -42,7 +42,7 @@ from engine.dyad_margin import critical_planes
 from engine.errors import InvalidRequest
 from engine.linkage import Linkage, changeable_bar
 from engine.report import SearchReport
-from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
+from engine.tolerances import CELL_EDGE_TOL, MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -610,7 +610,8 @@ def _clip(points: np.ndarray, box: np.ndarray) -> np.ndarray:
 
 def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndarray:
     """The (n, n) raster cells the curves cross: every segment sampled at a quarter of a cell
-    (``steps + 1`` points ``a + s (b - a)``, ``s = 0, 1/steps, .., 1``), all segments at once."""
+    (``steps + 1`` points ``a + s (b - a)``, ``s = 0, 1/steps, .., 1``), all segments at once;
+    a sample on a cell's edge (within ``CELL_EDGE_TOL`` cells) blocks the cells on both sides."""
     blocked = np.zeros((n, n), dtype=bool)
     if not curves:
         return blocked
@@ -622,8 +623,12 @@ def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndar
     first = np.concatenate([[0], np.cumsum(steps + 1)[:-1]])
     s = (np.arange(len(seg)) - first[seg]) / steps[seg]  # (N,) in [0, 1] per segment
     q = (a[seg] + s[:, None] * (b[seg] - a[seg]) - box[:, 0]) / span * n
-    ij = np.clip(q.astype(int), 0, n - 1)
-    blocked[ij[:, 0], ij[:, 1]] = True
+    # a sample within CELL_EDGE_TOL of a cell's edge blocks the cells on both sides (at a
+    # corner all four): no cell depends on how the sample was rounded
+    for di in (-CELL_EDGE_TOL, 0.0, CELL_EDGE_TOL):
+        for dj in (-CELL_EDGE_TOL, 0.0, CELL_EDGE_TOL):
+            ij = np.clip(np.floor(q + np.array([di, dj])).astype(int), 0, n - 1)
+            blocked[ij[:, 0], ij[:, 1]] = True
     return blocked
 
 

@@ -30,6 +30,12 @@ MIN_CRITICAL_LENGTH_ATOL = 1e3
 #: quotient is then 0 instead of a division by zero).
 NORM_FLOOR = 1e-300
 
+#: A critical-value curve this close to a raster cell's edge (in cells) blocks the cells on both
+#: sides of that edge: which side a curve through a cell corner or along an edge falls on would
+#: otherwise hinge on rounding (two refinements of the same curve, 1e-8 apart, blocked
+#: different cells where a curve ends on a corner of the box's edge).
+CELL_EDGE_TOL = 1e-6
+
 #: The corrector converges to this fraction of ``residual_atol`` (Newton's last step costs
 #: little and squares the error): near critical lengths the Jacobian's smallest singular value
 #: ``s`` is small, and a point accepted at ``residual_atol`` could sit ``residual_atol / s``

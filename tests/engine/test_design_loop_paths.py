@@ -279,3 +279,21 @@ def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
     assert len(batches) == slow.search["seed_lengths"] == 25
     assert sum(batches) == slow.search["seed_configurations"]
     _same_slice(fast, slow)
+
+
+@pytest.mark.parametrize("shift", [-1e-9, 0.0, 1e-9])
+def test_a_curve_through_cell_corners_blocks_the_same_cells_however_it_rounds(shift):
+    """A critical-value line through raster corners (as the gated chain's ``D = L2 - 0.5`` runs
+    through the corners of a 16 x 16 raster of ``[1, 3] x [1, 3.5]``) and one ending on a
+    corner of the box's edge: moved by 1e-9 (far below ``CELL_EDGE_TOL`` cells) the same cells
+    are blocked, and where a point of the curve is a corner every cell at the corner is."""
+    box = np.array([[1.0, 3.0], [1.0, 3.5]])
+    n = 16
+    line = np.array([[1.5, 1.0], [2.125, 1.625], [3.0, 2.5]]) + shift
+    ends = np.array([[1.0, 2.5], [2.5, 1.0]]) + shift
+    blocked = _blocked_cells([line, ends], box, n)
+    assert np.array_equal(blocked, _blocked_cells([line - shift, ends - shift], box, n))
+    i, j = np.rint((np.array([2.125, 1.625]) - box[:, 0]) / (box[:, 1] - box[:, 0]) * n
+                   ).astype(int)  # a traced point of the line on a corner: its four cells
+    assert (i, j) == (9, 4) and blocked[i - 1:i + 1, j - 1:j + 1].all()
+    assert blocked[11, 0] and blocked[12, 0]  # the end on the box's edge, between two cells
