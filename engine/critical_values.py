@@ -625,10 +625,11 @@ def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndar
     q = (a[seg] + s[:, None] * (b[seg] - a[seg]) - box[:, 0]) / span * n
     # a sample within CELL_EDGE_TOL of a cell's edge blocks the cells on both sides (at a
     # corner all four): no cell depends on how the sample was rounded
-    for di in (-CELL_EDGE_TOL, 0.0, CELL_EDGE_TOL):
-        for dj in (-CELL_EDGE_TOL, 0.0, CELL_EDGE_TOL):
-            ij = np.clip(np.floor(q + np.array([di, dj])).astype(int), 0, n - 1)
-            blocked[ij[:, 0], ij[:, 1]] = True
+    lo = np.clip(np.floor(q - CELL_EDGE_TOL).astype(int), 0, n - 1)
+    hi = np.clip(np.floor(q + CELL_EDGE_TOL).astype(int), 0, n - 1)
+    for i in (lo[:, 0], hi[:, 0]):
+        for j in (lo[:, 1], hi[:, 1]):
+            blocked[i, j] = True
     return blocked
 
 

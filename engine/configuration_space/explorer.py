@@ -355,10 +355,7 @@ class Explorer:
             if curve is None:
                 continue
             self.curves.append(curve)
-            if not batch:  # on_traced asks the tree; on_curve keeps its own per curve
-                self._rebuild_tree()
-        if batch and self.curves:
-            self._rebuild_tree()
+            self._rebuild_tree()  # (lazy: built when next read; on_curve has a tree per curve)
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated
         self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)

@@ -363,9 +363,8 @@ def test_curve_with_small_steps_and_stop_matches(monkeypatch: pytest.MonkeyPatch
     assert_same_curve(fast, slow, cons)
 
 
-def test_a_stop_check_is_handed_points_in_growing_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
-    """With a stop check the kernel hands back 32, 64, ... points: a curve stopped early is not
-    traced on to the kernel's buffer first, and a check that never stops changes nothing."""
+def _count_kernel_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The points each call of the compiled kernel hands back, appended as it is called."""
     calls: list[int] = []
     advance = trace_kernel.advance
 
@@ -375,6 +374,13 @@ def test_a_stop_check_is_handed_points_in_growing_chunks(monkeypatch: pytest.Mon
         return out
 
     monkeypatch.setattr(trace_kernel, "advance", counted)
+    return calls
+
+
+def test_a_stop_check_is_handed_points_in_growing_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a stop check the kernel hands back 32, 64, ... points: a curve stopped early is not
+    traced on to the kernel's buffer first, and a check that never stops changes nothing."""
+    calls = _count_kernel_calls(monkeypatch)
     opt = TraceOptions(step_max=2e-3)
     params = {"L1": 0.5, "L2": 1.2, "L3": 1.0}
     cons, free = _trace("four-bar", params, "numba", monkeypatch, opt)
@@ -404,15 +410,7 @@ def test_point_budget_matches(max_points: int, monkeypatch: pytest.MonkeyPatch) 
 
 def test_band_too_wide_runs_every_pass_in_python(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(tr, "BAND_MAX_WORK", -1)  # SuperLU for every factorisation
-    calls = []
-    advance = trace_kernel.advance
-
-    def counted(*a: object, **k: object) -> trace_kernel.Advance:
-        out = advance(*a, **k)  # type: ignore[arg-type]
-        calls.append(len(out.points))
-        return out
-
-    monkeypatch.setattr(trace_kernel, "advance", counted)
+    calls = _count_kernel_calls(monkeypatch)
     cons, fast = _trace("kl-chain", {"n": 30}, "numba", monkeypatch)
     assert calls and not any(calls)  # the kernel committed nothing
     _, slow = _trace("kl-chain", {"n": 30}, "numpy", monkeypatch)
