@@ -4,10 +4,13 @@ Along a curve ``l(u) = L`` (``M - E = 1``) the unit tangent ``t`` solves ``[t_pr
 (normalised): one LU factorisation of ``J`` augmented by the previous tangent gives the tangent
 with a continued orientation, and ``det([t_prev; J])`` whose sign flips when the path crosses a
 critical point (a branch point passed along a smooth branch: the tangent form ``t(u)`` reverses
-there, paper Appendix B). The predictor steps along ``t``; the corrector is Newton in the
-hyperplane orthogonal to ``t`` through the predicted point, reusing the same factorisation
-(chord Newton). Steps adapt so that the predictor's largest bar strain stays below
-``strain_tol``, the corrected residual below ``residual_atol``, and no step exceeds ``step_max``.
+there, paper Appendix B). The predictor steps along the cubic through the last two points and
+their tangents (:func:`predict`; along ``t`` at the start); the corrector is Newton in a
+hyperplane through the predicted point, first reusing the same factorisation (chord Newton)
+down to ``residual_atol``, then with the factorisation at the corrected point, which the next
+tangent needs anyway, down to ``CORRECT_TIGHT * residual_atol`` (:func:`_attempt`). Steps adapt
+so that the predictor's largest bar strain stays below ``strain_tol``, the corrected residual
+below ``residual_atol``, and no step exceeds ``step_max``.
 """
 
 from __future__ import annotations

@@ -3,9 +3,11 @@ the fallback and the reference.
 
 :func:`engine.trace.trace_curve` spends almost all of its time in the per-step overhead of
 small numpy and LAPACK calls (a four-bar's ``[t; J]`` is 4 x 4; a chain's is a narrow band).
-:func:`advance` runs the same predictor-corrector passes in compiled code: predictor, strain
-test, chord Newton with the factorisation of the previous point, full Newton when the chord
-fails, tangent and ``det([t; J])`` at the new point, turn test, step control. It commits only
+:func:`advance` runs the same predictor-corrector passes in compiled code: predictor (the cubic
+through the previous point), strain test, chord Newton with the factorisation of the previous
+point to ``residual_atol``, full Newton when the chord fails, the factorisation at the new point
+(tangent and ``det([t; J])``) and the polish with it to ``CORRECT_TIGHT``, turn test, step
+control. It commits only
 passes that it can finish exactly as the Python loop would, and hands every other pass back
 (a sign change of the determinant, a collapsed step, a possible closing, an exhausted budget,
 a due deadline check, a band too wide for the band LU or a singular bordered system): the

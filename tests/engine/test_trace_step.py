@@ -6,7 +6,8 @@
   the corrected point (the one the tangent needs) to ``CORRECT_TIGHT * residual_atol``; the
   point is within that, and it is the point the chord run to ``CORRECT_TIGHT`` (the corrector
   before) gives (across the curve within what their residuals amount to, along it within the
-  polish's move times the turn of the tangent), with the same tangent and sign, on catalogue and random linkages;
+  polish's move times the turn of the tangent), with the same sign and nearly the same
+  tangent, on catalogue and random linkages;
 * every regular point of a traced curve is within ``CORRECT_TIGHT * residual_atol``, on both
   tracer paths (the compiled kernel and the Python loop are compared point for point in
   ``test_trace_kernel.py``).
