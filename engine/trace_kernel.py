@@ -256,11 +256,13 @@ def _advance(
                    d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
                    d.cols, d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank,
                    d.entry_col, d.keys, d.row_rank, d.sign_perm, pts, tans, signs, logd)
-    # a full buffer is handed back as it is; a partial one copied (a view would keep the whole
-    # buffer alive for as long as the curve lives): copying full ones cost a 400-rotor chain
-    # about 7 us of its 60 per point (megabytes of fresh pages per call)
+    # the buffers handed back as they are, a partial one shrunk in place (a view would keep
+    # the whole buffer alive for as long as the curve lives; nothing else refers to these
+    # arrays): copying them cost a 400-rotor chain about 7 us of its 60 per point (megabytes
+    # of fresh pages per call)
     if n < cap:
-        pts, tans = pts[:n].copy(), tans[:n].copy()
+        pts.resize((n, m), refcheck=False)
+        tans.resize((n, m), refcheck=False)
     return Advance(pts, tans, signs[:n], logd[:n], int(event), state_u,
                    state_t, state_tin, state_prev if ip[9] else None, int(ip[0]),
                    float(fp[0]), float(fp[1]), int(ip[1]), bool(ip[2]))
