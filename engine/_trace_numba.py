@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.tolerances import CORRECT_TIGHT
+from engine.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE
 
 # status of a factorisation
 _OK = 0
@@ -641,10 +641,10 @@ def _dot_gather(d, b, col_pos):
 
 
 @njit(cache=True)
-def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fixed, gi, gj,
-             lengths, targets, sq, sq_ready, ext, rhs, pos_dense):
-    """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``):
-    (w, ok, iterations that reached ``atol``).
+def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, tight_goal,
+             fixed, gi, gj, lengths, targets, sq, sq_ready, ext, rhs, pos_dense):
+    """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``,
+    or to ``atol`` where ``tight_goal`` is False): (w, ok, iterations that reached ``atol``).
     ``sq_ready``: ``sq`` already holds the squared lengths at ``v``. Work arrays from the
     caller: ``ext`` (M + F,) with the fixed coordinates after ``M`` (``w`` is its first
     ``M`` entries: a view, valid until the next call with the same ``ext``), ``rhs``
@@ -658,7 +658,7 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
     # the band row of each bar's right-hand side entry (dense: the row after the first,
     # ``pos_dense = [1, ..., E]`` from the caller)
     pos = pos_dense if dense else row_pos[1:]
-    tight = CORRECT_TIGHT * atol
+    tight = CORRECT_TIGHT * atol if tight_goal else atol
     within = -1  # the iterations that reached atol (what the step control looks at)
     for it in range(1, 13):
         if it > 1 or not sq_ready:
@@ -689,16 +689,18 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, fi
 
 
 @njit(cache=True)
-def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign, axes,
-        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign,
+        axes, entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
         out_pts, out_tan, out_sign, out_logdet):
     """Committed passes of engine.trace.trace_curve (see engine.trace_kernel.advance).
 
+    ``u_prev``: the point before ``u`` (tangent ``t_in``), for the predictor's cubic
+    (engine.trace.predict) when ``has_prev``;
     ``fp = [h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol, cos_turn,
     h_cross]``,
     ``ip = [sign, budget, tried, close, dense, band_max_work, deadline_every, checked,
-    cross_ahead]``; the state entries of ``u, t, t_in, fp, ip`` are updated in place. Returns
-    (points committed, event)."""
+    cross_ahead, has_prev]``; the state entries of ``u, t, t_in, u_prev, fp, ip`` are updated
+    in place. Returns (points committed, event)."""
     h = fp[0]
     arc = fp[1]
     close_after = fp[2]
@@ -718,6 +720,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     every = ip[6]
     checked = ip[7]
     cross_ahead = ip[8] != 0
+    has_prev = ip[9] != 0
     m = u.shape[0]
     ea = lengths.shape[0]
     cap = out_pts.shape[0]
@@ -749,6 +752,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     rhs = np.empty(m)
     pos_dense = np.arange(1, ea + 1)
     ybuf = np.empty(m)
+    wpre = np.empty(m)  # the corrected point before the polish
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros(0)
     st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor_into(
@@ -770,6 +774,14 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         # --- one attempt (engine.trace._attempt) ---
         for c in range(m):
             v[c] = u[c] + h * t[c]
+        if has_prev:  # engine.trace.predict: the cubic through u_prev and u
+            h0 = math.sqrt(_dist2(u, u_prev))
+            if h0 > 0.0:
+                r = h / h0
+                a3 = r * r * (3.0 + 2.0 * r)
+                b3 = h0 * r * r * (1.0 + r)
+                for c in range(m):
+                    v[c] = v[c] + a3 * (u_prev[c] - u[c] + h0 * t[c]) + b3 * (t_in[c] - t[c])
         _squared_lengths_ext(ext_v, gi, gj, sq)
         shrink = _strained(sq, lengths, strain_tol)
         decline = False
@@ -778,8 +790,8 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         iters = 0
         if not shrink:
             w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
-                                    fixed, gi, gj, lengths, targets, sq, True, ext_w, rhs,
-                                    pos_dense)
+                                    False, fixed, gi, gj, lengths, targets, sq, True, ext_w,
+                                    rhs, pos_dense)
             if not ok:
                 st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor_into(
                     v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
@@ -792,7 +804,7 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
                     w, ok, iters = v, False, 0
                 else:
                     w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
-                                            gam2, dense, atol, fixed, gi, gj, lengths,
+                                            gam2, dense, atol, False, fixed, gi, gj, lengths,
                                             targets, sq, False, ext_w, rhs, pos_dense)
             if not decline:
                 if not ok or math.sqrt(_dist2(w, v)) > 0.5 * h:
@@ -812,6 +824,27 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
             if st3 == _SINGULAR:
                 shrink = True
             else:
+                # the polish (engine.trace._attempt): Newton with the factorisation at w to
+                # CORRECT_TIGHT * atol (sq holds the squared lengths at w); the tangent
+                # factorised again at the polished point where it moved w by more than
+                # POLISH_TANGENT_MOVE of the step
+                for c in range(m):
+                    wpre[c] = w[c]
+                w, ok, _it = _correct(w, ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3,
+                                      dense, atol, True, fixed, gi, gj, lengths, targets, sq,
+                                      True, ext_w, rhs, pos_dense)
+                shrink = not ok
+                if ok and math.sqrt(_dist2(w, wpre)) > POLISH_TANGENT_MOVE * h:
+                    st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor_into(
+                        w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
+                        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank,
+                        sign_perm, vals, lay, lay_pos, lay_rp, ext_f, empty_i, empty_f)
+                    lay_rp = rp3
+                    if st3 == _DECLINE:
+                        event = _EV_PASS
+                        break
+                    shrink = st3 == _SINGULAR
+            if not shrink:
                 y = ybuf
                 if dense:  # _solve's dense path, into ybuf
                     for c in range(m):
@@ -857,9 +890,11 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
         count += 1
         arc = arc_new
         for c in range(m):
+            u_prev[c] = u[c]
             t_in[c] = t[c]
             u[c] = w[c]
             t[c] = tw[c]
+        has_prev = True
         ab, piv, kl, ku, rp, y0, dv, gam = ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3
         sgn = s3
         tried = False
@@ -869,4 +904,5 @@ def run(u, t, t_in, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sig
     ip[0] = sgn
     ip[1] = budget
     ip[2] = 1 if tried else 0
+    ip[9] = 1 if has_prev else 0
     return count, event

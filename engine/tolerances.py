@@ -43,6 +43,15 @@ CELL_EDGE_TOL = 1e-6
 #: inside the tolerance band, e.g. a four-bar 1e-8 from critical lengths).
 CORRECT_TIGHT = 1e-3
 
+#: The tracer's corrector polishes its point with the factorisation at the point the chord
+#: reached (made for the tangent anyway); the tangent, sign and ``log|det|`` of that
+#: factorisation stand for the polished point while the polish moved it by at most this
+#: fraction of the step (the tangent is then off by about as much of the step's own turn).
+#: Near critical lengths the polish moves farther (``residual_atol / s``, ``s`` the Jacobian's
+#: smallest singular value, as far as the step itself in a narrow neck, where the tangent
+#: turns fast): the tangent is then factorised again at the polished point.
+POLISH_TANGENT_MOVE = 1e-5
+
 
 @dataclass(frozen=True)
 class Tolerances:

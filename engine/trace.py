@@ -4,10 +4,13 @@ Along a curve ``l(u) = L`` (``M - E = 1``) the unit tangent ``t`` solves ``[t_pr
 (normalised): one LU factorisation of ``J`` augmented by the previous tangent gives the tangent
 with a continued orientation, and ``det([t_prev; J])`` whose sign flips when the path crosses a
 critical point (a branch point passed along a smooth branch: the tangent form ``t(u)`` reverses
-there, paper Appendix B). The predictor steps along ``t``; the corrector is Newton in the
-hyperplane orthogonal to ``t`` through the predicted point, reusing the same factorisation
-(chord Newton). Steps adapt so that the predictor's largest bar strain stays below
-``strain_tol``, the corrected residual below ``residual_atol``, and no step exceeds ``step_max``.
+there, paper Appendix B). The predictor steps along the cubic through the last two points and
+their tangents (:func:`predict`; along ``t`` at the start); the corrector is Newton in a
+hyperplane through the predicted point, first reusing the same factorisation (chord Newton)
+down to ``residual_atol``, then with the factorisation at the corrected point, which the next
+tangent needs anyway, down to ``CORRECT_TIGHT * residual_atol`` (:func:`_attempt`). Steps adapt
+so that the predictor's largest bar strain stays below ``strain_tol``, the corrected residual
+below ``residual_atol``, and no step exceeds ``step_max``.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from engine.budget import NEVER, Deadline
 from engine.constraints import Constraints
 from engine.critical import refine_critical, singular_gap
 from engine.lu import BandLU, BorderedFactor, Factor
-from engine.tolerances import CORRECT_TIGHT, Tolerances
+from engine.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE, Tolerances
 
 #: The tracer looks at its deadline every this many passes of its loop.
 DEADLINE_EVERY = 16
@@ -132,14 +135,18 @@ def correct(
     tol: Tolerances,
     factor: Factor | BorderedFactor | None = None,
     max_iter: int = 12,
+    tight: bool = True,
 ) -> tuple[np.ndarray, bool, int]:
     """Newton in the hyperplane ``{w : t.(w - v) = 0}`` onto ``l(w) = L``.
 
-    Solves ``[t; J] dw = [0; -(l^2 - L^2)]``; with ``factor`` (of ``[t; J]`` at a nearby
-    point) the iteration is chord Newton (no refactorisation), otherwise it refactors at
-    ``v`` once. Returns the point (converged to ``CORRECT_TIGHT * residual_atol`` where
-    rounding allows), whether ``max|l - L| <= residual_atol``, and the iterations that reached
-    ``residual_atol`` (what the step control looks at).
+    Solves ``[t; J] dw = [0; -(l^2 - L^2)]``; with ``factor`` (of ``[r; J]`` at a nearby
+    point, ``r`` close to ``t``: the iterates then stay in the hyperplane orthogonal to ``r``)
+    the iteration is chord Newton (no refactorisation), otherwise it refactors at ``v`` once.
+    Returns the point (converged to ``CORRECT_TIGHT * residual_atol`` where rounding allows;
+    with ``tight=False`` only to ``residual_atol``: the tracer's step then polishes it with
+    the factorisation at the point that it makes for the tangent anyway, see
+    :func:`_attempt`), whether ``max|l - L| <= residual_atol``, and the iterations that
+    reached ``residual_atol`` (what the step control looks at).
     """
     fac = factor if factor is not None else factor_augmented(cons, v, t)
     if not fac.ok:
@@ -147,7 +154,7 @@ def correct(
     w = v.copy()
     prev = np.inf
     lengths = cons.linkage.lengths[cons.bars]
-    tight = CORRECT_TIGHT * tol.residual_atol
+    goal = CORRECT_TIGHT * tol.residual_atol if tight else tol.residual_atol
     within: int | None = None  # the iterations that reached residual_atol (the step control's)
     for it in range(1, max_iter + 1):
         sq = cons.squared_lengths(w)  # once per iteration: both the residual and g use it
@@ -155,7 +162,7 @@ def correct(
         res = float(np.max(np.abs(np.sqrt(sq) - lengths))) if sq.size else 0.0
         if within is None and res <= tol.residual_atol:
             within = it - 1
-        if res <= tight:
+        if res <= goal:
             return w, True, it - 1 if within is None else within
         norm = float(np.linalg.norm(g))
         if norm > 0.7 * prev:  # not contracting: within residual_atol (the rounding floor of
@@ -164,6 +171,32 @@ def correct(
         prev = norm
         w = w + fac.solve(np.concatenate([[0.0], -g]))
     return w, cons.max_residual(w) <= tol.residual_atol, max_iter if within is None else within
+
+
+def predict(
+    u: np.ndarray, t: np.ndarray, h: float, prev: np.ndarray | None, t_prev: np.ndarray
+) -> np.ndarray:
+    """The predictor: ``h`` along the curve from ``u`` (unit tangent ``t``).
+
+    With the previous point ``prev`` (unit tangent ``t_prev``) the cubic through both points
+    with both tangents (Hermite, parametrised by the distance ``h0 = |u - prev|``),
+    extrapolated to ``h``: ``u + h t + r^2 (3 + 2 r) (prev - u + h0 t) + h0 r^2 (1 + r)
+    (t_prev - t)`` with ``r = h / h0``; the terms after ``u + h t`` vanish on a straight
+    line and are ``O(h^2)`` (the curvature) otherwise, so the prediction is off the curve by
+    ``O(h^4)`` instead of the tangent's ``O(h^2)``: the chord corrector starts about two of its
+    iterations closer (a 400-rotor chain's step at ``step_max``: residual ``4e-8`` instead of
+    ``1e-4``). Without ``prev`` (the first step, the step after a crossing), or with
+    ``h0 = 0``, the tangent ``u + h t``.
+    """
+    v = u + h * t
+    if prev is None:
+        return v
+    h0 = float(np.linalg.norm(u - prev))
+    if not h0 > 0.0:
+        return v
+    r = h / h0
+    return v + (r * r * (3.0 + 2.0 * r)) * (prev - u + h0 * t) + (h0 * r * r * (1.0 + r)) * \
+        (t_prev - t)
 
 
 @dataclass
@@ -313,6 +346,9 @@ def trace_curve(
         return curve
     u, t, sign, fac = u0, info.tangent, info.sign, info.factor
     t_in = t0 / np.linalg.norm(t0)  # the row of ``fac``: the tangent before ``u``
+    # the point before ``u`` on the curve (its tangent is ``t_in``): the predictor's cubic
+    # (:func:`predict`); None at the start and after a crossing (the tangent predicts)
+    u_prev: np.ndarray | None = None
     curve.append(u, t, info.sign, info.logdet)
     h, arc, budget = 0.25 * lim.h_max, 0.0, lim.passes
     close_after = 4 * lim.h_max if min_arc_to_close is None else min_arc_to_close
@@ -332,7 +368,7 @@ def trace_curve(
                     room, chunk = min(room, chunk), min(2 * chunk, STOP_CHUNK_MAX)
                 adv = trace_kernel.advance(
                     cons, cons.n_free <= SPARSE_LU_MIN_FREE, u, t, t_in, sign, h, arc, budget,
-                    tried_at_u, room, u0=u0, close=close,
+                    tried_at_u, room, u_prev=u_prev, u0=u0, close=close,
                     close_after=close_after, h_max=lim.h_max, h_min=lim.h_min,
                     collapse=STEP_COLLAPSE * lim.h_max, strain_tol=options.strain_tol,
                     residual_atol=tol.residual_atol, cos_turn=float(np.cos(options.max_turn)),
@@ -352,7 +388,7 @@ def trace_curve(
                             curve.stop = reason
                             return curve
                         prev = w
-                u, t, t_in, sign = adv.u, adv.t, adv.t_in, adv.sign
+                u, t, t_in, sign, u_prev = adv.u, adv.t, adv.t_in, adv.sign, adv.u_prev
                 h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
                 if adv.event != trace_kernel.EV_DEADLINE:
                     break
@@ -375,7 +411,7 @@ def trace_curve(
             tried_at_u = True
             step = _cross_ahead(cons, u, t, tol, lim.h_max, options.max_turn, lim.h_cross)
         if step is None:
-            step = _attempt(cons, u, t, h, fac, sign, tol, options, lim)
+            step = _attempt(cons, u, t, h, fac, sign, tol, options, lim, u_prev, t_in)
         if step == SHRINK or (isinstance(step, _Step)
                               and np.linalg.norm(step.w - u) > lim.h_max):
             h *= 0.5
@@ -383,8 +419,10 @@ def trace_curve(
         if isinstance(step, str):
             curve.stop = step
             return curve
+        u_prev = u
         if step.crossed is not None:  # keep the critical point, with the incoming tangent
             _append_crossing(curve, step.crossed, t, step.info.sign)
+            u_prev = None
             arc += float(np.linalg.norm(step.crossed - u))
             u = step.crossed
             h = float(np.linalg.norm(step.w - u))
@@ -409,10 +447,25 @@ def trace_curve(
 def _attempt(
     cons: Constraints, u: np.ndarray, t: np.ndarray, h: float,
     fac: Factor | BorderedFactor, sign: int, tol: Tolerances, options: TraceOptions,
-    lim: _Limits,
+    lim: _Limits, u_prev: np.ndarray | None = None, t_prev: np.ndarray | None = None,
 ) -> _Step | str:
     """One predictor-corrector step of size ``h`` from ``u`` along ``t``: the step,
     :data:`SHRINK`, or a reason to stop.
+
+    The predictor is :func:`predict` (the cubic through ``u_prev``, ``u`` with their
+    tangents ``t_prev``, ``t`` when ``u_prev`` is given). The chord corrector (the
+    factorisation ``fac`` at ``u``) runs only until the residual is within ``residual_atol``
+    (what the step control counts); the factorisation of ``[t; J(w)]`` at the corrected point
+    ``w``, made for the tangent anyway, then polishes ``w`` to ``CORRECT_TIGHT *
+    residual_atol`` by Newton (quadratic: one step from ``residual_atol``, where the chord's
+    linear rate took about two; it iterates on if one step does not reach it, so the accuracy
+    is the chord's run to the end). The point's tangent, sign and ``log|det|`` are those of
+    that factorisation at ``w`` while the polish moved the point by at most
+    :data:`~engine.tolerances.POLISH_TANGENT_MOVE` of the step (it moves it by
+    ``~residual_atol / s``, ``s`` the Jacobian's smallest singular value: the tangent is then
+    off by about that fraction of the step's own turn, far below any test made on it), else
+    (near critical lengths, where ``s`` is small and the tangent turns fast) those of a
+    factorisation at the polished point.
 
     A sign change of ``det([t; J])`` between neighbours means the corrector landed on another
     branch (near a split branch point the arcs are ``~sqrt(dL)`` apart), or the step crosses a
@@ -420,17 +473,27 @@ def _attempt(
     at a truly critical point (exact branch points at critical lengths), else the trace stops
     open (the search is then incomplete)."""
     lengths = cons.linkage.lengths[cons.bars]
-    v = u + h * t
+    v = predict(u, t, h, u_prev, t if t_prev is None else t_prev)
     strain = float(np.max(np.abs(np.sqrt(cons.squared_lengths(v)) - lengths) / lengths))
     if strain > options.strain_tol:
         return SHRINK
-    w, ok, iters = correct(cons, v, t, tol, factor=fac)
+    w, ok, iters = correct(cons, v, t, tol, factor=fac, tight=False)
     if not ok:
-        w, ok, iters = correct(cons, v, t, tol)
+        w, ok, iters = correct(cons, v, t, tol, tight=False)
     if not ok or np.linalg.norm(w - v) > 0.5 * h:
         return SHRINK
     at_w = tangent_at(cons, w, t)
-    if at_w is None or at_w.tangent @ t < np.cos(options.max_turn):
+    if at_w is None:
+        return SHRINK
+    polished, ok, _ = correct(cons, w, t, tol, factor=at_w.factor)  # Newton at w
+    if not ok:
+        return SHRINK
+    if np.linalg.norm(polished - w) > POLISH_TANGENT_MOVE * h:  # near critical lengths
+        at_w = tangent_at(cons, polished, t)
+        if at_w is None:
+            return SHRINK
+    w = polished
+    if at_w.tangent @ t < np.cos(options.max_turn):
         return SHRINK
     if at_w.sign == sign or sign == 0:
         return _Step(w, at_w, iters)

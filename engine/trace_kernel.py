@@ -3,9 +3,11 @@ the fallback and the reference.
 
 :func:`engine.trace.trace_curve` spends almost all of its time in the per-step overhead of
 small numpy and LAPACK calls (a four-bar's ``[t; J]`` is 4 x 4; a chain's is a narrow band).
-:func:`advance` runs the same predictor-corrector passes in compiled code: predictor, strain
-test, chord Newton with the factorisation of the previous point, full Newton when the chord
-fails, tangent and ``det([t; J])`` at the new point, turn test, step control. It commits only
+:func:`advance` runs the same predictor-corrector passes in compiled code: predictor (the cubic
+through the previous point), strain test, chord Newton with the factorisation of the previous
+point to ``residual_atol``, full Newton when the chord fails, the factorisation at the new point
+(tangent and ``det([t; J])``) and the polish with it to ``CORRECT_TIGHT``, turn test, step
+control. It commits only
 passes that it can finish exactly as the Python loop would, and hands every other pass back
 (a sign change of the determinant, a collapsed step, a possible closing, an exhausted budget,
 a due deadline check, a band too wide for the band LU or a singular bordered system): the
@@ -190,7 +192,8 @@ def kernel_data(cons: Constraints, dense: bool) -> KernelData:
 
 class Advance(NamedTuple):
     """What one call of the kernel did: the committed points (n, M), tangents, signs and
-    ``log|det|``, why it returned, and the tracer's state after the last committed pass."""
+    ``log|det|``, why it returned, and the tracer's state after the last committed pass
+    (``u_prev``: the point before ``u``, None while there is none)."""
 
     points: np.ndarray
     tangents: np.ndarray
@@ -200,6 +203,7 @@ class Advance(NamedTuple):
     u: np.ndarray
     t: np.ndarray
     t_in: np.ndarray
+    u_prev: np.ndarray | None
     sign: int
     h: float
     arc: float
@@ -219,15 +223,16 @@ def advance(
 def _advance(
     run: Callable[..., Any], cons: Constraints, dense: bool, u: np.ndarray, t: np.ndarray,
     t_in: np.ndarray, sign: int, h: float, arc: float, budget: int, tried: bool, room: int, *,
-    u0: np.ndarray, close: bool,
+    u0: np.ndarray, close: bool, u_prev: np.ndarray | None = None,
     close_after: float, h_max: float, h_min: float, collapse: float, strain_tol: float,
     residual_atol: float, cos_turn: float, h_cross: float, band_max_work: int, deadline_every: int,
     checked: int, cross_ahead: bool,
 ) -> Advance:
-    """Run committed passes of the tracer from the state ``(u, t, t_in, sign, h, arc, budget,
-    tried)`` (``t_in`` is the row of the factorisation at ``u``: the tangent before it), at
-    most ``room`` points. ``deadline_every`` 0 never hands back for the deadline; ``checked``
-    is the budget value whose deadline check the caller has just made."""
+    """Run committed passes of the tracer from the state ``(u, t, t_in, u_prev, sign, h, arc,
+    budget, tried)`` (``t_in`` is the row of the factorisation at ``u``: the tangent before it,
+    at ``u_prev``, the point before ``u`` or None), at most ``room`` points.
+    ``deadline_every`` 0 never hands back for the deadline; ``checked`` is the budget value
+    whose deadline check the caller has just made."""
     m = len(u)
     cap = max(1, min(room, BUFFER_FLOATS // max(m, 1)))
     pts = np.empty((cap, m))
@@ -237,18 +242,27 @@ def _advance(
     state_u = np.array(u, dtype=float)
     state_t = np.array(t, dtype=float)
     state_tin = np.array(t_in, dtype=float)
+    state_prev = np.zeros(m) if u_prev is None else np.array(u_prev, dtype=float)
     fp = np.array([h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol,
                    cos_turn, h_cross])
     ip = np.array([sign, budget, int(tried), int(close), int(dense), band_max_work,
-                   deadline_every, checked, int(cross_ahead)], dtype=np.int64)
+                   deadline_every, checked, int(cross_ahead), int(u_prev is not None)],
+                  dtype=np.int64)
     d = kernel_data(cons, dense)
     # u0 contiguous like every other array: a strided view (a row of a seed stack's column
     # selection) is another numba signature, compiled or loaded from the cache on first use
-    n, event = run(state_u, state_t, state_tin, np.ascontiguousarray(u0, dtype=float), fp, ip,
+    n, event = run(state_u, state_t, state_tin, state_prev,
+                   np.ascontiguousarray(u0, dtype=float), fp, ip,
                    d.fixed_values, d.gather_i, d.gather_j, d.lengths, d.targets, d.rows,
                    d.cols, d.sign, d.axes, d.entry_i, d.entry_j, d.col_pos, d.entry_rank,
                    d.entry_col, d.keys, d.row_rank, d.sign_perm, pts, tans, signs, logd)
-    # copies: views would keep the whole buffers alive for as long as the curve lives
-    return Advance(pts[:n].copy(), tans[:n].copy(), signs[:n], logd[:n], int(event), state_u,
-                   state_t, state_tin, int(ip[0]), float(fp[0]), float(fp[1]), int(ip[1]),
-                   bool(ip[2]))
+    # the buffers handed back as they are, a partial one shrunk in place (a view would keep
+    # the whole buffer alive for as long as the curve lives; nothing else refers to these
+    # arrays): copying them cost a 400-rotor chain about 7 us of its 60 per point (megabytes
+    # of fresh pages per call)
+    if n < cap:
+        pts.resize((n, m), refcheck=False)
+        tans.resize((n, m), refcheck=False)
+    return Advance(pts, tans, signs[:n], logd[:n], int(event), state_u,
+                   state_t, state_tin, state_prev if ip[9] else None, int(ip[0]),
+                   float(fp[0]), float(fp[1]), int(ip[1]), bool(ip[2]))

@@ -510,7 +510,14 @@ def test_bounded_neighbour_search_and_per_curve_nearest_change_nothing(case, mon
         for rows in (us[:1], us[:32]):
             got, ref = ex.nearest_points(rows), _tree_nearest(ex, rows)
             assert len(got) == len(ref) == len(rows)
-            assert all(a[0] is b[0] and a[1] == b[1] for a, b in zip(got, ref, strict=True))
+            for row, a, b in zip(rows, got, ref, strict=True):
+                # the same curve point, or (a tie) another exactly as near: a critical point
+                # that two curves both pass through, refined to the same point from both
+                # sides (the three-rotor's (1, 0, 2, 0, 2, 1) to 1e-38), where the per-curve
+                # trees keep the first curve and the tree of all curves any of them
+                assert (a[0] is b[0] and a[1] == b[1]) or \
+                    np.linalg.norm(a[0].points[a[1]] - row) == \
+                    np.linalg.norm(b[0].points[b[1]] - row)
     fast = explore(lk, TOL, opt)
     monkeypatch.setattr(explorer_module, "QUERY_BOUND_REL", np.inf)
     monkeypatch.setattr(explorer_module.Explorer, "nearest_points", _tree_nearest)
