@@ -874,6 +874,7 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
         if shrink:
             budget = nb
             h *= 0.5
+            has_prev = False  # the tangent predicts from here on (engine.trace.trace_curve)
             continue
         arc_new = arc + step
         if close and arc_new > close_after:

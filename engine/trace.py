@@ -185,8 +185,9 @@ def predict(
     line and are ``O(h^2)`` (the curvature) otherwise, so the prediction is off the curve by
     ``O(h^4)`` instead of the tangent's ``O(h^2)``: the chord corrector starts about two of its
     iterations closer (a 400-rotor chain's step at ``step_max``: residual ``4e-8`` instead of
-    ``1e-4``). Without ``prev`` (the first step, the step after a crossing), or with
-    ``h0 = 0``, the tangent ``u + h t``.
+    ``1e-4``). Without ``prev`` (the first step, the step after a crossing, and every attempt
+    from a point after one that failed there: see :func:`trace_curve`), or with ``h0 = 0``, the
+    tangent ``u + h t``.
     """
     v = u + h * t
     if prev is None:
@@ -347,7 +348,8 @@ def trace_curve(
     u, t, sign, fac = u0, info.tangent, info.sign, info.factor
     t_in = t0 / np.linalg.norm(t0)  # the row of ``fac``: the tangent before ``u``
     # the point before ``u`` on the curve (its tangent is ``t_in``): the predictor's cubic
-    # (:func:`predict`); None at the start and after a crossing (the tangent predicts)
+    # (:func:`predict`); None at the start, after a crossing and after a failed attempt from
+    # ``u`` (the tangent predicts)
     u_prev: np.ndarray | None = None
     curve.append(u, t, info.sign, info.logdet)
     h, arc, budget = 0.25 * lim.h_max, 0.0, lim.passes
@@ -415,6 +417,10 @@ def trace_curve(
         if step == SHRINK or (isinstance(step, _Step)
                               and np.linalg.norm(step.w - u) > lim.h_max):
             h *= 0.5
+            # the cubic predicts once from a point: where its step failed the tangent does
+            # (near critical points the tangent turns within a step, and the cubic's
+            # curvature, taken from the last step, would only lead the next ones astray)
+            u_prev = None
             continue
         if isinstance(step, str):
             curve.stop = step

@@ -24,6 +24,7 @@ from engine.constraints import Constraints
 from engine.presets import build_preset
 from engine.rigidity import first_order
 from engine.tolerances import CORRECT_TIGHT, Tolerances
+from engine.configuration_space import SpaceOptions, explore
 from engine.trace import TraceOptions, predict, trace_curve
 
 TOL = Tolerances()
@@ -175,3 +176,35 @@ def test_traced_points_are_within_the_tight_tolerance(
     res = [cons.max_residual(p) for k, p in enumerate(curve.points)
            if k > 0 and np.isfinite(logd[k])]
     assert res and max(res) <= TIGHT
+
+
+def test_after_a_failed_attempt_the_tangent_predicts(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The cubic predicts once from a point: every attempt after one that failed there is
+    predicted by the tangent. Where the tangent turns within a step (near critical points)
+    the cubic's curvature, taken from the last step, sent every halved step astray: the
+    collinear three-rotor (curves of critical points) collapsed its steps at 33,275 points
+    and looked for a critical point ahead of each (two minutes instead of two seconds)."""
+    monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numpy")  # every attempt in Python
+    calls: list[tuple[np.ndarray, bool, object]] = []
+    attempt = tr._attempt
+
+    def recorded(cons, u, t, h, fac, sign, tol, options, lim, u_prev=None, t_prev=None):
+        out = attempt(cons, u, t, h, fac, sign, tol, options, lim, u_prev, t_prev)
+        calls.append((u, u_prev is not None, out))
+        return out
+
+    monkeypatch.setattr(tr, "_attempt", recorded)
+    looked_ahead = []
+    cross_ahead = tr._cross_ahead
+    monkeypatch.setattr(tr, "_cross_ahead",
+                        lambda *a, **k: looked_ahead.append(1) or cross_ahead(*a, **k))
+    opt = SpaceOptions(angles=24, random_starts=4, trace=TraceOptions(max_points=1500))
+    res = explore(build_preset("three-rotor", {"phi": 0.0}), TOL, opt)
+    assert res.degenerate  # (as test_search.py's test of this linkage says)
+    failed_then = [b for a, b in zip(calls, calls[1:], strict=False)
+                   if a[2] == tr.SHRINK and b[0] is a[0]]
+    assert failed_then and not any(cubic for _, cubic, _ in failed_then)
+    assert any(cubic for _, cubic, _ in calls)  # (the cubic does predict elsewhere)
+    # the steps no longer collapse point after point: a look ahead is rare
+    points = sum(len(c.points) for c in res.components)
+    assert len(looked_ahead) < 0.01 * points, (len(looked_ahead), points)
