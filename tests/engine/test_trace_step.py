@@ -20,11 +20,11 @@ import pytest
 
 import engine.trace as tr
 from engine import trace_kernel
+from engine.configuration_space import SpaceOptions, explore
 from engine.constraints import Constraints
 from engine.presets import build_preset
 from engine.rigidity import first_order
 from engine.tolerances import CORRECT_TIGHT, Tolerances
-from engine.configuration_space import SpaceOptions, explore
 from engine.trace import TraceOptions, predict, trace_curve
 
 TOL = Tolerances()
