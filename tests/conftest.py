@@ -29,10 +29,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 # Fuzzing (tests/service/test_fuzz_openapi.py): examples per operation, fewer for the costly
-# operations, and one seed for the whole run, drawn here unless the environment gives one and
-# put back into it, so that every process of the run fuzzes with the seed the header prints.
+# operations and for each preset's own route, and one seed for the whole run, drawn here
+# unless the environment gives one and put back into it, so that every process of the run
+# fuzzes with the seed the header prints.
 FUZZ_EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", "300"))
 FUZZ_COSTLY_EXAMPLES = int(os.environ.get("FUZZ_COSTLY_EXAMPLES", "60"))
+FUZZ_PRESET_EXAMPLES = int(os.environ.get("FUZZ_PRESET_EXAMPLES", "60"))
 FUZZ_SEED = int(os.environ.get("FUZZ_SEED") or int.from_bytes(os.urandom(4), "little"))
 os.environ["FUZZ_SEED"] = str(FUZZ_SEED)
 
@@ -47,7 +49,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
     return [f"schemathesis: {FUZZ_EXAMPLES} examples per operation ({FUZZ_COSTLY_EXAMPLES} for "
-            f"the costly ones), seed {FUZZ_SEED} (replay with FUZZ_SEED={FUZZ_SEED})",
+            f"the costly ones, {FUZZ_PRESET_EXAMPLES} for each preset's own route), seed "
+            f"{FUZZ_SEED} (replay with FUZZ_SEED={FUZZ_SEED})",
             f"tracer: {'compiled (numba)' if trace_kernel.enabled() else 'Python loop'}"]
 
 

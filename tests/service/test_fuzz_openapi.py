@@ -8,7 +8,12 @@ How many requests an operation gets follows what one answer costs (``COSTLY_PATH
 operations that only read, validate or do first- and second-order linear algebra get
 ``FUZZ_EXAMPLES`` (300 unless the environment says otherwise); those that explore a
 configuration space, draw a figure or start a Dask job get ``FUZZ_COSTLY_EXAMPLES`` (60 unless
-the environment says otherwise). ``FUZZ_EXAMPLES=300 FUZZ_COSTLY_EXAMPLES=300`` is the deep run.
+the environment says otherwise). The presets' own routes (``PRESET_ROUTES``: one per preset,
+all one handler that ``/v1/presets/{name}`` shares, which gets ``FUZZ_EXAMPLES``) get
+``FUZZ_PRESET_EXAMPLES`` each (60 unless the environment says otherwise; with schemathesis's
+coverage cases of every parameter: they were half of the fuzzing's time at 300 each, and
+``tests/service/test_preset_parameters.py`` takes every parameter to the edges of float64).
+``FUZZ_EXAMPLES=300 FUZZ_COSTLY_EXAMPLES=300 FUZZ_PRESET_EXAMPLES=300`` is the deep run.
 """
 
 from __future__ import annotations
@@ -23,9 +28,10 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
+from engine.presets import PRESETS
 from service.config import Settings
 from service.main import create_app
-from tests.conftest import FUZZ_COSTLY_EXAMPLES, FUZZ_EXAMPLES, FUZZ_SEED
+from tests.conftest import FUZZ_COSTLY_EXAMPLES, FUZZ_EXAMPLES, FUZZ_PRESET_EXAMPLES, FUZZ_SEED
 
 pytestmark = pytest.mark.fuzz
 
@@ -40,10 +46,14 @@ COSTLY_PATHS = (r"^/v1/(analysis/(configuration-space|critical-points|critical-v
 
 # Small linkages only (the fuzzer's linkages are random; a valid one can be costly to explore)
 # and a generous time limit: the test is about answers, not about the limit.
+#: The presets' own routes (``/v1/presets/four-bar``, ...; not ``/v1/presets/{name}``).
+PRESET_ROUTES = r"^/v1/presets/[a-z0-9-]+$"
+
 app = create_app(Settings(max_vertices=12, max_bars=24, time_limit_s=120.0, workers=2))
 schema = schemathesis.openapi.from_asgi("/openapi.json", app)
-cheap = schema.exclude(path_regex=COSTLY_PATHS)
+cheap = schema.exclude(path_regex=COSTLY_PATHS).exclude(path_regex=PRESET_ROUTES)
 costly = schema.include(path_regex=COSTLY_PATHS)
+presets = schema.include(path_regex=PRESET_ROUTES)
 
 
 def fuzz_settings(examples: int) -> hypothesis.settings:
@@ -66,11 +76,22 @@ def test_fuzz_costly_operation(case: schemathesis.Case) -> None:
     case.call_and_validate(checks=CHECKS)
 
 
+@presets.parametrize()
+@fuzz_settings(FUZZ_PRESET_EXAMPLES)
+@hypothesis.seed(FUZZ_SEED)
+def test_fuzz_preset_route(case: schemathesis.Case) -> None:
+    case.call_and_validate(checks=CHECKS)
+
+
 def test_every_operation_is_fuzzed_once() -> None:
     def labels(s: schemathesis.schemas.BaseSchema) -> set[str]:
         return {result.ok().label for result in s.get_all_operations()}
 
-    both = labels(cheap) | labels(costly)
-    assert labels(cheap).isdisjoint(labels(costly))
-    assert both == labels(schema) and len(both) >= 30
+    groups = [labels(cheap), labels(costly), labels(presets)]
+    every = set().union(*groups)
+    assert sum(len(g) for g in groups) == len(every)  # no operation in two groups
+    assert every == labels(schema) and len(every) >= 30
     assert all(label.startswith("POST ") for label in labels(costly))
+    # one route per listed preset, and the route for any name among the cheap ones
+    assert labels(presets) == {f"GET /v1/presets/{name}" for name in PRESETS}
+    assert "GET /v1/presets/{name}" in labels(cheap)
