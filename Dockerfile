@@ -26,13 +26,13 @@ COPY engine ./engine
 COPY service ./service
 RUN pip install --no-deps --no-build-isolation .
 
-# The tracer's compiled kernel (numba, engine/trace_kernel.py; and the closed form's,
-# engine/dyads/kernel.py) compiled once here, into a cache
+# The tracer's compiled kernel (numba, engine/space/trace_kernel.py; and the closed form's,
+# engine/space/dyads/kernel.py) compiled once here, into a cache
 # handed to the app user: a new container traces compiled from its first request instead of on
 # the Python loop for the 20-30 s a cold compile takes.
 ENV NUMBA_CACHE_DIR=/home/app/.cache/numba
 RUN python -c "from engine import trace_kernel; assert trace_kernel.load(), trace_kernel.failure" \
-    && python -c "from engine.dyads import kernel; assert kernel.load(), kernel.failure" \
+    && python -c "from engine.space.dyads import kernel; assert kernel.load(), kernel.failure" \
     && chown -R app:app /home/app/.cache
 
 USER app

@@ -28,13 +28,13 @@ from typing import Any
 
 from harness import Table, best_of_cpu
 
-import engine.critical as critical
-from engine.configuration_space import Explorer, SpaceOptions
-from engine.configuration_space.critical_search import critical_points
-from engine.critical_values import critical_value_slice
-from engine.presets import build_preset
-from engine.robustness import robustness
-from engine.tolerances import Tolerances
+import engine.local.critical as critical
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import critical_value_slice
+from engine.design.robustness import robustness
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import Explorer, SpaceOptions
+from engine.space.configuration_space.critical_search import critical_points
 
 
 def main() -> None:

@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
 from service import jobs, mappers
 from service.config import Settings
 from service.schemas.common import AnalysisRequest

@@ -66,9 +66,9 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.harness import Table, best_of, served, served_process  # noqa: E402
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
-from engine.presets import build_preset  # noqa: E402
-from engine.rigidity import first_order  # noqa: E402
+from engine.catalogue.presets import build_preset  # noqa: E402
+from engine.local.rigidity import first_order  # noqa: E402
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
 
 
 def pyrigi_counts(linkage: Linkage, grounded: bool) -> tuple[int, int]:

@@ -46,12 +46,12 @@ from bench.bench_points import LENGTHS, pylinkage_points  # noqa: E402
 from bench.bench_space import kl_start, kl_trace  # noqa: E402
 from bench.harness import best_of_cpu as timed  # noqa: E402
 from bench.harness import served_process  # noqa: E402
-from engine import trace_kernel  # noqa: E402
-from engine.configuration_space import SpaceOptions, explore  # noqa: E402
-from engine.critical_values import critical_value_slice  # noqa: E402
-from engine.presets import build_preset  # noqa: E402
-from engine.robustness import robustness  # noqa: E402
-from engine.trace import TraceOptions  # noqa: E402
+from engine.catalogue.presets import build_preset  # noqa: E402
+from engine.design.critical_values import critical_value_slice  # noqa: E402
+from engine.design.robustness import robustness  # noqa: E402
+from engine.space import trace_kernel  # noqa: E402
+from engine.space.configuration_space import SpaceOptions, explore  # noqa: E402
+from engine.space.trace import TraceOptions  # noqa: E402
 
 SPACE = "/v1/analysis/configuration-space"
 #: The rows, in the issue's order (``--only`` picks some).

@@ -10,10 +10,10 @@ import json
 import time
 from pathlib import Path
 
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.critical_values import critical_value_slice
-from engine.presets import build_preset
-from engine.robustness import robustness
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import critical_value_slice
+from engine.design.robustness import robustness
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
 
 
 def timed(fn):  # noqa: ANN001, ANN201 - tiny helper

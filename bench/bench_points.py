@@ -5,7 +5,7 @@
 pylinkage simulates one branch (one assembly mode) by stepping its crank, in plain Python (no
 numba here), and detects no branch point. Ours answers POST /v1/analysis/configuration-space:
 every component (both assembly modes), with the certificate that no critical point exists (the
-closed form of ``engine.dyads``), consecutive points no farther apart than ``step_max``. The
+closed form of ``engine.space.dyads``), consecutive points no farther apart than ``step_max``. The
 same four-bar everywhere: pins (0, 0) and (1, 0), crank L1 = 0.5, coupler L2 = 1.2, rocker
 L3 = 1. Best of ``--repeat`` wall-clock runs (``time.perf_counter``); the machine is shared, so
 timings are noisy.
@@ -25,9 +25,9 @@ import httpx
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Table, best_of, served  # noqa: E402
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.presets import build_preset
-from engine.trace import TraceOptions
+from engine.catalogue.presets import build_preset
+from engine.space.configuration_space import SpaceOptions, explore
+from engine.space.trace import TraceOptions
 from service import mappers
 
 LENGTHS = {"L1": 0.5, "L2": 1.2, "L3": 1.0}

@@ -11,7 +11,7 @@ self-stresses ``s`` and non-trivial flexes ``k``, and agreement with PyRigi 1.3 
    rotor is added beside it: one more flex with no energy, so not prestress stable: the dual
    certificate and the search for a second-order flex are timed too. Timed: ``prestress(lk,
    first_order(lk))`` (the ``Q_k``, the SDP, the numpy checks), first-order analysis apart.
-2. **Scaling on forms.** :func:`engine.prestress.decide` on random ``Q_k`` (seeded) up to the
+2. **Scaling on forms.** :func:`engine.local.prestress.decide` on random ``Q_k`` (seeded) up to the
    limits ``MAX_FLEXES`` / ``MAX_STRESSES``: feasible (a planted definite combination) and
    infeasible (trace-zero forms: no definite combination exists).
 3. **PyRigi 1.3.** ``Framework.is_prestress_stable(numerical=True)`` and
@@ -38,10 +38,10 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.harness import Table, best_of  # noqa: E402
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
-from engine.prestress import MAX_FLEXES, MAX_STRESSES, decide, prestress  # noqa: E402
-from engine.rigidity import first_order  # noqa: E402
-from engine.tolerances import Tolerances  # noqa: E402
+from engine.local.prestress import MAX_FLEXES, MAX_STRESSES, decide, prestress  # noqa: E402
+from engine.local.rigidity import first_order  # noqa: E402
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage  # noqa: E402
+from engine.model.tolerances import Tolerances  # noqa: E402
 
 
 def braced_line(n: int, reach: int, unstable: bool = False) -> Linkage:
@@ -105,7 +105,7 @@ def agreement_with_pyrigi(table: Table) -> None:
     except ImportError:
         print("PyRigi is not installed (pip install -e '.[bench]'): agreement skipped")
         return
-    from tests.engine.test_prestress_pyrigi import PYRIGI_CASES, ours, theirs
+    from tests.engine.local.test_prestress_pyrigi import PYRIGI_CASES, ours, theirs
 
     for name in PYRIGI_CASES:
         framework = PYRIGI_CASES[name](fdb)

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 from harness import Table, best_of_cpu
 
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.robustness import robustness
+from engine.catalogue.presets import build_preset
+from engine.design.robustness import robustness
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 
 
 def slider_crank(crank: float = 0.7, rod: float = 1.6, theta: float = 0.9) -> Linkage:

@@ -9,7 +9,7 @@ Engine-only rows call the engine in this process; the ``HTTP`` row posts the req
 service on a loopback port (:func:`bench.harness.served`), paying JSON and HTTP like a client.
 
 Kane-Lubensky scaling: for each chain length ``n`` the component through the start is traced
-(zero mode at the start, then :func:`engine.trace.trace_curve` until it closes; both timed,
+(zero mode at the start, then :func:`engine.space.trace.trace_curve` until it closes; both timed,
 the time per point is the trace's) and the
 configuration space is explored with a budget of ``--budget`` components; the log-log slopes of
 time, points per component and time per point against ``n`` are fitted and written with the rows.
@@ -36,19 +36,19 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.harness import Table, best_of, served  # noqa: E402
-from engine.chain_count import chain_components  # noqa: E402
-from engine.configuration_space import (  # noqa: E402
+from engine.catalogue.presets import build_preset  # noqa: E402
+from engine.local.rigidity import first_order  # noqa: E402
+from engine.model.constraints import Constraints  # noqa: E402
+from engine.model.tolerances import Tolerances  # noqa: E402
+from engine.space.chain_count import chain_components  # noqa: E402
+from engine.space.configuration_space import (  # noqa: E402
     SPARSE_SEED_RIGIDITY_MIN_FREE,
     SpaceOptions,
     _Explorer,
     explore,
     find_critical_points,
 )
-from engine.constraints import Constraints  # noqa: E402
-from engine.presets import build_preset  # noqa: E402
-from engine.rigidity import first_order  # noqa: E402
-from engine.tolerances import Tolerances  # noqa: E402
-from engine.trace import TraceOptions, trace_curve  # noqa: E402
+from engine.space.trace import TraceOptions, trace_curve  # noqa: E402
 
 
 def kl_start(n: int) -> tuple[Constraints, np.ndarray, np.ndarray]:

@@ -1,5 +1,5 @@
 """The general tracer (issue 15): before (the Python loop) and after (its regular passes
-compiled, ``engine/_trace_numba.py``), side by side in one run (run on demand).
+compiled, ``engine/space/_trace_numba.py``), side by side in one run (run on demand).
 
     .venv/bin/python bench/bench_tracer.py [--repeat 3] [--sizes 50 400]
         [--json bench/results/tracer.json]
@@ -45,14 +45,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.bench_space import kl_start  # noqa: E402
 from bench.harness import Table  # noqa: E402
-from engine import trace_kernel  # noqa: E402
-from engine.configuration_space import Explorer, SpaceOptions, explore  # noqa: E402
-from engine.configuration_space.critical_search import critical_points  # noqa: E402
-from engine.constraints import Constraints  # noqa: E402
-from engine.presets import build_preset  # noqa: E402
-from engine.rigidity import first_order  # noqa: E402
-from engine.tolerances import Tolerances  # noqa: E402
-from engine.trace import TraceOptions, trace_curve  # noqa: E402
+from engine.catalogue.presets import build_preset  # noqa: E402
+from engine.local.rigidity import first_order  # noqa: E402
+from engine.model.constraints import Constraints  # noqa: E402
+from engine.model.tolerances import Tolerances  # noqa: E402
+from engine.space import trace_kernel  # noqa: E402
+from engine.space.configuration_space import Explorer, SpaceOptions, explore  # noqa: E402
+from engine.space.configuration_space.critical_search import critical_points  # noqa: E402
+from engine.space.trace import TraceOptions, trace_curve  # noqa: E402
 
 CRANK_ROCKER = {"L1": 0.5, "L2": 1.2, "L3": 1.0}
 TRACER = SpaceOptions(closed_form=False, trace=TraceOptions(step_max=2e-3, max_points=200_000))

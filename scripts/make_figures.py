@@ -14,7 +14,7 @@ TARGET = ROOT / "docs" / "figures"
 
 def main() -> None:
     sys.path.insert(0, str(ROOT))
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from service import figures, mappers
     from service.config import Settings
     from service.schemas.critical_values import CriticalValuesRequest

@@ -21,8 +21,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from pydantic import BaseModel, ValidationError
 
-from engine.errors import LimitExceeded
-from engine.linkage import Limits
+from engine.model.errors import LimitExceeded
+from engine.model.linkage import Limits
 from service.config import app_settings
 from service.errors import problem
 from service.gcpause import gc_paused

@@ -27,8 +27,8 @@ from pydantic import BaseModel, ValidationError
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 
-from engine.errors import EngineError
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
+from engine.model.errors import EngineError
 from service import mappers, tasks
 from service.config import get_settings
 from service.schemas.jobs import SweepRequest

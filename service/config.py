@@ -12,7 +12,7 @@ from typing import Annotated
 
 from fastapi import Depends, FastAPI
 
-from engine.linkage import Limits
+from engine.model.linkage import Limits
 
 
 def _env_int(name: str, default: int) -> int:

@@ -11,7 +11,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from engine.errors import (
+from engine.model.errors import (
     EngineError,
     InvalidLinkage,
     InvalidParameter,
@@ -22,7 +22,7 @@ from engine.errors import (
     NumericalFailure,
     UnknownPreset,
 )
-from engine.linkage import MemoryLimitExceeded
+from engine.model.linkage import MemoryLimitExceeded
 from service.schemas.common import Problem
 from service.workers import ServiceFault
 

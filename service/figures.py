@@ -35,7 +35,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from scipy import ndimage
 
-from engine.errors import InvalidRequest
+from engine.model.errors import InvalidRequest
 from service import jobs
 from service.config import Settings
 from service.schemas import common as c

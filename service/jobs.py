@@ -8,16 +8,16 @@ problem+json in :mod:`service.errors`.
 
 from __future__ import annotations
 
-from engine.budget import Deadline
-from engine.configuration_space import explore, find_critical_points
-from engine.constraints import on_constraints
-from engine.critical_values import critical_value_slice
-from engine.design import check_request, design, verify
-from engine.errors import InvalidRequest
-from engine.rigidity import first_order
-from engine.robustness import robustness
-from engine.second_order import second_order
-from engine.splitting import length_change, split
+from engine.design.critical_values import critical_value_slice
+from engine.design.design import check_request, design, verify
+from engine.design.robustness import robustness
+from engine.design.splitting import length_change, split
+from engine.local.rigidity import first_order
+from engine.local.second_order import second_order
+from engine.model.budget import Deadline
+from engine.model.constraints import on_constraints
+from engine.model.errors import InvalidRequest
+from engine.space.configuration_space import explore, find_critical_points
 from service import mappers
 from service.config import Settings
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse

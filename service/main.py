@@ -9,8 +9,9 @@ from fastapi.middleware.cors import CORSMiddleware
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 
-from engine import __version__, trace_kernel
-from engine.dyads import kernel as dyads_kernel
+from engine import __version__
+from engine.space import trace_kernel
+from engine.space.dyads import kernel as dyads_kernel
 from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics

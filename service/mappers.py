@@ -15,30 +15,12 @@ import pybase64
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
-from engine.configuration_space import (
-    Component,
-    CriticalSearch,
-    SpaceOptions,
-    SpaceResult,
-    positions_along,
-    rotor_angles,
-    winding,
-)
-from engine.constraints import ProjectionResult
-from engine.critical import CriticalPoint
-from engine.critical_values import Slice
-from engine.design import Check, DesignResult, Target
-from engine.errors import InvalidParameter, InvalidRequest, UnknownPreset
-from engine.linkage import Limits, build_linkage
-from engine.linkage import Linkage as EngineLinkage
-from engine.presets import PRESETS, build_preset
-from engine.prestress import PrestressResult
-from engine.rigidity import RigidityResult
-from engine.rigidity import TangentForm as EngineTangentForm
-from engine.robustness import Margin
-from engine.second_order import SecondOrderResult
-from engine.splitting import Split
-from engine.sweep import (
+from engine.catalogue.presets import PRESETS, build_preset
+from engine.design.critical_values import Slice
+from engine.design.design import Check, DesignResult, Target
+from engine.design.robustness import Margin
+from engine.design.splitting import Split
+from engine.design.sweep import (
     COMPUTE,
     BarFamily,
     Family,
@@ -50,10 +32,28 @@ from engine.sweep import (
     sample_points,
     summarize,
 )
-from engine.tolerances import Tolerances as EngineTolerances
-from engine.tolerances import check_residual_scale, check_resolution, scaled_tolerances
-from engine.trace import TraceOptions
-from engine.vectors import normalised
+from engine.local.critical import CriticalPoint
+from engine.local.prestress import PrestressResult
+from engine.local.rigidity import RigidityResult
+from engine.local.rigidity import TangentForm as EngineTangentForm
+from engine.local.second_order import SecondOrderResult
+from engine.model.constraints import ProjectionResult
+from engine.model.errors import InvalidParameter, InvalidRequest, UnknownPreset
+from engine.model.linkage import Limits, build_linkage
+from engine.model.linkage import Linkage as EngineLinkage
+from engine.model.tolerances import Tolerances as EngineTolerances
+from engine.model.tolerances import check_residual_scale, check_resolution, scaled_tolerances
+from engine.model.vectors import normalised
+from engine.space.configuration_space import (
+    Component,
+    CriticalSearch,
+    SpaceOptions,
+    SpaceResult,
+    positions_along,
+    rotor_angles,
+    winding,
+)
+from engine.space.trace import TraceOptions
 from service.gcpause import gc_paused
 from service.schemas import common as c
 from service.schemas import critical_values as cv_schemas
@@ -572,7 +572,8 @@ def robustness_in(
 
 
 class SliceOptions(TypedDict, total=False):
-    """Keyword arguments of :func:`engine.critical_values.critical_value_slice` that a request
+    """Keyword arguments of :func:`engine.design.critical_values.critical_value_slice` that a
+    request
     may set (those it leaves out keep the engine's defaults)."""
 
     resolution: int

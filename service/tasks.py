@@ -8,7 +8,7 @@ lives in the service process (a restart forgets it).
 
 Progress and cancellation cross the process boundary with Dask's own primitives, not timers:
 
-* each task builds a :class:`~engine.budget.Deadline` whose ``progress`` sink publishes what
+* each task builds a :class:`~engine.model.budget.Deadline` whose ``progress`` sink publishes what
   the engine reports (points done, components traced, ...) with ``Worker.log_event`` on the
   topic :data:`TOPIC`, which the service's client subscribes to;
 * ``DELETE`` sets a ``distributed.Event`` per job that the deadline's ``stop`` flag reads
@@ -39,10 +39,10 @@ import numpy as np
 from distributed import Client, Event, Future, LocalCluster, get_worker
 from pydantic import BaseModel
 
-from engine import trace_kernel
-from engine.budget import Deadline, ProgressSink
-from engine.errors import EngineError, NumericalFailure
-from engine.sweep import PointResult, run_points
+from engine.design.sweep import PointResult, run_points
+from engine.model.budget import Deadline, ProgressSink
+from engine.model.errors import EngineError, NumericalFailure
+from engine.space import trace_kernel
 from service import jobs, mappers, serialise
 from service.config import Settings
 from service.schemas.common import AnalysisRequest
@@ -158,10 +158,10 @@ def _task_deadline(job_id: str, chunk: int, end_wall: float) -> Deadline:
 def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settings,
                   end_wall: float) -> bytes:
     """One analysis as a task: the synchronous endpoint's JSON answer."""
-    trace_kernel.prepare()  # one tracer path per worker process (see engine/trace_kernel.py)
+    trace_kernel.prepare()  # one tracer path per worker process (see engine/space/trace_kernel.py)
     fn = OPERATIONS[operation].run
     deadline = _task_deadline(job_id, 0, end_wall)
-    # the engine searches take the deadline as they gain one (engine/budget.py)
+    # the engine searches take the deadline as they gain one (engine/model/budget.py)
     kwargs = {"deadline": deadline} if "deadline" in inspect.signature(fn).parameters else {}
     payload = serialise.dumps(fn(body, settings, **kwargs))
     deadline.report(1.0, "done")
@@ -172,7 +172,7 @@ def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np
                     end_wall: float) -> list[PointResult]:
     """Some ``points`` of a sweep as a task (fewer rows than points when stopped); ``sweep``
     says what to compute (its own points are not used)."""
-    trace_kernel.prepare()  # one tracer path per worker process (see engine/trace_kernel.py)
+    trace_kernel.prepare()  # one tracer path per worker process (see engine/space/trace_kernel.py)
     return run_points(sweep.family, points, sweep.compute, sweep.tolerances, sweep.options,
                       _task_deadline(job_id, chunk, end_wall))
 

@@ -56,8 +56,8 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import Response
 
-from engine import trace_kernel
-from engine.dyads import kernel as dyads_kernel
+from engine.space import trace_kernel
+from engine.space.dyads import kernel as dyads_kernel
 from service import serialise
 from service.config import Settings
 

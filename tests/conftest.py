@@ -10,7 +10,7 @@ from typing import Any
 import httpx
 import pytest
 
-from engine import trace_kernel
+from engine.space import trace_kernel
 from service.config import Settings
 from service.main import create_app
 

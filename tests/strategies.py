@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import assume
 from hypothesis import strategies as st
 
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 
 
 @st.composite
@@ -53,7 +53,7 @@ def random_linkages(
 
 
 def squared_lengths_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
-    """l^2 of the active bars, computed bar by bar (independent of engine.constraints)."""
+    """l^2 of the active bars, computed bar by bar (independent of engine.model.constraints)."""
     pos = linkage.positions_of(u)
     out = []
     for (i, j), active in zip(linkage.ends, linkage.active, strict=True):
@@ -64,7 +64,7 @@ def squared_lengths_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
 
 def squared_lengths_jacobian_reference(linkage: Linkage, u: np.ndarray) -> np.ndarray:
     """d(l^2)/du of the active bars (E, M), bar by bar: 2 (p_i - p_j) at i, its negative at j,
-    read at the free coordinates (independent of engine.constraints)."""
+    read at the free coordinates (independent of engine.model.constraints)."""
     pos = linkage.positions_of(u)
     rows = []
     for (i, j), active in zip(linkage.ends, linkage.active, strict=True):
@@ -78,7 +78,7 @@ def squared_lengths_jacobian_reference(linkage: Linkage, u: np.ndarray) -> np.nd
 
 def nearest_solution(linkage: Linkage, u0: np.ndarray, starts: int = 8) -> np.ndarray:
     """Nearest point to ``u0`` with l = L, by SLSQP from ``u0`` and seeded nearby starts (a
-    start at a symmetric point can stall); independent of engine.constraints."""
+    start at a symmetric point can stall); independent of engine.model.constraints."""
     from scipy.optimize import minimize
 
     targets = linkage.lengths[linkage.active] ** 2

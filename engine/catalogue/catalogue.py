@@ -1,7 +1,7 @@
 """Catalogue of frameworks for 3D and rigidity theory, registered as presets.
 
 Each entry is a classical example whose first- and second-order behaviour is known, so that
-prestress stability and second-order rigidity (:mod:`engine.prestress`) can be tried on it.
+prestress stability and second-order rigidity (:mod:`engine.local.prestress`) can be tried on it.
 Nothing is pinned except in the rotor chain: rigid motions are quotiented out by the analysis.
 
 - ``tetrahedron`` (3D): regular, edge ``a``. First-order rigid.
@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import InvalidParameter
-from engine.linkage import BarSpec, VertexSpec
+from engine.model.errors import InvalidParameter
+from engine.model.linkage import BarSpec, VertexSpec
 
 Params = dict[str, float]
 Specs = tuple[list[VertexSpec], list[BarSpec]]
@@ -49,7 +49,8 @@ Specs = tuple[list[VertexSpec], list[BarSpec]]
 
 @dataclass(frozen=True)
 class CatalogueEntry:
-    """A named framework family (fields as :class:`engine.presets.Preset`, plus dimension)."""
+    """A named framework family (fields as :class:`engine.catalogue.presets.Preset`, plus
+    dimension)."""
 
     name: str
     description: str

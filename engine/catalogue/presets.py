@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.catalogue import CATALOGUE
-from engine.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
-from engine.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
+from engine.catalogue.catalogue import CATALOGUE
+from engine.model.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
+from engine.model.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
 
 Params = dict[str, float]
 Specs = tuple[list[VertexSpec], list[BarSpec]]
@@ -264,7 +264,7 @@ PRESETS: dict[str, Preset] = {
         ),
     )
 }
-# 3D and rigidity-theory frameworks (engine/catalogue.py)
+# 3D and rigidity-theory frameworks (engine/catalogue/catalogue.py)
 PRESETS.update(
     {e.name: Preset(e.name, e.description, e.parameters, e.integers, e.build, e.dimension)
      for e in CATALOGUE}

@@ -27,22 +27,23 @@ import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
 
-from engine.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.budget import NEVER, REASON_TIME, Deadline, granted
-from engine.configuration_space import (
+from engine.design.dyad_margin import critical_planes
+from engine.local.critical import refine_critical
+from engine.model.batched import BATCH_MAX_FREE, BatchedConstraints
+from engine.model.budget import NEVER, REASON_TIME, Deadline, granted
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.hessian import DenseStressHessian, dense_stress_hessian
+from engine.model.linkage import Linkage, changeable_bar
+from engine.model.report import SearchReport
+from engine.model.tolerances import CELL_EDGE_TOL, MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
+from engine.space.configuration_space import (
     SpaceOptions,
     explore,
     find_critical_points,
     rotor_angles,
     winding,
 )
-from engine.constraints import Constraints
-from engine.critical import DenseStressHessian, dense_stress_hessian, refine_critical
-from engine.dyad_margin import critical_planes
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage, changeable_bar
-from engine.report import SearchReport
-from engine.tolerances import CELL_EDGE_TOL, MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -187,7 +188,7 @@ def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndar
 
 class _BatchedSystem:
     """``G`` and ``dG`` of :class:`_System` at a stack of points (K, M + E + 2) (small
-    linkages: :data:`engine.batched.BATCH_MAX_FREE`)."""
+    linkages: :data:`engine.model.batched.BATCH_MAX_FREE`)."""
 
     def __init__(self, sys: _System) -> None:
         self.sys = sys
@@ -367,13 +368,14 @@ def critical_value_slice(
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
     ``method="auto"`` takes the curves of a one-dyad planar chain (the four-bar family) from
-    its closed-form critical lines (:func:`engine.dyad_margin.critical_planes`), sampled at the
+    its closed-form critical lines (:func:`engine.design.dyad_margin.critical_planes`), sampled at
+    the
     tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> s = critical_value_slice(build_preset("four-bar", {"L2": 1.2}),
     ...                          [("L2", 0.5, 1.5), ("L3", 0.5, 1.5)], resolution=16)
     >>> len(s.regions) >= 2
@@ -432,7 +434,8 @@ def _closed_form_curves(
     linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, step: float, tol: Tolerances,
 ) -> list[np.ndarray] | None:
     """The slice's curves of a one-dyad planar chain: every critical hyperplane
-    ``n . (r, ra, rb) = D`` of :func:`engine.dyad_margin.critical_planes` met with the plane of
+    ``n . (r, ra, rb) = D`` of :func:`engine.design.dyad_margin.critical_planes` met with the plane
+    of
     the two axes (the other length as given) is a line; its piece inside the box (lengths at
     least the shortest critical bar) sampled at most ``step`` apart. None when the linkage is
     not such a chain or an axis is none of its three bars."""

@@ -1,6 +1,7 @@
 """Design length changes that split chosen branch points with chosen signs (paper, Sec. III C).
 
-To first order ``Delta_i = g_i . dL`` with ``g_i = 4 sigma_i L`` (see :mod:`engine.splitting`).
+To first order ``Delta_i = g_i . dL`` with ``g_i = 4 sigma_i L`` (see
+:mod:`engine.design.splitting`).
 Asking ``sign_i Delta_i >= margin |g_i|`` for every target and minimising the largest change
 ``max_j |dL_j|`` over the adjustable bars is a linear programme (HiGHS via
 ``scipy.optimize.linprog``). Targets whose gradients are parallel on the adjustable bars are
@@ -14,12 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
-from engine.budget import NEVER, Deadline
-from engine.critical import CriticalPoint
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage, changeable_bar
-from engine.splitting import linear_delta_gradient, retraced_pairing, split
-from engine.tolerances import Tolerances
+from engine.design.splitting import linear_delta_gradient, retraced_pairing, split
+from engine.local.critical import CriticalPoint
+from engine.model.budget import NEVER, Deadline
+from engine.model.errors import InvalidRequest
+from engine.model.linkage import Linkage, changeable_bar
+from engine.model.tolerances import Tolerances
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Exact robustness margins of one-loop planar dyad chains, from their closed-form critical
 conditions.
 
-A planar dyad chain (:func:`engine.dyads.chain_of`) places every free vertex from a rotor's tip,
+A planar dyad chain (:func:`engine.space.dyads.chain_of`) places every free vertex from a rotor's
+tip,
 each dyad ``j`` putting its vertex at radii ``ra_j``, ``rb_j`` from two placed centres. A
 self-stress ends at the last stressed dyad: its vertex is balanced only if its two bars lie on
 one line, and the equal and opposite forces that the dyad then puts on its centres along that
@@ -23,7 +24,7 @@ lay out). The margin is then the distance, in the adjustable lengths, to the nea
 plane a separable quadratic programme (project onto the plane, lengths bounded below), solved
 exactly from its KKT conditions. Chains of more dyads have ``d*`` as the stationary values of a
 function on the configuration space of the chain before it, in general not linear in the
-lengths: they are left to the multistart (:func:`engine.robustness.robustness`).
+lengths: they are left to the multistart (:func:`engine.design.robustness.robustness`).
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.dyads import Chain, chain_of
-from engine.linkage import Linkage
+from engine.model.linkage import Linkage
+from engine.space.dyads import Chain, chain_of
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ def critical_planes(linkage: Linkage) -> tuple[Chain, CriticalPlanes] | None:
     """The chain and the critical hyperplanes of a one-dyad planar chain (see the module
     docstring), or None when the linkage is not one.
 
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> _, pl = critical_planes(build_preset("four-bar"))
     >>> pl.normals.shape, pl.dist
     ((8, 3), 1.0)

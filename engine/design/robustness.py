@@ -9,7 +9,7 @@ Two methods, and each result says which one answered and what it guarantees:
 
 - ``"closed-form"`` (guarantee ``"exact"``): one-loop planar dyad chains (the four-bar family,
   any pin geometry), whose critical value set is a union of hyperplane pieces derived in
-  :mod:`engine.dyad_margin`; the margin is the exact distance to the nearest piece.
+  :mod:`engine.design.dyad_margin`; the margin is the exact distance to the nearest piece.
 - ``"multistart"`` (guarantee: the best local minimum over the starts that converged): over
   critical configurations ``(u, sigma)`` minimise ``sum_{a adjustable} (l_a(u) - L_a)^2``
   subject to ``J(u)^T sigma = 0``, ``sum_i (sigma_i l_i)^2 = s^2`` (the stress normalised by
@@ -22,7 +22,8 @@ Two methods, and each result says which one answered and what it guarantees:
   reach critical configurations that exist only at other lengths, e.g. the slider-crank's
   branch point). It is the global minimum when some start lies in the basin of the nearest
   sheet of the critical value set.
-  With a :class:`engine.budget.Deadline` the starts stop when it expires and the best so far is
+  With a :class:`engine.model.budget.Deadline` the starts stop when it expires and the best so far
+  is
   returned with ``search.complete`` False and ``search.reason`` ``"time"``.
 """
 
@@ -34,16 +35,17 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares, minimize
 
-from engine.assembly import iter_projected_random_starts
-from engine.budget import NEVER, Deadline, granted
-from engine.configuration_space import SpaceOptions, find_critical_points
-from engine.constraints import Constraints
-from engine.critical import dense_stress_hessian, refine_critical
-from engine.dyad_margin import exact_margin
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage, changeable_bar
-from engine.report import SearchReport
-from engine.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
+from engine.design.dyad_margin import exact_margin
+from engine.local.critical import refine_critical
+from engine.model.budget import NEVER, Deadline, granted
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.hessian import dense_stress_hessian
+from engine.model.linkage import Linkage, changeable_bar
+from engine.model.report import SearchReport
+from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, NORM_FLOOR, Tolerances
+from engine.space.assembly import iter_projected_random_starts
+from engine.space.configuration_space import SpaceOptions, find_critical_points
 
 #: A local search whose start, moved onto the critical set, has a bar shorter than this
 #: (relative to the median length) is abandoned: it is in a degenerate configuration's basin.
@@ -68,7 +70,7 @@ class Margin:
 
     ``method`` is ``"closed-form"`` or ``"multistart"``; ``guarantee`` says what the margin is
     (``"exact"``, or the best local minimum over the converged starts); ``search`` is the
-    :class:`engine.report.SearchReport` of the starts (``complete``, and ``reason`` ``"time"``
+    :class:`engine.model.report.SearchReport` of the starts (``complete``, and ``reason`` ``"time"``
     when a deadline stopped them)."""
 
     margin: float
@@ -251,7 +253,7 @@ def robustness(
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> r = robustness(build_preset("four-bar", {"L2": 1.2}), ["L2"])
     >>> round(r.margin, 6), r.method, r.guarantee  # nearest critical value: L2 = a + L1 - L3 = 1
     (0.2, 'closed-form', 'exact')

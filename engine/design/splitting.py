@@ -19,12 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.constraints import Constraints
-from engine.critical import CriticalPoint
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage, changeable_bar
-from engine.tolerances import Tolerances
-from engine.trace import TraceOptions, correct, trace_curve
+from engine.local.critical import CriticalPoint
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.linkage import Linkage, changeable_bar
+from engine.model.tolerances import Tolerances
+from engine.space.trace import TraceOptions, correct, trace_curve
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ empty where the lengths assemble nowhere).
 
 Each point is analysed on its own (:func:`evaluate`), so a sweep splits into chunks that run
 anywhere (the service runs them on Dask); :func:`run_points` runs one chunk and reports
-"points done" to a :class:`~engine.budget.Deadline`, which also stops it (time, cancellation).
+"points done" to a :class:`~engine.model.budget.Deadline`, which also stops it (time, cancellation).
 :func:`summarize` condenses the rows.
 
 >>> fam = PresetFamily("four-bar", {}, ("L2",))
@@ -26,8 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from engine.budget import NEVER, Deadline
-from engine.configuration_space import (
+from engine.catalogue.presets import build_preset, resolve_parameters
+from engine.design.robustness import robustness
+from engine.model.budget import NEVER, Deadline
+from engine.model.errors import EngineError, InvalidParameter, InvalidRequest, NumericalFailure
+from engine.model.linkage import Linkage, changeable_bar
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import (
     SpaceOptions,
     SpaceResult,
     explore,
@@ -36,11 +41,6 @@ from engine.configuration_space import (
     rotor_angles,
     winding,
 )
-from engine.errors import EngineError, InvalidParameter, InvalidRequest, NumericalFailure
-from engine.linkage import Linkage, changeable_bar
-from engine.presets import build_preset, resolve_parameters
-from engine.robustness import robustness
-from engine.tolerances import Tolerances
 
 #: What a sweep can compute at each point, in the order of the rows' columns.
 COMPUTE = ("components", "critical", "margin", "windings")

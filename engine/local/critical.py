@@ -19,11 +19,12 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares
 from scipy.sparse.linalg import splu
 
-from engine.constraints import Constraints
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage
-from engine.second_order import SecondOrderResult, second_order
-from engine.tolerances import NORM_FLOOR, Tolerances
+from engine.local.second_order import SecondOrderResult, second_order
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.hessian import dense_stress_hessian, stress_hessian_map
+from engine.model.linkage import Linkage
+from engine.model.tolerances import NORM_FLOOR, Tolerances
 
 
 @dataclass(frozen=True)
@@ -39,53 +40,6 @@ class Refined:
     length_residual: float
     stress_residual: float
     critical: bool
-
-
-class DenseStressHessian:
-    """``H_sigma`` (M, M) as a dense matrix without sparse assembly.
-
-    ``Hess(l_a^2) = 2 (e_i - e_j)(e_i - e_j)^T (x) I_d`` restricted to free coordinates: the
-    ``(row, column)`` positions of every bar's four blocks are fixed, so they are computed once
-    and each call is one weighted ``bincount`` (duplicates summed) into a dense array: no COO
-    assembly and conversion (the hot spot of the augmented-system Jacobian in profiles), and
-    ``O(E d^2 + M^2)`` for any size. :meth:`engine.constraints.Constraints.stress_hessian`
-    stays the reference (tests compare the two).
-    """
-
-    def __init__(self, cons: Constraints) -> None:
-        lk = cons.linkage
-        d, m = lk.dimension, cons.n_free
-        fi = lk.free_index
-        ends = lk.ends[cons.bars]
-        ci, cj = fi[ends[:, 0]].ravel(), fi[ends[:, 1]].ravel()  # (Ea*d,), -1 where fixed
-        bar = np.repeat(np.arange(cons.n_constraints), d)
-        flat, sign, which = [], [], []
-        for a, b, sg in ((ci, ci, 1.0), (cj, cj, 1.0), (ci, cj, -1.0), (cj, ci, -1.0)):
-            keep = (a >= 0) & (b >= 0)
-            flat.append(a[keep] * m + b[keep])
-            sign.append(np.full(int(keep.sum()), 2.0 * sg))
-            which.append(bar[keep])
-        self._flat = np.concatenate(flat)
-        self._sign = np.concatenate(sign)
-        self._bar = np.concatenate(which)
-        self._m = m
-
-    def __call__(self, sigma: np.ndarray) -> np.ndarray:
-        w = self._sign * np.asarray(sigma, dtype=float)[self._bar]
-        return np.bincount(self._flat, weights=w, minlength=self._m**2).reshape(self._m, self._m)
-
-
-_HESSIANS: weakref.WeakKeyDictionary[Constraints, DenseStressHessian] = (
-    weakref.WeakKeyDictionary()
-)
-
-
-def dense_stress_hessian(cons: Constraints, sigma: np.ndarray) -> np.ndarray:
-    """``H_sigma`` of ``cons`` as a dense (M, M) array (the map is built once per ``cons``)."""
-    hess = _HESSIANS.get(cons)
-    if hess is None:
-        hess = _HESSIANS[cons] = DenseStressHessian(cons)
-    return hess(sigma)
 
 
 def _smallest_left_singular(jac: np.ndarray) -> np.ndarray:
@@ -186,9 +140,7 @@ class SparseAugmentedSystem:
         system = _SYSTEMS.get(cons)
         if system is None:
             system = _SYSTEMS[cons] = AugmentedSystem(cons)
-        hess = _HESSIANS.get(cons)
-        if hess is None:
-            hess = _HESSIANS[cons] = DenseStressHessian(cons)
+        hess = stress_hessian_map(cons)
         self.system, self.hess = system, hess
         m, e = system.m, system.e
         self.m, self.e = m, e

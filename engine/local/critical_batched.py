@@ -1,7 +1,9 @@
-"""The critical-point refinement of :func:`engine.critical.refine_critical` from many starts at
+"""The critical-point refinement of :func:`engine.local.critical.refine_critical` from many starts
+at
 once (small linkages).
 
-:func:`engine.critical.refine_critical` runs MINPACK's Levenberg-Marquardt from one start; on a
+:func:`engine.local.critical.refine_critical` runs MINPACK's Levenberg-Marquardt from one start; on
+a
 four-bar its augmented system is 8 x 7 and the cost is the per-evaluation overhead of Python and
 ``least_squares`` (about 10 ms a start, most of an exploration). Here every start is one row of
 a stack and each iteration is a handful of vectorised numpy expressions over the stack
@@ -9,7 +11,7 @@ a stack and each iteration is a handful of vectorised numpy expressions over the
 equations), each start with its own damping and stopping rules.
 
 The iteration is Levenberg-Marquardt (Nielsen's damping update, MINPACK's column scaling), as
-:meth:`engine.critical.SparseAugmentedSystem.solve`. A start whose cost stops falling fast (a
+:meth:`engine.local.critical.SparseAugmentedSystem.solve`. A start whose cost stops falling fast (a
 *near miss*: lengths that are not critical, so the least-squares minimum has ``F != 0``) goes
 on with the full Hessian of ``|F|^2`` (``A^T A + sum_i f_i Hess f_i``; ``F`` is quadratic, so
 the second term is cheap and exact): Gauss-Newton converges only linearly to a minimum with a
@@ -25,14 +27,15 @@ import weakref
 
 import numpy as np
 
-from engine.batched import BATCH_MAX_FREE
-from engine.budget import NEVER, Deadline
-from engine.constraints import Constraints
-from engine.critical import REFINE_MAX_NFEV, DenseStressHessian, Refined
-from engine.tolerances import NORM_FLOOR, Tolerances
+from engine.local.critical import REFINE_MAX_NFEV, Refined
+from engine.model.batched import BATCH_MAX_FREE
+from engine.model.budget import NEVER, Deadline
+from engine.model.constraints import Constraints
+from engine.model.hessian import DenseStressHessian
+from engine.model.tolerances import NORM_FLOOR, Tolerances
 
 #: Largest linkage (free coordinates) refined in a batch; larger ones refine one start at a
-#: time (:func:`engine.critical.refine_critical`, sparse from its own threshold on).
+#: time (:func:`engine.local.critical.refine_critical`, sparse from its own threshold on).
 REFINE_BATCH_MAX_FREE = BATCH_MAX_FREE
 
 #: A start switches from Gauss-Newton to Newton steps once an accepted step lowers its cost by
@@ -40,7 +43,7 @@ REFINE_BATCH_MAX_FREE = BATCH_MAX_FREE
 NEWTON_SWITCH = 1e-3
 
 #: Relative reductions (actual and predicted) below which a start has converged (MINPACK's
-#: ``ftol`` as :func:`engine.critical.refine_critical` uses it, with room for the rounding of
+#: ``ftol`` as :func:`engine.local.critical.refine_critical` uses it, with room for the rounding of
 #: a sum of squares).
 FTOL = 1e-14
 
@@ -61,7 +64,7 @@ UNIT_RANGE = 2.0**10
 
 class BatchedAugmentedSystem:
     """``F(x)``, ``dF/dx`` and the second-order term ``sum_i f_i Hess f_i`` of the augmented
-    system (:class:`engine.critical.AugmentedSystem`) at a stack of points ``x`` (K, M + E).
+    system (:class:`engine.local.critical.AugmentedSystem`) at a stack of points ``x`` (K, M + E).
 
     ``F`` is quadratic in ``x``, so ``dF/dx`` is affine in ``x`` and the second-order term
     linear in ``F``: both are one matrix product with maps built once (from the direct
@@ -187,7 +190,7 @@ def batched_system(cons: Constraints) -> BatchedAugmentedSystem:
 
 
 def start_stresses(cons: Constraints, us: np.ndarray) -> np.ndarray:
-    """The start stress of :func:`engine.critical.refine_critical` at every row of ``us``:
+    """The start stress of :func:`engine.local.critical.refine_critical` at every row of ``us``:
     the left singular vector of ``J`` of the smallest singular value (K, E)."""
     system = batched_system(cons)
     jac = system.jacobians(us)
@@ -312,7 +315,7 @@ def refine_critical_batch(
     cons: Constraints, us: np.ndarray, tol: Tolerances, sigmas: np.ndarray | None = None,
     deadline: Deadline = NEVER,
 ) -> list[Refined | None]:
-    """:func:`engine.critical.refine_critical` from every row of ``us`` (K, M) at once, with
+    """:func:`engine.local.critical.refine_critical` from every row of ``us`` (K, M) at once, with
     the start stresses ``sigmas`` (K, E) where given (else the smallest left singular vectors
     of ``J``, as there). ``None`` for a start the deadline stopped before it finished."""
     us = np.asarray(us, dtype=float).reshape(-1, cons.n_free)

@@ -33,12 +33,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import least_squares
 
-from engine.constraints import Constraints
-from engine.errors import LimitExceeded
-from engine.linkage import Linkage
-from engine.rigidity import RigidityResult
-from engine.tolerances import Tolerances
-from engine.vectors import normalise_sign
+from engine.local.rigidity import RigidityResult
+from engine.model.constraints import Constraints
+from engine.model.errors import LimitExceeded
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
+from engine.model.vectors import normalise_sign
 
 #: Largest number of non-trivial flexes for which the SDP is set up (the PSD block is k x k;
 #: an interior-point step costs about k^6 / 8 flops through the k(k+1)/2 svec coordinates).
@@ -424,13 +424,13 @@ def prestress(linkage: Linkage, rig: RigidityResult, tolerances: Tolerances | No
               ) -> PrestressResult:
     """Prestress stability and second-order rigidity of ``linkage`` at its configuration.
 
-    ``rig`` is the first-order analysis of the same configuration (:func:`engine.rigidity.
+    ``rig`` is the first-order analysis of the same configuration (:func:`engine.local.rigidity.
     first_order`); its ``zero_modes`` are the flexes, orthogonal to the rigid motions.
 
     Examples
     --------
-    >>> from engine.linkage import BarSpec, VertexSpec, build_linkage
-    >>> from engine.rigidity import first_order
+    >>> from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+    >>> from engine.local.rigidity import first_order
     >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [1, 0]),
     ...                        VertexSpec("Q", [2, 0], True), VertexSpec("R", [3, 0], True)],
     ...                    [BarSpec("a", ["P", "A"]), BarSpec("b", ["A", "Q"]),

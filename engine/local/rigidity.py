@@ -15,12 +15,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from engine.constraints import Constraints
-from engine.errors import LimitExceeded, NumericalFailure
-from engine.linkage import RESULT_BYTES_PER_VALUE, Linkage, check_memory
-from engine.lu import Factor
-from engine.tolerances import Tolerances
-from engine.vectors import normalise_sign
+from engine.model.constraints import Constraints
+from engine.model.errors import LimitExceeded, NumericalFailure
+from engine.model.linkage import RESULT_BYTES_PER_VALUE, Linkage, check_memory
+from engine.model.lu import Factor
+from engine.model.tolerances import Tolerances
+from engine.model.vectors import normalise_sign
 
 #: Largest linkage for which an inconsistent sparse search falls back to a dense SVD.
 DENSE_FALLBACK_MAX_FREE = 4000
@@ -481,7 +481,7 @@ def plan_first_order(linkage: Linkage, sparse: bool | None = None) -> FirstOrder
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> plan_first_order(build_preset("kl-chain", {"n": 200})).method
     'sparse-eigsh'
     """
@@ -534,7 +534,7 @@ def first_order(
     """Rank, zero modes, self-stresses and trivial motions of ``J`` at the given positions.
 
     The positions are taken as they are (no projection: see
-    :func:`engine.constraints.on_constraints`).
+    :func:`engine.model.constraints.on_constraints`).
 
     Parameters
     ----------
@@ -553,7 +553,7 @@ def first_order(
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> r = first_order(build_preset("four-bar"))
     >>> r.rank, r.dof, r.critical, r.self_stresses.shape
     (3, 1, False, (0, 3))

@@ -10,7 +10,7 @@ Appendix A's carries one. We use the main text's.
 - several self-stresses, singular ``Q`` or a non-isolated critical set: ``degenerate`` with a
   ``reason``.
 
-Whatever the kind, ``prestress`` (:mod:`engine.prestress`) decides prestress stability and
+Whatever the kind, ``prestress`` (:mod:`engine.local.prestress`) decides prestress stability and
 second-order rigidity for any number of stresses and flexes, with certificates.
 """
 
@@ -21,12 +21,12 @@ from typing import Literal
 
 import numpy as np
 
-from engine.constraints import DENSE_MAX_FREE, Constraints, project
-from engine.linkage import Linkage, check_memory
-from engine.prestress import PrestressResult, prestress
-from engine.rigidity import RigidityResult, first_order, plan_first_order
-from engine.tolerances import Tolerances
-from engine.vectors import normalise_sign
+from engine.local.prestress import PrestressResult, prestress
+from engine.local.rigidity import RigidityResult, first_order, plan_first_order
+from engine.model.constraints import DENSE_MAX_FREE, Constraints, project
+from engine.model.linkage import Linkage, check_memory
+from engine.model.tolerances import Tolerances
+from engine.model.vectors import normalise_sign
 
 Kind = Literal["regular", "branch", "rigid", "degenerate"]
 
@@ -130,7 +130,7 @@ def second_order(
 
     Examples
     --------
-    >>> from engine.linkage import BarSpec, VertexSpec, build_linkage
+    >>> from engine.model.linkage import BarSpec, VertexSpec, build_linkage
     >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [1, 0]),
     ...                        VertexSpec("Q", [2, 0], True)],
     ...                    [BarSpec("a", ["P", "A"]), BarSpec("b", ["A", "Q"])])

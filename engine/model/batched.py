@@ -1,6 +1,6 @@
 """The constraint map and its Jacobian at many configurations at once (small linkages).
 
-:class:`engine.constraints.Constraints` evaluates one configuration per call; where the engine
+:class:`engine.model.constraints.Constraints` evaluates one configuration per call; where the engine
 checks or corrects many independent points (every seed of an exploration against a new curve)
 the per-call overhead dominates for small linkages. Here ``U`` is a stack (K, M) of free
 coordinate vectors and everything is one vectorised numpy expression over the stack (no loop
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.constraints import Constraints
-from engine.tolerances import CORRECT_TIGHT, Tolerances
+from engine.model.constraints import Constraints
+from engine.model.tolerances import CORRECT_TIGHT, Tolerances
 
 #: Above this many free coordinates the batched paths are not used: the per-point code's call
 #: overhead no longer dominates (measured: no gain at M = 43 or 60, single-threaded BLAS).
@@ -56,7 +56,7 @@ class BatchedConstraints:
     def correct(
         self, vs: np.ndarray, ts: np.ndarray, tol: Tolerances, max_iter: int = 12
     ) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`engine.trace.correct` (without a given factor) at every row of ``vs`` with
+        """:func:`engine.space.trace.correct` (without a given factor) at every row of ``vs`` with
         the hyperplane normals ``ts``: the same iteration and stopping rules, vectorised.
 
         Returns the corrected points (K, M; converged to ``CORRECT_TIGHT * residual_atol``
@@ -101,7 +101,7 @@ class BatchedConstraints:
 
 
 #: The steps of a backtracking line search: ``t = 1, 1/2, 1/4, ...`` while ``t > 1e-10`` (as
-#: :func:`engine.constraints._line_search` halves it; powers of two, so exactly its values).
+#: :func:`engine.model.constraints._line_search` halves it; powers of two, so exactly its values).
 BACKTRACK = 0.5 ** np.arange(34)
 assert BACKTRACK[-1] > 1e-10 >= 0.5 * BACKTRACK[-1]
 
@@ -114,7 +114,7 @@ def line_searches(
     cons: Constraints, batch: BatchedConstraints, u: np.ndarray, steps: list[np.ndarray],
     cost: float,
 ) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
-    """:func:`engine.constraints._line_search` from ``u`` along each of ``steps``, every trial
+    """:func:`engine.model.constraints._line_search` from ``u`` along each of ``steps``, every trial
     point of every step evaluated in one batch: the same answers. The trial points, ``l^2``
     and residuals are the same numbers; a trial's cost is accepted as there, by ``g @ g``
     (whose rounding differs from the batch's sum), taken in order for the trials whose batch
@@ -181,13 +181,13 @@ def backtrack(
 def project_many(
     cons: Constraints, us: np.ndarray, tol: Tolerances, max_iter: int = 60
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`engine.constraints.project` from every row of ``us`` (K, M) at once: the same
+    """:func:`engine.model.constraints.project` from every row of ``us`` (K, M) at once: the same
     Gauss-Newton iteration with minimum-norm steps (truncated SVD at ``STEP_RCOND``, as its
     ``lstsq``), the same backtracking line search (one halving schedule for every row), the
     same stopping rules; an iteration in which a row needs the escapes of poor progress runs
     them with the scalar helpers for that row. Returns the projected coordinates and whether
     each met ``residual_atol`` (the tests compare with :func:`project` one start at a time)."""
-    from engine.constraints import STEP_RCOND, _escape, _unstick
+    from engine.model.constraints import STEP_RCOND, _escape, _unstick
 
     batch = BatchedConstraints(cons)
     targets = batch.lengths**2

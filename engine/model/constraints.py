@@ -17,10 +17,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from engine.errors import NoNearbySolution
-from engine.linkage import Linkage
-from engine.lu import parity
-from engine.tolerances import NORM_FLOOR, Tolerances
+from engine.model.errors import NoNearbySolution
+from engine.model.hessian import dense_stress_hessian
+from engine.model.linkage import Linkage
+from engine.model.lu import parity
+from engine.model.tolerances import NORM_FLOOR, Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
 DENSE_MAX_FREE = 600
@@ -62,7 +63,7 @@ class Constraints:
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> c = Constraints(build_preset("four-bar"))
     >>> c.jacobian(c.linkage.coordinates()).shape
     (3, 4)
@@ -380,9 +381,7 @@ def _escape(
     if z.shape[0] == 0:
         return None
     # (the dense H_g by one weighted bincount: the same matrix as stress_hessian's assembly,
-    # tests/engine/test_fast_paths.py; imported here, engine.critical imports this module)
-    from engine.critical import dense_stress_hessian
-
+    # tests/engine/model/test_fast_paths.py)
     curv = z @ dense_stress_hessian(cons, g) @ z.T
     lam, vec = np.linalg.eigh(0.5 * (curv + curv.T))
     best = None
@@ -416,7 +415,7 @@ def project(
 
     Examples
     --------
-    >>> from engine.linkage import BarSpec, VertexSpec, build_linkage
+    >>> from engine.model.linkage import BarSpec, VertexSpec, build_linkage
     >>> lk = build_linkage(2, [VertexSpec("P", [0, 0], True), VertexSpec("A", [2, 0])],
     ...                    [BarSpec("r", ["P", "A"], 1.0)])
     >>> res = project(lk)

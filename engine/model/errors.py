@@ -12,16 +12,17 @@ on, by kind of method,
   ``OptimizeResult`` habit): ``success=False`` when it did not converge, with the message
   saying why; its numbers are then whatever the method reached, not a converged answer.
 * **A search** (configuration spaces, critical points, slices, sweeps) answers what it found
-  with a :class:`engine.report.SearchReport`: ``complete`` is False, with a ``reason`` ("time",
+  with a :class:`engine.model.report.SearchReport`: ``complete`` is False, with a ``reason``
+  ("time",
   "budget", "unresolved", ...), whenever anything was left out; what it did find is as valid as
   in a complete answer.
-* **A traced curve** (:class:`engine.trace.Curve`) says why it ended in ``stop`` ("closed",
+* **A traced curve** (:class:`engine.space.trace.Curve`) says why it ended in ``stop`` ("closed",
   "time", "max points", "singular start", ...); the searches turn that into their report.
-* **No result can be formed** (the sparse null spaces of :mod:`engine.rigidity` are
+* **No result can be formed** (the sparse null spaces of :mod:`engine.local.rigidity` are
   inconsistent, Lanczos does not converge and the dense fallback is not allowed): raise
   :class:`NumericalFailure`, never a bare ``RuntimeError`` or a ``LinAlgError``. The service
   answers 422 ``numerical-failure`` (``service/errors.py``), a job fails with that error
-  (``service/tasks.py``), a sweep records it on the row (:mod:`engine.sweep`).
+  (``service/tasks.py``), a sweep records it on the row (:mod:`engine.design.sweep`).
 
 So a non-converged answer never looks like a converged one: it is ``success=False``,
 ``complete=False``, a curve whose ``stop`` names the limit it hit, or a
@@ -31,7 +32,8 @@ to the general method); the public function turns that into one of the forms abo
 
 Linear algebra that raises on singular matrices of finite entries (``np.linalg.solve``,
 ``scipy.sparse.linalg.splu``, ``eigsh``) is called inside a ``try`` that handles it, or on
-matrices checked non-singular first. ``tests/engine/test_errors.py`` checks these rules where a
+matrices checked non-singular first. ``tests/engine/model/test_errors.py`` checks these rules where
+a
 program can.
 """
 

@@ -15,7 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
-from engine.errors import InvalidLinkage, InvalidRequest, LimitExceeded
+from engine.model.errors import InvalidLinkage, InvalidRequest, LimitExceeded
 
 #: Coordinates beyond this magnitude are refused: their squared distances would overflow.
 MAX_COORDINATE = 1e100

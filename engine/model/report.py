@@ -1,6 +1,6 @@
 """The report of a configuration-space search: what was done, and whether it is complete.
 
-Every search of :mod:`engine.configuration_space` (the tracer, the closed forms) ends in one
+Every search of :mod:`engine.space.configuration_space` (the tracer, the closed forms) ends in one
 :class:`SearchReport`. Its ``details`` are the counts of what was done (seeds, curves, candidates,
 closed-form samples: they differ between methods); whether the answer is complete, and if not
 why, is decided in one place from four flags, :attr:`SearchReport.complete` and
@@ -19,7 +19,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from engine.budget import REASON_BUDGET, REASON_DEGENERATE, REASON_TIME, REASON_UNRESOLVED
+from engine.model.budget import REASON_BUDGET, REASON_DEGENERATE, REASON_TIME, REASON_UNRESOLVED
 
 
 @dataclass(frozen=True)

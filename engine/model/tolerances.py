@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.errors import InvalidLinkage, InvalidTolerance
+from engine.model.errors import InvalidLinkage, InvalidTolerance
 
 #: Default ``residual_atol`` relative to the linkage's median bar length.
 RESIDUAL_REL = 1e-9

@@ -1,6 +1,7 @@
-"""numba kernels of :mod:`engine.trace_kernel` (imported only when the compiled path runs).
+"""numba kernels of :mod:`engine.space.trace_kernel` (imported only when the compiled path runs).
 
-Every function mirrors a piece of :mod:`engine.trace` and :mod:`engine.lu`; the names say
+Every function mirrors a piece of :mod:`engine.space.trace` and :mod:`engine.model.lu`; the names
+say
 which. Matrices are in LAPACK band storage: ``ab[kl + ku + i - j, j] = A[i, j]`` with ``kl``
 extra leading rows for the fill of partial pivoting.
 """
@@ -12,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE
+from engine.model.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE
 
 # status of a factorisation
 _OK = 0
@@ -137,7 +138,7 @@ def _dist2(a, b):
 
 @njit(cache=True, boundscheck=False, inline="always")
 def _segment_distance(a, b, target):
-    """engine.trace.segment_distance: from ``target`` to the segment ``[a, b]``."""
+    """engine.space.trace.segment_distance: from ``target`` to the segment ``[a, b]``."""
     m = a.shape[0]
     ab = _dist2(b, a)
     n0 = 0.0
@@ -438,10 +439,10 @@ def _factor(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
 def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
                  entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
                  lay_pos, lay_rp, ext, empty_i, empty_f):
-    """engine.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
+    """engine.space.trace.factor_augmented of ``[row; J(u)]``: (status, ab, piv, kl, ku, sign,
     logdet, row_pos, y0, d, gamma). Dense: LU of ``[row; J]`` itself (full bandwidth);
     otherwise the band LU of the reordered ``[e_k; J]`` and the rank-one update
-    (engine.lu.BorderedFactor).
+    (engine.model.lu.BorderedFactor).
 
     The band layout of the last ``k`` is kept (``k`` changes rarely along a curve): ``lay =
     [k, kl, ku, ins]``, ``lay_pos`` the flat index in the band (band row times ``m`` plus
@@ -643,7 +644,7 @@ def _dot_gather(d, b, col_pos):
 @njit(cache=True)
 def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, tight_goal,
              fixed, gi, gj, lengths, targets, sq, sq_ready, ext, rhs, pos_dense):
-    """engine.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``,
+    """engine.space.trace.correct with a factorisation (max_iter 12, to ``CORRECT_TIGHT * atol``,
     or to ``atol`` where ``tight_goal`` is False): (w, ok, iterations that reached ``atol``).
     ``sq_ready``: ``sq`` already holds the squared lengths at ``v``. Work arrays from the
     caller: ``ext`` (M + F,) with the fixed coordinates after ``M`` (``w`` is its first
@@ -692,10 +693,10 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, ti
 def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign,
         axes, entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
         out_pts, out_tan, out_sign, out_logdet):
-    """Committed passes of engine.trace.trace_curve (see engine.trace_kernel.advance).
+    """Committed passes of engine.space.trace.trace_curve (see engine.space.trace_kernel.advance).
 
     ``u_prev``: the point before ``u`` (tangent ``t_in``), for the predictor's cubic
-    (engine.trace.predict) when ``has_prev``;
+    (engine.space.trace.predict) when ``has_prev``;
     ``fp = [h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol, cos_turn,
     h_cross]``,
     ``ip = [sign, budget, tried, close, dense, band_max_work, deadline_every, checked,
@@ -771,10 +772,10 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
         if every > 0 and nb % every == 0 and nb != checked:
             event = _EV_DEADLINE
             break
-        # --- one attempt (engine.trace._attempt) ---
+        # --- one attempt (engine.space.trace._attempt) ---
         for c in range(m):
             v[c] = u[c] + h * t[c]
-        if has_prev:  # engine.trace.predict: the cubic through u_prev and u
+        if has_prev:  # engine.space.trace.predict: the cubic through u_prev and u
             h0 = math.sqrt(_dist2(u, u_prev))
             if h0 > 0.0:
                 r = h / h0
@@ -824,7 +825,7 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
             if st3 == _SINGULAR:
                 shrink = True
             else:
-                # the polish (engine.trace._attempt): Newton with the factorisation at w to
+                # the polish (engine.space.trace._attempt): Newton with the factorisation at w to
                 # CORRECT_TIGHT * atol (sq holds the squared lengths at w); the tangent
                 # factorised again at the polished point where it moved w by more than
                 # POLISH_TANGENT_MOVE of the step
@@ -863,7 +864,7 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
                         shrink = True
                     elif not (s3 == sgn or sgn == 0):
                         if h > h_cross:
-                            shrink = True  # as engine.trace._attempt
+                            shrink = True  # as engine.space.trace._attempt
                         else:
                             event = _EV_PASS  # a crossing: the Python loop decides
                             break
@@ -874,7 +875,7 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
         if shrink:
             budget = nb
             h *= 0.5
-            has_prev = False  # the tangent predicts from here on (engine.trace.trace_curve)
+            has_prev = False  # the tangent predicts from here on (engine.space.trace.trace_curve)
             continue
         arc_new = arc + step
         if close and arc_new > close_after:

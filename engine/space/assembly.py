@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.batched import BATCH_MAX_FREE, project_many
-from engine.constraints import Constraints, project
-from engine.linkage import Linkage
-from engine.tolerances import Tolerances
+from engine.model.batched import BATCH_MAX_FREE, project_many
+from engine.model.constraints import Constraints, project
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.linkage import Linkage
+from engine.model.linkage import Linkage
 
 #: Relative margin below which a length condition counts as an equality (non-generic lengths:
 #: a configuration space with a singular point, whose components are not counted here).
@@ -109,7 +109,7 @@ def chain_components(linkage: Linkage) -> ChainCount | None:
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> chain_components(build_preset("kl-chain", {"n": 5})).components
     16
     >>> chain_components(build_preset("gated-kl-chain")) is None

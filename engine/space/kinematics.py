@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.assembly import rotors
-from engine.linkage import Linkage
+from engine.model.linkage import Linkage
+from engine.space.assembly import rotors
 
 
 def rotor_angles(

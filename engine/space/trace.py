@@ -22,12 +22,12 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from engine import trace_kernel
-from engine.budget import NEVER, Deadline
-from engine.constraints import Constraints
-from engine.critical import refine_critical, singular_gap
-from engine.lu import BandLU, BorderedFactor, Factor
-from engine.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE, Tolerances
+from engine.local.critical import refine_critical, singular_gap
+from engine.model.budget import NEVER, Deadline
+from engine.model.constraints import Constraints
+from engine.model.lu import BandLU, BorderedFactor, Factor
+from engine.model.tolerances import CORRECT_TIGHT, POLISH_TANGENT_MOVE, Tolerances
+from engine.space import trace_kernel
 
 #: The tracer looks at its deadline every this many passes of its loop.
 DEADLINE_EVERY = 16
@@ -93,7 +93,8 @@ def factor_augmented(
     cons: Constraints, u: np.ndarray, row: np.ndarray
 ) -> Factor | BorderedFactor:
     """LU of ``[row; J(u)]``: dense for small linkages; sparse through ``[e_k; J]`` and a
-    rank-one update (:class:`engine.lu.BorderedFactor`: the dense row would fill a direct sparse
+    rank-one update (:class:`engine.model.lu.BorderedFactor`: the dense row would fill a direct
+    sparse
     LU), ``[e_k; J]`` factorised as a band matrix when a fixed reordering makes it narrow
     (chains) and by SuperLU otherwise; the direct sparse LU if ``[e_k; J]`` is singular."""
     if cons.n_free <= SPARSE_LU_MIN_FREE:
@@ -467,7 +468,7 @@ def _attempt(
     linear rate took about two; it iterates on if one step does not reach it, so the accuracy
     is the chord's run to the end). The point's tangent, sign and ``log|det|`` are those of
     that factorisation at ``w`` while the polish moved the point by at most
-    :data:`~engine.tolerances.POLISH_TANGENT_MOVE` of the step (it moves it by
+    :data:`~engine.model.tolerances.POLISH_TANGENT_MOVE` of the step (it moves it by
     ``~residual_atol / s``, ``s`` the Jacobian's smallest singular value: the tangent is then
     off by about that fraction of the step's own turn, far below any test made on it), else
     (near critical lengths, where ``s`` is small and the tangent turns fast) those of a

@@ -1,7 +1,7 @@
-"""The tracer's regular steps compiled (numba), with the Python loop of :mod:`engine.trace` as
+"""The tracer's regular steps compiled (numba), with the Python loop of :mod:`engine.space.trace` as
 the fallback and the reference.
 
-:func:`engine.trace.trace_curve` spends almost all of its time in the per-step overhead of
+:func:`engine.space.trace.trace_curve` spends almost all of its time in the per-step overhead of
 small numpy and LAPACK calls (a four-bar's ``[t; J]`` is 4 x 4; a chain's is a narrow band).
 :func:`advance` runs the same predictor-corrector passes in compiled code: predictor (the cubic
 through the previous point), strain test, chord Newton with the factorisation of the previous
@@ -16,8 +16,9 @@ Python loop then runs that one pass with its own code (``_cross_ahead``, ``_jump
 
 Linear algebra: an LU with partial pivoting in LAPACK band storage (as ``gbtrf``/``gbtrs``),
 used with full bandwidth for the dense ``[t; J]`` of small linkages and on the band reordering
-of ``[e_k; J]`` with the rank-one update of :class:`engine.lu.BorderedFactor` for large ones
-(the same systems as :func:`engine.trace.factor_augmented`, so the same signs and ``log|det|``).
+of ``[e_k; J]`` with the rank-one update of :class:`engine.model.lu.BorderedFactor` for large ones
+(the same systems as :func:`engine.space.trace.factor_augmented`, so the same signs and
+``log|det|``).
 
 The choice: environment variable ``LINKAGE_TRACER_KERNEL`` = ``numba`` (default; the Python
 loop when numba cannot be imported, and until the kernel is compiled: :func:`enabled` loads it
@@ -34,7 +35,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from engine.constraints import Constraints
+from engine.catalogue.presets import build_preset
+from engine.model.constraints import Constraints
 
 #: Environment variable choosing the tracer's path: ``numba`` or ``numpy``.
 KERNEL_ENV = "LINKAGE_TRACER_KERNEL"
@@ -115,11 +117,9 @@ def _compile() -> None:
 
 def _compile_kernel() -> None:
     global _kernel
-    from engine._trace_numba import run
+    from engine.space._trace_numba import run
 
     # one call compiles the only signature (the dense and band paths take the same types)
-    from engine.presets import build_preset
-
     lk = build_preset("four-bar")
     cons = Constraints(lk)
     u = lk.coordinates()

@@ -8,7 +8,7 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request
 
-from engine.presets import PRESETS, Preset, build_preset
+from engine.catalogue.presets import PRESETS, Preset, build_preset
 from service import mappers
 from service.config import Settings, SettingsDep
 from service.errors import problem_responses

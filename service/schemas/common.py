@@ -209,7 +209,7 @@ def default_of(value: float | str) -> dict[str, Any]:
     return {"default": value}
 
 
-# Relative thresholds below a few machine epsilons decide nothing (engine.tolerances).
+# Relative thresholds below a few machine epsilons decide nothing (engine.model.tolerances).
 _RelTol = Annotated[float, Field(strict=True, ge=1e-14, lt=1, allow_inf_nan=False)]
 _AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
 
@@ -261,7 +261,7 @@ SearchReason = Literal["time", "budget", "degenerate", "unresolved"]
 
 
 class SearchReport(BaseModel):
-    """What a search did and whether its answer is complete (``engine.report.SearchReport``).
+    """What a search did and whether its answer is complete (``engine.model.report.SearchReport``).
     ``complete`` and ``reason`` are always there; the method's own counts (``method``,
     ``seeds``, ``curves_traced``, ``open_curves``, ``critical_candidates``,
     ``components_total``, ``closed_form_*``, ...) are further properties."""

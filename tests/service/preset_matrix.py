@@ -7,7 +7,7 @@ linkage is meaningful for (issue 11): the cases, not tests; used by the tests an
 * first and second order and the linkage figure: every linkage;
 * everything that traces (critical points, configuration space, splitting, robustness, critical
   values, their figures): one degree of freedom with something fixed, ``M - E = 1`` counted as
-  ``engine.configuration_space.results.require_one_dof`` does (``M`` free coordinates, ``E``
+  ``engine.space.configuration_space.results.require_one_dof`` does (``M`` free coordinates, ``E``
   bars with a free end);
 * the configuration-space figure: also planar, with two rotors (bars with exactly one pinned end)
   as axes (3D linkages get a 422 naming ``linkage.dimension``);

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine import tolerances as engine_tolerances
+from engine.model import tolerances as engine_tolerances
 
 
 def four_bar(client, **params):
@@ -179,7 +179,7 @@ def test_gated_chain_with_slider(client):
 
 def test_numerical_failure_is_a_problem_not_a_crash(client, monkeypatch):
     """If the engine cannot give a trustworthy answer, the client gets problem+json (never 500)."""
-    from engine.errors import NumericalFailure
+    from engine.model.errors import NumericalFailure
     from service import jobs
 
     def fail(*args, **kwargs):
@@ -225,10 +225,10 @@ def test_rigidity_response_is_what_validation_would_build():
     model and JSON, and survive the trip back from a worker (pickle) unchanged."""
     import pickle
 
-    from engine.constraints import on_constraints
-    from engine.presets import build_preset
-    from engine.rigidity import first_order
-    from engine.tolerances import Tolerances
+    from engine.catalogue.presets import build_preset
+    from engine.local.rigidity import first_order
+    from engine.model.constraints import on_constraints
+    from engine.model.tolerances import Tolerances
     from service import mappers
     from service.schemas.analysis import RigidityResponse
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
 from service import jobs, serialise, workers
 from service.config import Settings, get_settings
 from service.main import create_app

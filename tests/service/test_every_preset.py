@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from engine.presets import PRESETS
+from engine.catalogue.presets import PRESETS
 from service.config import Settings
 from service.main import create_app
 from tests.conftest import ApiClient

@@ -28,7 +28,7 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
-from engine.presets import PRESETS
+from engine.catalogue.presets import PRESETS
 from service.config import Settings
 from service.main import create_app
 from tests.conftest import FUZZ_COSTLY_EXAMPLES, FUZZ_EXAMPLES, FUZZ_PRESET_EXAMPLES, FUZZ_SEED

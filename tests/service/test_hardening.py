@@ -36,7 +36,7 @@ SLOW_CHAIN = 300
 
 @pytest.fixture(scope="module")
 def kl_chain() -> dict[str, Any]:
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from service.mappers import linkage_out
 
     return linkage_out(build_preset("kl-chain", {"n": SLOW_CHAIN})).model_dump(mode="json")
@@ -44,7 +44,7 @@ def kl_chain() -> dict[str, Any]:
 
 @pytest.fixture(scope="module")
 def four_bar() -> dict[str, Any]:
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from service.mappers import linkage_out
 
     return linkage_out(build_preset("four-bar")).model_dump(mode="json")

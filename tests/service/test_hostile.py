@@ -310,7 +310,7 @@ def test_residual_tolerance_that_is_not_small_against_the_bars(client: Any, atol
 ])
 def test_design_refuses_bad_requests_before_exploring(monkeypatch: Any, field: str, value: Json,
                                                      loc: list[str | int]) -> None:
-    from engine.errors import InvalidRequest
+    from engine.model.errors import InvalidRequest
     from service import jobs
     from service.config import Settings
     from service.schemas.design import DesignRequest

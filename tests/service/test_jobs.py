@@ -30,7 +30,7 @@ pytestmark = pytest.mark.dask
 
 #: Generous: the machine is shared; a finished job answers at once.
 WAIT_S = 120.0
-#: The gated chain small enough for tests (as in tests/engine/test_gate.py).
+#: The gated chain small enough for tests (as in tests/engine/design/test_gate.py).
 QUICK = {"max_components": 2, "angles": 12, "random_starts": 2}
 GATED = {"name": "gated-kl-chain", "parameters": {"n": 3, "gate": 1}}
 

@@ -6,12 +6,12 @@ import re
 from pathlib import Path
 from typing import Any
 
-from engine.configuration_space import SpaceOptions
-from engine.critical_values import critical_value_slice
-from engine.presets import PRESETS
-from engine.robustness import robustness
-from engine.tolerances import Tolerances
-from engine.trace import TraceOptions
+from engine.catalogue.presets import PRESETS
+from engine.design.critical_values import critical_value_slice
+from engine.design.robustness import robustness
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions
+from engine.space.trace import TraceOptions
 from service.main import create_app
 
 SPEC = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"

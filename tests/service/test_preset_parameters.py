@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from engine.errors import InvalidParameter
-from engine.presets import _LENGTHS, PRESETS, Preset, build_preset
+from engine.catalogue.presets import _LENGTHS, PRESETS, Preset, build_preset
+from engine.model.errors import InvalidParameter
 from tests.service.test_uvicorn_process import ROOT
 
 ALL_PARAMETERS = [(name, key) for name, p in PRESETS.items() for key in p.parameters]
@@ -87,7 +87,7 @@ def test_several_parameters_that_overflow_together_are_all_named(client):
 def test_a_preset_added_later_is_checked_without_a_change(client, monkeypatch):
     """The check is generic: a new preset whose geometry overflows, or misses its own lengths,
     is refused with the parameter named, by the engine and by the generic route."""
-    from engine.linkage import BarSpec, VertexSpec
+    from engine.model.linkage import BarSpec, VertexSpec
 
     def two_bars(p: dict[str, float]) -> Any:
         tip = [p["L"] * p["stretch"], 0.0]  # stretch != 1: the bar misses its length
@@ -105,7 +105,7 @@ def test_a_preset_added_later_is_checked_without_a_change(client, monkeypatch):
 
 
 def test_a_preset_beyond_the_size_limits_names_its_size_parameter():
-    from engine.linkage import Limits
+    from engine.model.linkage import Limits
 
     with pytest.raises(InvalidParameter) as err:
         build_preset("kl-chain", {"n": 100}, Limits(max_vertices=50))

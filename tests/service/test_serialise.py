@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
 from service import jobs, serialise
 from service.config import get_settings
 from service.mappers import linkage_out

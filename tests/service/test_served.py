@@ -247,7 +247,7 @@ def test_slow_body_gets_408_within_the_body_timeout(served: Served) -> None:
 
 @pytest.fixture(scope="module")
 def chain_body() -> bytes:
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from service.mappers import linkage_out
 
     lk = linkage_out(build_preset("kl-chain", {"n": 15_000})).model_dump(mode="json")

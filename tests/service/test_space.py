@@ -223,7 +223,7 @@ def test_critical_values_endpoint(client):
 def test_robustness_job_stopped_by_its_deadline_answers_incomplete():
     """The job's deadline keyword reaches the engine: an expired deadline gives a valid
     response marked incomplete (reason "time"), not an error."""
-    from engine.budget import Deadline
+    from engine.model.budget import Deadline
     from service import jobs
     from service.config import Settings
     from service.schemas.robustness import RobustnessRequest

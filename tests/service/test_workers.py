@@ -39,7 +39,7 @@ def worker_peak_mb(pid: int) -> float:
 
 @pytest.fixture(scope="module")
 def four_bar() -> dict[str, Any]:
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from service.mappers import linkage_out
 
     return linkage_out(build_preset("four-bar")).model_dump(mode="json")

@@ -1,11 +1,12 @@
 """The whole configuration space of a one-degree-of-freedom linkage.
 
-1. **Seeds** (:mod:`engine.assembly`): every assembly at swept rotor angles, random projections.
+1. **Seeds** (:mod:`engine.space.assembly`): every assembly at swept rotor angles, random
+   projections.
 2. **Curves**: from every seed that is not on a curve already traced, trace until the curve
-   closes (:func:`engine.trace.trace_curve`).
+   closes (:func:`engine.space.trace.trace_curve`).
 3. **Critical points**: candidates where the augmented determinant changes sign along a curve,
    at deep minima of ``|det|`` along it, and from seeded multistart; each refined on the
-   augmented system (:mod:`engine.critical`), deduplicated and classified to second order.
+   augmented system (:mod:`engine.local.critical`), deduplicated and classified to second order.
    Points of a non-isolated critical set are merged into one degenerate entry per stress
    support: they are never counted.
 4. **Segments** (critical lengths): from every branch point along each of its four rays, trace
@@ -14,10 +15,10 @@
    step bound), plus the closed curves that meet no critical point.
 
 Planar dyad chains (a rotor and circle-circle dyads) first try the closed form of
-:mod:`engine.dyads`: every component sampled in one vectorised pass, with a certificate that no
-critical point exists; it declines (and the steps above run) at or near critical lengths.
+:mod:`engine.space.dyads`: every component sampled in one vectorised pass, with a certificate
+that no critical point exists; it declines (and the steps above run) at or near critical lengths.
 With ``SpaceOptions.critical_closed_form`` (default), :func:`find_critical_points` of such a chain
-refines closed-form candidates instead of tracing (:func:`engine.dyads.critical_candidates`:
+refines closed-form candidates instead of tracing (:func:`engine.space.dyads.critical_candidates`:
 wherever that certificate is in doubt) and answers only when every candidate refines to a
 critical point and none is degenerate; otherwise the steps above run.
 
@@ -25,12 +26,12 @@ Modules: :mod:`.results` (options and answers), :mod:`.explorer` (seeds and curv
 :mod:`.critical_search` (critical points along the curves), :mod:`.segments` (segments and
 components), :mod:`.closed_form` (the dyad-chain path), :mod:`.search` (the entry points
 :func:`explore` and :func:`find_critical_points`); kinematics along the walks (rotor angles,
-windings) in :mod:`engine.kinematics`.
+windings) in :mod:`engine.space.kinematics`.
 """
 
-from engine.configuration_space.closed_form import NO_CANDIDATE, closed_form_critical
-from engine.configuration_space.explorer import SPARSE_SEED_RIGIDITY_MIN_FREE, Explorer
-from engine.configuration_space.results import (
+from engine.space.configuration_space.closed_form import NO_CANDIDATE, closed_form_critical
+from engine.space.configuration_space.explorer import SPARSE_SEED_RIGIDITY_MIN_FREE, Explorer
+from engine.space.configuration_space.results import (
     Component,
     CriticalSearch,
     Segment,
@@ -38,8 +39,8 @@ from engine.configuration_space.results import (
     SpaceResult,
     rays,
 )
-from engine.configuration_space.search import explore, find_critical_points
-from engine.kinematics import positions_along, rotor_angles, winding
+from engine.space.configuration_space.search import explore, find_critical_points
+from engine.space.kinematics import positions_along, rotor_angles, winding
 
 #: The names of the single module this package was split from (tests and benchmarks use them).
 _Explorer = Explorer

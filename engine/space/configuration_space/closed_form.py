@@ -1,4 +1,4 @@
-"""The closed-form path of planar dyad chains (:mod:`engine.dyads`): whole components sampled
+"""The closed-form path of planar dyad chains (:mod:`engine.space.dyads`): whole components sampled
 in one vectorised pass, or critical points from the closed-form candidates, answered only where
 they are beyond doubt.
 """
@@ -7,18 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.budget import granted
-from engine.chain_count import chain_components
-from engine.configuration_space.critical_search import critical_points, resolve
-from engine.configuration_space.explorer import Explorer
-from engine.configuration_space.results import Component, CriticalSearch, SpaceResult
-from engine.constraints import Constraints
-from engine.critical import NearMiss
-from engine.dyads import closed_form_space, critical_candidates
-from engine.dyads import kernel as dyads_kernel
-from engine.report import SearchReport
-from engine.tolerances import NORM_FLOOR
-from engine.trace import (
+from engine.local.critical import NearMiss
+from engine.model.budget import granted
+from engine.model.constraints import Constraints
+from engine.model.report import SearchReport
+from engine.model.tolerances import NORM_FLOOR
+from engine.space.chain_count import chain_components
+from engine.space.configuration_space.critical_search import critical_points, resolve
+from engine.space.configuration_space.explorer import Explorer
+from engine.space.configuration_space.results import Component, CriticalSearch, SpaceResult
+from engine.space.dyads import closed_form_space, critical_candidates
+from engine.space.dyads import kernel as dyads_kernel
+from engine.space.trace import (
     Curve,
     polyline_distance,
     segments_distance,
@@ -63,7 +63,8 @@ def walk_curve(cons: Constraints, walk: np.ndarray) -> Curve:
 
 
 def walk_distance(walk: np.ndarray, target: np.ndarray, gap: float) -> float:
-    """:func:`engine.trace.polyline_distance` for a walk (n, M) whose consecutive points are at
+    """:func:`engine.space.trace.polyline_distance` for a walk (n, M) whose consecutive points are
+    at
     most ``gap`` apart (the closed form's step bound), from the segments that can be nearest.
 
     A point of a segment is within half its length of one of its ends, so no segment whose ends
@@ -91,7 +92,7 @@ def walk_distance(walk: np.ndarray, target: np.ndarray, gap: float) -> float:
 def closed_form_answer(
     ex: Explorer, start: np.ndarray | None, near_misses: bool
 ) -> SpaceResult | None:
-    """The answer of :func:`explore` from :func:`engine.dyads.closed_form_space`, or None
+    """The answer of :func:`explore` from :func:`engine.space.dyads.closed_form_space`, or None
     (the general path runs; ``search["closed_form"]`` then says why the closed form declined).
 
     With ``near_misses`` the usual critical-point search runs on the closed-form walks (for the
@@ -177,7 +178,7 @@ NO_CANDIDATE = ("declined: no candidate (no critical point); the near misses com
 
 def closed_form_critical(ex: Explorer) -> CriticalSearch | None:
     """:func:`find_critical_points` from the closed-form candidates of
-    :func:`engine.dyads.critical_candidates`, or None (the general path runs;
+    :func:`engine.space.dyads.critical_candidates`, or None (the general path runs;
     ``search["closed_form"]`` then says why).
 
     Every candidate is refined, deduplicated and classified as in the general search. The

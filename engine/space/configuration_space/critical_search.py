@@ -9,10 +9,8 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from engine import critical_batched
-from engine.assembly import projected_random_starts
-from engine.configuration_space.explorer import Explorer
-from engine.critical import (
+from engine.local import critical_batched
+from engine.local.critical import (
     CriticalPoint,
     NearMiss,
     Refined,
@@ -20,7 +18,9 @@ from engine.critical import (
     refine_critical,
     singular_gap,
 )
-from engine.tolerances import SAME_POINT_REL
+from engine.model.tolerances import SAME_POINT_REL
+from engine.space.assembly import projected_random_starts
+from engine.space.configuration_space.explorer import Explorer
 
 #: Above this many free coordinates the critical-point search uses only candidates along the
 #: traced curves (no random multistart on the augmented system).
@@ -100,10 +100,11 @@ def resolve(
 
 
 def refined(ex: Explorer, candidates: Iterable[np.ndarray]) -> Iterator[Refined]:
-    """:func:`engine.critical.refine_critical` from every candidate, in order, until the
-    deadline: small linkages (up to :data:`engine.critical_batched.REFINE_BATCH_MAX_FREE` free
+    """:func:`engine.local.critical.refine_critical` from every candidate, in order, until the
+    deadline: small linkages (up to :data:`engine.local.critical_batched.REFINE_BATCH_MAX_FREE` free
     coordinates) refine all of them at once
-    (:func:`engine.critical_batched.refine_critical_batch`: the same answers, the tests compare
+    (:func:`engine.local.critical_batched.refine_critical_batch`: the same answers, the tests
+    compare
     the two), larger ones one at a time."""
     if ex.cons.n_free > critical_batched.REFINE_BATCH_MAX_FREE:
         for u0 in candidates:

@@ -11,21 +11,21 @@ from collections.abc import Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
-from engine.assembly import iter_random_seeds, iter_seeds
-from engine.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.budget import NEVER, Deadline, granted
-from engine.configuration_space.results import (
+from engine.local.rigidity import first_order
+from engine.model.batched import BATCH_MAX_FREE, BatchedConstraints
+from engine.model.budget import NEVER, Deadline, granted
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.linkage import Linkage
+from engine.model.report import SearchReport
+from engine.model.tolerances import SAME_POINT_REL, Tolerances
+from engine.space.assembly import iter_random_seeds, iter_seeds
+from engine.space.configuration_space.results import (
     MIN_STEP_MAX_REL,
     SpaceOptions,
     require_one_dof,
 )
-from engine.constraints import Constraints
-from engine.errors import InvalidRequest
-from engine.linkage import Linkage
-from engine.report import SearchReport
-from engine.rigidity import first_order
-from engine.tolerances import SAME_POINT_REL, Tolerances
-from engine.trace import (
+from engine.space.trace import (
     STOP_TIME,
     Curve,
     correct,
@@ -121,7 +121,7 @@ class Explorer:
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
                **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
-        flags that decide whether it is complete (:class:`engine.report.SearchReport`);
+        flags that decide whether it is complete (:class:`engine.model.report.SearchReport`);
         ``agreed`` False: an independent count disagrees with what was traced (unresolved)."""
         budget = bool(self.report.get("component_budget_reached")
                       or self.report.get("assemblies_truncated")

@@ -7,12 +7,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.constraints import Constraints
-from engine.critical import CriticalPoint, NearMiss
-from engine.errors import InvalidLinkage
-from engine.linkage import Linkage
-from engine.report import SearchReport
-from engine.trace import (
+from engine.local.critical import CriticalPoint, NearMiss
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidLinkage
+from engine.model.linkage import Linkage
+from engine.model.report import SearchReport
+from engine.space.trace import (
     TraceOptions,
 )
 
@@ -31,11 +31,11 @@ class SpaceOptions:
     random_starts: int = 12
     max_components: int = 32
     seed: int = 0
-    #: Try the closed form of :mod:`engine.dyads` first (planar dyad chains away from critical
+    #: Try the closed form of :mod:`engine.space.dyads` first (planar dyad chains away from critical
     #: lengths); False always runs the general tracer (the tests cross-check the two).
     closed_form: bool = True
     #: :func:`find_critical_points` of planar dyad chains from the closed-form candidates of
-    #: :func:`engine.dyads.critical_candidates` (no tracing), where they are beyond doubt
+    #: :func:`engine.space.dyads.critical_candidates` (no tracing), where they are beyond doubt
     #: (critical points are in one canonical order whichever path finds them; the report then
     #: has no seeds or traced curves). Needs ``closed_form`` too; False always traces.
     critical_closed_form: bool = True

@@ -4,31 +4,31 @@
 
 from __future__ import annotations
 
-from engine.budget import (
+from engine.local.critical import CriticalPoint, NearMiss
+from engine.model.budget import (
     NEVER,
     Deadline,
 )
-from engine.chain_count import chain_components
-from engine.configuration_space.closed_form import (
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
+from engine.space.chain_count import chain_components
+from engine.space.configuration_space.closed_form import (
     NO_CANDIDATE,
     closed_form_answer,
     closed_form_critical,
 )
-from engine.configuration_space.critical_search import critical_points
-from engine.configuration_space.explorer import Explorer
-from engine.configuration_space.results import (
+from engine.space.configuration_space.critical_search import critical_points
+from engine.space.configuration_space.explorer import Explorer
+from engine.space.configuration_space.results import (
     CriticalSearch,
     SpaceOptions,
     SpaceResult,
 )
-from engine.configuration_space.segments import (
+from engine.space.configuration_space.segments import (
     assemble_components,
     mark_through_start,
     trace_segments,
 )
-from engine.critical import CriticalPoint, NearMiss
-from engine.linkage import Linkage
-from engine.tolerances import Tolerances
 
 
 def find_critical_points(
@@ -50,7 +50,7 @@ def find_critical_points(
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> res = find_critical_points(build_preset("four-bar", {"L2": 1.0}))
     >>> len(res.critical_points), res.search["complete"]
     (3, True)
@@ -88,16 +88,16 @@ def explore(
     deadline: Deadline | None = None,
 ) -> SpaceResult:
     """Components, critical points, segments and near misses of a 1-DOF linkage (on its
-    configuration space: see :func:`engine.constraints.on_constraints`).
+    configuration space: see :func:`engine.model.constraints.on_constraints`).
 
     ``near_misses=False`` says the caller does not need the near misses: where the closed form
-    of :mod:`engine.dyads` certifies that no critical point exists, or the rules of
-    :mod:`engine.chain_count` prove it for a rotor chain, the critical-point search (which
+    of :mod:`engine.space.dyads` certifies that no critical point exists, or the rules of
+    :mod:`engine.space.chain_count` prove it for a rotor chain, the critical-point search (which
     finds the near misses, and would find no critical point) is then skipped.
 
     Examples
     --------
-    >>> from engine.presets import build_preset
+    >>> from engine.catalogue.presets import build_preset
     >>> res = explore(build_preset("four-bar", {"L2": 1.2}))
     >>> len(res.components), len(res.critical_points)
     (1, 0)
@@ -108,7 +108,8 @@ def explore(
     # With start_on_space=False the given positions need not satisfy the lengths (e.g. lengths
     # changed for a map): only the seeds are used, and none means an empty configuration space.
     start = linkage.coordinates() if start_on_space else None
-    # -- closed-form path (engine.dyads); None: not a dyad chain, or at/near critical lengths --
+    # -- closed-form path (engine.space.dyads); None: not a dyad chain, or at/near critical lengths
+    # --
     if opt.closed_form:
         fast = closed_form_answer(ex, start, near_misses)
         if fast is not None:
@@ -119,7 +120,7 @@ def explore(
     ex.trace_all(start)
     count = chain_components(linkage)
     if count is not None and not near_misses:
-        # The chain rules prove that there is no critical point (engine.chain_count): the
+        # The chain rules prove that there is no critical point (engine.space.chain_count): the
         # search would only find near misses, which the caller does not want. On long chains
         # it is most of the cost (dense refinements on 2n unknowns).
         crit: list[CriticalPoint] = []

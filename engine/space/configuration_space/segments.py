@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.configuration_space.explorer import Explorer
-from engine.configuration_space.results import Component, Segment, rays
-from engine.critical import CriticalPoint
-from engine.tolerances import NORM_FLOOR
-from engine.trace import (
+from engine.local.critical import CriticalPoint
+from engine.model.tolerances import NORM_FLOOR
+from engine.space.configuration_space.explorer import Explorer
+from engine.space.configuration_space.results import Component, Segment, rays
+from engine.space.trace import (
     STOP_TIME,
     Curve,
     correct,

@@ -2,7 +2,7 @@
 
 A planar one-degree-of-freedom linkage whose free vertices are placed one by one from a rotor's
 tip, each from two placed neighbours (a *dyad*: circle-circle intersection, see
-:func:`engine.assembly.dyad_plan`), has every configuration on a *sheet*: a choice of root
+:func:`engine.space.assembly.dyad_plan`), has every configuration on a *sheet*: a choice of root
 ``s_j = +-1`` for each of its ``k`` dyads, over the rotor angle ``theta``. Dyad ``j`` at
 ``theta`` on sheet ``s`` has its vertex where ``nu_j = sin^2`` of the angle between its two bars
 is positive (``nu_j`` depends on ``s_1 .. s_{j-1}`` only); where ``nu_j`` crosses zero the rotor
@@ -19,7 +19,7 @@ that on a dense angle grid (sign changes bracketed and bisected; every discrete 
 ``nu_j`` refined on its bracket; every fold checked for transversality and for the other dyads'
 margin, also densely inside its grid cell) and returns ``None`` whenever any check is within the
 margin ``tau``: near or at critical lengths the general tracer answers instead
-(:func:`engine.configuration_space.explore`). Never a confident wrong answer.
+(:func:`engine.space.configuration_space.explore`). Never a confident wrong answer.
 
 The margin ``tau`` (on ``nu = sin^2``) is ``1e4 * residual_atol / median bar length`` (clipped
 to ``[1e-10, 1e-3]``): lengths that close to a critical value are left to the general engine,
@@ -30,9 +30,9 @@ and its folds), :mod:`.closed_form` (:func:`closed_form_space`), :mod:`.candidat
 (:func:`critical_candidates`).
 """
 
-from engine.dyads.candidates import MAX_CANDIDATES, CriticalCandidates, critical_candidates
-from engine.dyads.chain import DETECT_SAMPLES, MAX_DYADS, Chain, chain_of, place
-from engine.dyads.closed_form import ClosedForm, closed_form_space
+from engine.space.dyads.candidates import MAX_CANDIDATES, CriticalCandidates, critical_candidates
+from engine.space.dyads.chain import DETECT_SAMPLES, MAX_DYADS, Chain, chain_of, place
+from engine.space.dyads.closed_form import ClosedForm, closed_form_space
 
 __all__ = [
     "DETECT_SAMPLES",

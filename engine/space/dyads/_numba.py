@@ -1,4 +1,4 @@
-"""numba kernels of :mod:`engine.dyads.kernel` (imported only when the compiled path runs).
+"""numba kernels of :mod:`engine.space.dyads.kernel` (imported only when the compiled path runs).
 
 Each kernel is the numpy code it replaces (named in its docstring) written as one loop over the
 samples, with the same operations in the same order on the same operands: IEEE arithmetic,
@@ -18,11 +18,11 @@ from numba import njit
 @njit(cache=True, error_model="numpy")
 def place(cos_t, sin_t, radius, signs, flat, vertex, a, b, consts, base, pin, tip, pins, cols,
           out, nu, d2):
-    """:func:`engine.dyads.chain._place` (``given`` None) into ``out`` (n, C): vertex ``v`` in
+    """:func:`engine.space.dyads.chain._place` (``given`` None) into ``out`` (n, C): vertex ``v`` in
     columns ``cols[v]``, ``cols[v] + 1`` (or, ``cols[v] < 0``, not written and read from
     ``base``: a pin of the free walk). ``cos_t``, ``sin_t`` (n,) numpy's trigonometry of the
     angles, ``signs`` (n or 1, k) float, ``flat`` (n, k) bool or (0, k) for none, ``consts``
-    (k, 6) per dyad (:attr:`engine.dyads.chain.Chain.consts`); fills ``nu`` and ``d2`` (n, k)
+    (k, 6) per dyad (:attr:`engine.space.dyads.chain.Chain.consts`); fills ``nu`` and ``d2`` (n, k)
     unless they are (0, k). Dyad by dyad, each a loop over the samples with its indices and
     constants fixed (numpy's passes, fused)."""
     n = cos_t.shape[0]
@@ -73,7 +73,7 @@ def place(cos_t, sin_t, radius, signs, flat, vertex, a, b, consts, base, pin, ti
 
 @njit(cache=True, error_model="numpy")
 def long_gaps(walk, limit, out):
-    """:func:`engine.dyads.closed_form.long_gaps`: the ``i`` (in ``out``, how many returned)
+    """:func:`engine.space.dyads.closed_form.long_gaps`: the ``i`` (in ``out``, how many returned)
     whose step from sample ``i`` to ``i + 1`` of ``walk`` (n, M) is longer than ``limit``
     (the squares summed column by column, then the square root)."""
     count = 0
@@ -90,7 +90,7 @@ def long_gaps(walk, limit, out):
 
 @njit(cache=True, error_model="numpy")
 def within_lengths(walk, base, cols, ends, low, high):
-    """:func:`engine.dyads.closed_form.within_lengths`: every sample of ``walk`` (n, M; vertex
+    """:func:`engine.space.dyads.closed_form.within_lengths`: every sample of ``walk`` (n, M; vertex
     ``v`` in columns ``cols[v]``, ``cols[v] + 1``, or at ``base[v]`` where ``cols[v] < 0``)
     with every bar's squared length ``dx * dx + dy * dy`` in ``[low, high]`` (per bar); a nan
     fails."""
@@ -137,9 +137,9 @@ def _signed_nu(t, sgn, dyad, signs, row, vertex, a, b, consts, base, pin, tip, r
 @njit(cache=True, error_model="numpy")
 def golden_signed_nu(lo, hi, sgn, dyad, signs, iters, g, vertex, a, b, consts, base, pin,
                      tip, radius, best):
-    """:func:`engine.dyads.chain.golden` of ``sgn[r] * nu`` of dyad ``dyad[r]`` on the sheet
+    """:func:`engine.space.dyads.chain.golden` of ``sgn[r] * nu`` of dyad ``dyad[r]`` on the sheet
     ``signs[r]`` over ``[lo[r], hi[r]]`` (the extrema check of
-    :func:`engine.dyads.closed_form._check_extrema`): the same steps and comparisons, so the
+    :func:`engine.space.dyads.closed_form._check_extrema`): the same steps and comparisons, so the
     same answer to the rounding of the trigonometry (math's here, numpy's there). Fills
     ``best`` (m,), the smallest value seen per bracket (nan where numpy's would be)."""
     xs = base[:, 0].copy()
@@ -194,7 +194,7 @@ def golden_signed_nu(lo, hi, sgn, dyad, signs, iters, g, vertex, a, b, consts, b
 
 @njit(cache=True, error_model="numpy")
 def near_segments(walk, target, gap, out):
-    """:func:`engine.configuration_space.closed_form.walk_distance`'s choice of segments: the
+    """:func:`engine.space.configuration_space.closed_form.walk_distance`'s choice of segments: the
     ``k`` (in ``out``, how many returned) whose point ``k`` or ``k + 1`` of ``walk`` (n, M) is
     within ``(d + gap / 2) (1 + 1e-9)`` of ``target`` (``d`` the distance to the nearest point;
     squares summed column by column). A nan point makes ``d`` nan (numpy's min): none."""

@@ -1,5 +1,6 @@
 """Candidates for every critical point of a planar dyad chain, in closed form: the places where
-the certificate of :mod:`engine.dyads.closed_form` is in doubt (extrema of a dyad's ``nu`` near
+the certificate of :mod:`engine.space.dyads.closed_form` is in doubt (extrema of a dyad's ``nu``
+near
 zero, doubtful folds, dyads whose centres coincide), refined by the caller."""
 
 from __future__ import annotations
@@ -9,7 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.dyads.chain import (
+from engine.model.linkage import Linkage
+from engine.model.tolerances import SAME_POINT_REL, Tolerances
+from engine.space.dyads.chain import (
     DETECT_SAMPLES,
     Chain,
     Decline,
@@ -23,8 +26,6 @@ from engine.dyads.chain import (
     place,
     sample_sheets,
 )
-from engine.linkage import Linkage
-from engine.tolerances import SAME_POINT_REL, Tolerances
 
 #: More distinct candidates than this (e.g. a dyad collinear along a whole interval: a
 #: non-isolated critical set) are left to the general search.
@@ -54,7 +55,7 @@ def critical_candidates(
     its refined angle; every fold that is nearly tangent or where another dyad comes within
     ``tau``, at the fold and at that dyad's smallest ``nu`` in the fold's cell) contain a start
     next to every critical point. The caller refines them on the augmented system
-    (:func:`engine.critical.refine_critical`).
+    (:func:`engine.local.critical.refine_critical`).
 
     Returns
     -------

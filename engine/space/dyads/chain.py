@@ -1,7 +1,7 @@
 """Planar dyad chains: the chain of a linkage, its placement on every sheet, the detection
 grid shared by the closed form and the candidates, and the folds on it.
 
-See :mod:`engine.dyads` for the sheets, the folds and the certificate of no critical point.
+See :mod:`engine.space.dyads` for the sheets, the folds and the certificate of no critical point.
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from engine.assembly import dyad_plan, rotors
-from engine.dyads import kernel
-from engine.linkage import Linkage
-from engine.tolerances import SAME_POINT_REL, Tolerances
+from engine.model.linkage import Linkage
+from engine.model.tolerances import SAME_POINT_REL, Tolerances
+from engine.space.assembly import dyad_plan, rotors
+from engine.space.dyads import kernel
 
 #: More dyads than this (2^k sheets) are left to the general tracer.
 MAX_DYADS = 6
@@ -248,13 +248,13 @@ def _place(
 
 def sheets_of(k: int) -> np.ndarray:
     """All ``2^k`` sign vectors (S, k), ``+1`` first (the first root of
-    :func:`engine.assembly.assemblies_at`)."""
+    :func:`engine.space.assembly.assemblies_at`)."""
     s = np.arange(2**k)[:, None] >> np.arange(k)[None, :]
     return 1 - 2 * (s & 1)
 
 
 #: The golden section's ratio, ``(sqrt(5) - 1) / 2`` (one value for :func:`golden_arg` and
-#: the compiled search of :func:`engine.dyads.closed_form.extremum_minima`).
+#: the compiled search of :func:`engine.space.dyads.closed_form.extremum_minima`).
 GOLDEN_RATIO = float((np.sqrt(5.0) - 1.0) / 2.0)
 
 

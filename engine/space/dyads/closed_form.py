@@ -1,5 +1,6 @@
 """Every component of a planar dyad chain in closed form, with the certificate that it has no
-critical point (see :mod:`engine.dyads`): sheets sampled, extrema and folds checked, arcs cut at
+critical point (see :mod:`engine.space.dyads`): sheets sampled, extrema and folds checked, arcs cut
+at
 the folds and joined into walks, each sampled to the step bound."""
 
 from __future__ import annotations
@@ -8,8 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.dyads import kernel
-from engine.dyads.chain import (
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
+from engine.space.dyads import kernel
+from engine.space.dyads.chain import (
     DETECT_SAMPLES,
     GOLDEN_RATIO,
     Chain,
@@ -24,8 +27,6 @@ from engine.dyads.chain import (
     place_free,
     sample_sheets,
 )
-from engine.linkage import Linkage
-from engine.tolerances import Tolerances
 
 #: Points of the first pass along an arc (before resampling to the step bound).
 ARC_PILOT = 512
@@ -56,7 +57,8 @@ def closed_form_space(
     Parameters
     ----------
     linkage : Linkage
-        One degree of freedom, something fixed (as for :func:`engine.configuration_space.explore`).
+        One degree of freedom, something fixed (as for
+    :func:`engine.space.configuration_space.explore`).
     tol : Tolerances
         Every returned point has every bar within ``residual_atol`` of its length.
     step_max : float
@@ -122,7 +124,7 @@ def _check_extrema(ch: Chain, sm: Sampled) -> None:
 def extremum_minima(ch: Chain, lo: np.ndarray, hi: np.ndarray, sgn: np.ndarray,
                     dyad: np.ndarray, signs: np.ndarray) -> np.ndarray:
     """The smallest ``sgn * nu`` of ``dyad`` on sheet ``signs`` (m, k) seen by the golden
-    search (:func:`engine.dyads.chain.golden`) on each ``[lo, hi]`` (m,). Compiled: the same
+    search (:func:`engine.space.dyads.chain.golden`) on each ``[lo, hi]`` (m,). Compiled: the same
     search in one call (sixty placements of a few angles cost more in numpy's overhead than
     in arithmetic), equal to rounding (math's trigonometry instead of numpy's)."""
     compiled = kernel.kernels()

@@ -2,8 +2,8 @@
 
 A dense closed-form exploration places 10^5 samples and checks them: in numpy every dyad step
 is some twenty passes over the samples, and the small placements of the checks (a golden
-search calls :func:`engine.dyads.chain.place` sixty times on a few angles) pay the overhead of
-each numpy call. :mod:`engine.dyads._numba` runs the same loops compiled: the placement, the
+search calls :func:`engine.space.dyads.chain.place` sixty times on a few angles) pay the overhead of
+each numpy call. :mod:`engine.space.dyads._numba` runs the same loops compiled: the placement, the
 step gaps of a walk and the length check, each bitwise the numpy code it replaces (same
 operations in the same order, the trigonometry computed by numpy), so an answer never depends
 on which path ran.
@@ -32,7 +32,7 @@ failure: str | None = None
 
 
 def kernels() -> ModuleType | None:
-    """The compiled kernels (:mod:`engine.dyads._numba`) when chosen and loadable, else None
+    """The compiled kernels (:mod:`engine.space.dyads._numba`) when chosen and loadable, else None
     (the numpy path). The first call loads them (and waits)."""
     if os.environ.get(KERNEL_ENV, "numba").strip().lower() == "numpy":
         return None
@@ -76,7 +76,7 @@ def _compile() -> ModuleType:
     """The kernel module, every kernel compiled for the one signature it is called with."""
     import numpy as np
 
-    from engine.dyads import _numba
+    from engine.space.dyads import _numba
 
     f8, i8, f8x2 = np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros((1, 2))
     _numba.place(f8, f8, 1.0, np.ones((1, 1)), np.zeros((0, 1), bool), i8, i8, i8,

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.errors import InvalidParameter, UnknownPreset
-from engine.presets import PRESETS, build_preset
-from engine.rigidity import first_order
+from engine.catalogue.presets import PRESETS, build_preset
+from engine.local.rigidity import first_order
+from engine.model.errors import InvalidParameter, UnknownPreset
 
 CASES = [
     ("four-bar", {}),
@@ -36,7 +36,7 @@ def test_preset_lies_on_its_configuration_space(name, params):
 def test_every_preset_is_listed_with_defaults():
     assert set(PRESETS) == {
         "four-bar", "three-rotor", "kl-chain", "gated-kl-chain",
-        # engine/catalogue.py
+        # engine/catalogue/catalogue.py
         "tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
         "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
         "rotor-chain-3d",

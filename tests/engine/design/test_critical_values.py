@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.critical_values import (
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import (
     Axis,
     _blocked_cells,
     _polyline_distance,
     _System,
     critical_value_slice,
 )
-from engine.presets import build_preset
+from engine.space.configuration_space import SpaceOptions, explore
 
 SIGNS = list(itertools.product((1, -1), repeat=3))
 

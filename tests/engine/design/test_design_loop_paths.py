@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.critical_values import _blocked_cells, _polyline_distance, critical_value_slice
-from engine.errors import InvalidRequest
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import _blocked_cells, _polyline_distance, critical_value_slice
+from engine.model.errors import InvalidRequest
+from engine.space.configuration_space import SpaceOptions, explore
 
 
 def _hausdorff(a: list[np.ndarray], b: list[np.ndarray]) -> float:
@@ -151,10 +151,10 @@ def test_regions_need_no_near_misses(name, params):
 
 def _starts(lk, count: int, seed: int) -> list[np.ndarray]:
     """Candidates of the critical-point search and seeded projected random starts."""
-    from engine.assembly import projected_random_starts
-    from engine.configuration_space import Explorer
-    from engine.configuration_space.critical_search import candidates
-    from engine.tolerances import Tolerances
+    from engine.model.tolerances import Tolerances
+    from engine.space.assembly import projected_random_starts
+    from engine.space.configuration_space import Explorer
+    from engine.space.configuration_space.critical_search import candidates
 
     ex = Explorer(lk, Tolerances(), SpaceOptions(max_components=4, random_starts=0))
     ex.trace_all(lk.coordinates())
@@ -171,9 +171,9 @@ def test_sparse_refinement_is_minpacks(name, params):
     near misses with the same residuals: the same verdict, the same point where it is one."""
     from scipy.optimize import least_squares
 
-    from engine.constraints import Constraints
-    from engine.critical import AugmentedSystem, SparseAugmentedSystem, refine_critical
-    from engine.tolerances import Tolerances
+    from engine.local.critical import AugmentedSystem, SparseAugmentedSystem, refine_critical
+    from engine.model.constraints import Constraints
+    from engine.model.tolerances import Tolerances
 
     lk = build_preset(name, params)
     cons, tol = Constraints(lk), Tolerances()
@@ -204,15 +204,15 @@ def test_sparse_refinement_is_minpacks(name, params):
 
 
 def _start_stress(cons, u0: np.ndarray) -> np.ndarray:
-    """The start stress of :func:`engine.critical.refine_critical`."""
+    """The start stress of :func:`engine.local.critical.refine_critical`."""
     return np.linalg.svd(cons.jacobian(u0, sparse=False))[0][:, -1]
 
 
 def test_critical_search_through_the_sparse_refinement(monkeypatch):
     """The whole critical-point search with every refinement sparse: the same critical points
     (three-rotor: twelve branch points) in the same order, the same kinds."""
-    import engine.critical as critical
-    from engine.configuration_space import find_critical_points
+    import engine.local.critical as critical
+    from engine.space.configuration_space import find_critical_points
 
     lk = build_preset("three-rotor")
     opt = SpaceOptions(critical_closed_form=False)
@@ -226,9 +226,9 @@ def test_critical_search_through_the_sparse_refinement(monkeypatch):
 
 
 def test_unknown_refine_method():
-    from engine.constraints import Constraints
-    from engine.critical import refine_critical
-    from engine.tolerances import Tolerances
+    from engine.local.critical import refine_critical
+    from engine.model.constraints import Constraints
+    from engine.model.tolerances import Tolerances
 
     lk = build_preset("four-bar")
     with pytest.raises(ValueError, match="unknown method"):
@@ -261,7 +261,7 @@ def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
         name, params, axes, method, monkeypatch):
     """The slice's seeds moved onto ``G = 0`` one column of seed lengths at once (one batch)
     against one seed's starts at a time (as the seed loop took them before)."""
-    from engine.critical_values import _CurveTracing
+    from engine.design.critical_values import _CurveTracing
 
     lk = build_preset(name, params)
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4)

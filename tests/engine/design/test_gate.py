@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.presets import build_preset
+from engine.catalogue.presets import build_preset
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
 
 QUICK = SpaceOptions(max_components=2, angles=12, random_starts=2)
 

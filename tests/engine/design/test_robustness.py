@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from engine.budget import Deadline
-from engine.configuration_space import SpaceOptions
-from engine.constraints import Constraints
-from engine.dyad_margin import project_on_plane
-from engine.errors import InvalidRequest
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.robustness import min_critical_length, robustness
-from engine.tolerances import Tolerances
+from engine.catalogue.presets import build_preset
+from engine.design.dyad_margin import project_on_plane
+from engine.design.robustness import min_critical_length, robustness
+from engine.model.budget import Deadline
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidRequest
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions
 
 FAST = SpaceOptions(angles=24, random_starts=4)
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.design import Target, design, verify
-from engine.presets import build_preset
-from engine.splitting import length_change, retraced_pairing, split
-from engine.tolerances import Tolerances
+from engine.catalogue.presets import build_preset
+from engine.design.design import Target, design, verify
+from engine.design.splitting import length_change, retraced_pairing, split
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
@@ -113,7 +113,7 @@ def test_design_respects_max_change():
      (1e-4, -1.0, "max_change"), (1e-4, float("inf"), "max_change")],
 )
 def test_design_rejects_bad_margin_and_max_change(margin, max_change, loc):
-    from engine.errors import InvalidRequest
+    from engine.model.errors import InvalidRequest
 
     with pytest.raises(InvalidRequest) as info:
         design(FOUR_BAR, CRIT["four-bar"], [Target(0, 1)], ["L2"], margin, max_change)

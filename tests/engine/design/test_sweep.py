@@ -7,10 +7,8 @@ import itertools
 import numpy as np
 import pytest
 
-from engine.budget import Deadline
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.sweep import (
+from engine.catalogue.presets import build_preset
+from engine.design.sweep import (
     BarFamily,
     GridAxis,
     PresetFamily,
@@ -20,6 +18,8 @@ from engine.sweep import (
     sample_points,
     summarize,
 )
+from engine.model.budget import Deadline
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 
 
 def grashof(sides: list[float]) -> int:

@@ -1,4 +1,4 @@
-"""The batched critical-point refinement (engine/critical_batched.py) against the one-start
+"""The batched critical-point refinement (engine/local/critical_batched.py) against the one-start
 MINPACK refinement it replaces in the critical-point search: the system itself, the refinement
 from the same starts, and whole searches and slices through either path (random and catalogue
 linkages)."""
@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from engine import critical_batched
-from engine.configuration_space import SpaceOptions, explore, find_critical_points
-from engine.constraints import Constraints
-from engine.critical import AugmentedSystem, refine_critical
-from engine.critical_batched import batched_system, refine_critical_batch, start_stresses
-from engine.presets import build_preset
-from engine.tolerances import Tolerances
+from engine.catalogue.presets import build_preset
+from engine.local import critical_batched
+from engine.local.critical import AugmentedSystem, refine_critical
+from engine.local.critical_batched import batched_system, refine_critical_batch, start_stresses
+from engine.model.constraints import Constraints
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
 
 TOL = Tolerances()
 
@@ -54,8 +54,8 @@ IDS = [f"{n}-{'-'.join(f'{k}{v:.3g}' for k, v in p.items())}" for n, p in LINKAG
 
 def _starts(lk, seed: int) -> np.ndarray:
     """Candidates of the critical-point search (along traced curves, and its multistart)."""
-    from engine.configuration_space import Explorer
-    from engine.configuration_space.critical_search import candidates
+    from engine.space.configuration_space import Explorer
+    from engine.space.configuration_space.critical_search import candidates
 
     ex = Explorer(lk, TOL, SpaceOptions(max_components=4, random_starts=4, seed=seed,
                                         closed_form=False))
@@ -66,7 +66,7 @@ def _starts(lk, seed: int) -> np.ndarray:
 @pytest.mark.parametrize(("name", "params"), LINKAGES, ids=IDS)
 def test_batched_system_is_the_augmented_system(name, params):
     """``F``, ``dF/dx`` (the affine map and the direct blocks) equal those of
-    :class:`engine.critical.AugmentedSystem`; the second-order term is the difference of the
+    :class:`engine.local.critical.AugmentedSystem`; the second-order term is the difference of the
     Hessian of ``|F|^2 / 2`` (central differences of its gradient) and ``A^T A``."""
     cons = Constraints(_build(name, params))
     system, ref = batched_system(cons), AugmentedSystem(cons)
@@ -151,7 +151,7 @@ def test_batched_refinement_is_minpacks(name, params):
 def _one_at_a_time(monkeypatch, converged: bool = False):
     """The path the batch replaces: MINPACK from one start at a time; ``converged``: run to
     convergence (5000 evaluations) instead of its budget of 100."""
-    import engine.critical as critical
+    import engine.local.critical as critical
 
     monkeypatch.setattr(critical_batched, "REFINE_BATCH_MAX_FREE", -1)
     if converged:
@@ -244,7 +244,7 @@ def test_find_critical_points_through_the_batched_refinement(name, params, monke
 
 def test_the_batched_refinement_stops_at_the_deadline():
     """A deadline already past: no start is refined (None), none is made up."""
-    from engine.budget import Deadline
+    from engine.model.budget import Deadline
 
     lk = build_preset("four-bar", {"L2": 1.2})
     cons = Constraints(lk)
@@ -262,7 +262,7 @@ def test_the_batched_refinement_stops_at_the_deadline():
 def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
     """A traced critical-value slice seeded through either refinement: the same curves (within
     a small fraction of the step) and the same regions (points, counts, signatures)."""
-    from engine.critical_values import _polyline_distance, critical_value_slice
+    from engine.design.critical_values import _polyline_distance, critical_value_slice
 
     lk = build_preset(name, params)
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
@@ -289,7 +289,7 @@ def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
     """The seeds of a slice (near misses and critical points at sample lengths, as
     ``_CurveTracing.starts_at`` makes them) moved onto ``G = 0`` all at once and one at a time:
     the same points (the same Gauss-Newton iteration, and the same fallback)."""
-    from engine.critical_values import (
+    from engine.design.critical_values import (
         _BatchedSystem,
         _onto_solutions,
         _onto_solutions_batch,
@@ -328,7 +328,7 @@ def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
 def test_seed_assemblies_checked_at_once_are_the_ones_checked_one_by_one(name, params):
     """``iter_seeds`` checks every assembly of an angle in one expression: the same seeds, in
     the same order, as the check of each one's coordinates by ``Constraints.max_residual``."""
-    from engine.assembly import assemblies_at, dyad_plan, iter_seeds, rotors
+    from engine.space.assembly import assemblies_at, dyad_plan, iter_seeds, rotors
 
     lk = _build(name, params)
     cons = Constraints(lk)
@@ -358,8 +358,8 @@ def test_seed_assemblies_checked_at_once_are_the_ones_checked_one_by_one(name, p
 def test_projections_at_once_are_the_projections_one_by_one(name, params, monkeypatch):
     """``project_many`` (the random starts of small linkages, all at once) against
     ``project`` from each start: the same verdicts and the same points."""
-    from engine.batched import project_many
-    from engine.constraints import project
+    from engine.model.batched import project_many
+    from engine.model.constraints import project
 
     lk = _build(name, params)
     cons = Constraints(lk)
@@ -383,7 +383,7 @@ def test_batched_refinement_is_scale_free(scale):
     far from unit lengths the batched refinement works in units of a power of two near the
     median length (at 1e12 the lengths' rounding had hidden the stress rows, and one branch
     point stopped 1e-8 short of critical and was classified "regular")."""
-    from engine.tolerances import scaled_tolerances
+    from engine.model.tolerances import scaled_tolerances
 
     unit_lk = build_preset("four-bar")
     lk = unit_lk.with_positions(unit_lk.positions * scale).with_lengths(unit_lk.lengths * scale)
@@ -402,7 +402,7 @@ def test_batched_refinement_is_scale_free(scale):
 
 
 def _halving_loop(batch, u, step, cost):
-    """The backtracking that ``project_many`` ran before :func:`engine.batched.backtrack`:
+    """The backtracking that ``project_many`` ran before :func:`engine.model.batched.backtrack`:
     one batch of the rows still looking per ``t = 1, 1/2, ...`` (> 1e-10)."""
     targets = batch.lengths**2
     new_u = np.full_like(u, np.nan)
@@ -427,12 +427,12 @@ def _halving_loop(batch, u, step, cost):
                          LINKAGES + [("rotor-chain-3d", {}), ("kl-chain", {"n": 10})],
                          ids=IDS + ["rotor-chain-3d", "kl-chain-n10"])
 def test_backtracking_and_line_searches_at_once_are_the_loops_bit_for_bit(name, params):
-    """``engine.batched.backtrack`` (every halving of every row in one batch, replayed) gives
-    bit for bit what one batch per halving gave; ``engine.batched.line_searches`` what
-    ``engine.constraints._line_search`` gives for each step: rows that hit at once, late, or
+    """``engine.model.batched.backtrack`` (every halving of every row in one batch, replayed) gives
+    bit for bit what one batch per halving gave; ``engine.model.batched.line_searches`` what
+    ``engine.model.constraints._line_search`` gives for each step: rows that hit at once, late, or
     never (a cost nothing beats), single rows and many."""
-    from engine.batched import BatchedConstraints, backtrack, line_searches
-    from engine.constraints import _line_search
+    from engine.model.batched import BatchedConstraints, backtrack, line_searches
+    from engine.model.constraints import _line_search
 
     lk = _build(name, params)
     cons = Constraints(lk)
@@ -466,8 +466,8 @@ def test_backtracking_and_line_searches_at_once_are_the_loops_bit_for_bit(name, 
 def test_projections_are_those_of_the_halving_loop(name, params, monkeypatch):
     """``project_many`` with the batched backtracking and line searches projects every start
     to bit for bit the point it reached with the loops they replace."""
-    import engine.batched as batched
-    from engine.constraints import _line_search
+    import engine.model.batched as batched
+    from engine.model.constraints import _line_search
 
     lk = _build(name, params)
     cons = Constraints(lk)

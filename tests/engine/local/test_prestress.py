@@ -17,12 +17,12 @@ import scipy.linalg as sla
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.prestress import decide, prestress
-from engine.rigidity import first_order
-from engine.second_order import second_order
-from engine.tolerances import Tolerances
+from engine.catalogue.presets import build_preset
+from engine.local.prestress import decide, prestress
+from engine.local.rigidity import first_order
+from engine.local.second_order import second_order
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from engine.model.tolerances import Tolerances
 
 TOL = 1e-7
 

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from engine.constraints import Constraints
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.rigidity import first_order
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import first_order
+from engine.model.constraints import Constraints
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 from tests.strategies import random_linkages
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)

@@ -7,10 +7,10 @@ import itertools
 import numpy as np
 import pytest
 
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.rigidity import first_order
-from engine.second_order import second_order
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import first_order
+from engine.local.second_order import second_order
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 from tests.strategies import nearest_solution
 
 

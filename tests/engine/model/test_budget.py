@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.budget import Deadline
-from engine.configuration_space import SpaceOptions, explore, find_critical_points
-from engine.constraints import Constraints
-from engine.critical_values import critical_value_slice
-from engine.presets import build_preset
-from engine.rigidity import first_order
-from engine.tolerances import Tolerances
-from engine.trace import TraceOptions, trace_curve
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import critical_value_slice
+from engine.local.rigidity import first_order
+from engine.model.budget import Deadline
+from engine.model.constraints import Constraints
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
+from engine.space.trace import TraceOptions, trace_curve
 
 FAST = SpaceOptions(angles=24, random_starts=4)
 #: the general tracer (a six-rotor chain is a dyad chain the closed form would answer at once)

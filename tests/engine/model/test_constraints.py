@@ -7,11 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.constraints import Constraints, on_constraints, project
-from engine.errors import NoNearbySolution
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.rigidity import first_order
-from engine.tolerances import Tolerances
+from engine.local.rigidity import first_order
+from engine.model.constraints import Constraints, on_constraints, project
+from engine.model.errors import NoNearbySolution
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from engine.model.tolerances import Tolerances
 from tests.strategies import (
     random_linkages,
     squared_lengths_jacobian_reference,
@@ -159,7 +159,7 @@ def test_projection_from_a_critical_configuration_with_perturbed_lengths(offset,
     """At a branch point with perturbed lengths, J^T g = 0: plain Gauss-Newton is stationary.
     The projection must still land on the configuration space, near the nearest solution
     (independent SLSQP reference)."""
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
     from tests.strategies import nearest_solution
 
     fb = build_preset("four-bar")

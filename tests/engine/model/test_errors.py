@@ -1,4 +1,5 @@
-"""The engine's failure style (engine/errors.py, issue 16 item 2), checked where a program can:
+"""The engine's failure style (engine/model/errors.py, issue 16 item 2), checked where a program
+can:
 results of iterative methods carry ``success``/``message``, nothing raises a bare
 ``RuntimeError``, linear algebra that raises on singular matrices is handled where it is called,
 and a sparse eigensolver that does not converge becomes a :class:`NumericalFailure`."""
@@ -17,11 +18,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import engine
-from engine.constraints import ProjectionResult
-from engine.design import DesignResult
-from engine.errors import EngineError, InvalidRequest, NumericalFailure
-from engine.prestress import PrestressResult
-from engine.robustness import Margin
+from engine.design.design import DesignResult
+from engine.design.robustness import Margin
+from engine.local.prestress import PrestressResult
+from engine.model.constraints import ProjectionResult
+from engine.model.errors import EngineError, InvalidRequest, NumericalFailure
 
 ENGINE = Path(engine.__file__).parent
 
@@ -101,10 +102,10 @@ def test_no_engine_result_claims_success_by_default():
 
 def test_every_search_result_reports_with_a_search_report():
     """One report type for every search: explorations, critical searches, margins and slices
-    (``complete`` computed in one place, :class:`engine.report.SearchReport`)."""
-    from engine.configuration_space import CriticalSearch, SpaceResult
-    from engine.critical_values import Slice
-    from engine.report import SearchReport
+    (``complete`` computed in one place, :class:`engine.model.report.SearchReport`)."""
+    from engine.design.critical_values import Slice
+    from engine.model.report import SearchReport
+    from engine.space.configuration_space import CriticalSearch, SpaceResult
 
     for cls in (SpaceResult, CriticalSearch, Margin, Slice):
         assert field_types(cls)["search"] in (SearchReport, "SearchReport"), cls
@@ -200,7 +201,7 @@ def test_numerical_failure_is_not_an_input_error():
 
 
 def test_lanczos_that_does_not_converge_is_a_numerical_failure(monkeypatch):
-    from engine import rigidity
+    from engine.local import rigidity
 
     def no_convergence(*args, **kwargs):
         raise spla.ArpackNoConvergence("no convergence", np.zeros(0), np.zeros((0, 0)))
@@ -212,10 +213,10 @@ def test_lanczos_that_does_not_converge_is_a_numerical_failure(monkeypatch):
 
 
 def test_an_unknown_refine_method_is_an_input_error():
-    from engine.constraints import Constraints
-    from engine.critical import refine_critical
-    from engine.presets import build_preset
-    from engine.tolerances import Tolerances
+    from engine.catalogue.presets import build_preset
+    from engine.local.critical import refine_critical
+    from engine.model.constraints import Constraints
+    from engine.model.tolerances import Tolerances
 
     lk = build_preset("four-bar")
     with pytest.raises(InvalidRequest, match="unknown method") as err:

@@ -8,20 +8,21 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from engine.assembly import seeds
-from engine.batched import BatchedConstraints
-from engine.configuration_space import (
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import GRID_OFFSET, _onto_solutions, _System, _validate
+from engine.local.critical import AugmentedSystem
+from engine.model.batched import BatchedConstraints
+from engine.model.constraints import Constraints
+from engine.model.hessian import dense_stress_hessian
+from engine.model.tolerances import Tolerances
+from engine.space.assembly import seeds
+from engine.space.configuration_space import (
     SpaceOptions,
     _Explorer,
     explore,
     find_critical_points,
 )
-from engine.constraints import Constraints
-from engine.critical import AugmentedSystem, dense_stress_hessian
-from engine.critical_values import GRID_OFFSET, _onto_solutions, _System, _validate
-from engine.presets import build_preset
-from engine.tolerances import Tolerances
-from engine.trace import correct
+from engine.space.trace import correct
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
@@ -88,10 +89,10 @@ def test_batched_seed_test_agrees_with_on_traced(name):
 @pytest.mark.slow
 def test_find_critical_points_equals_explore(name):
     lk = build_preset(*LINKAGES[name])
-    # explore's closed form (engine.dyads) searches along its own walks; the tracer's curves
+    # explore's closed form (engine.space.dyads) searches along its own walks; the tracer's curves
     # are what find_critical_points searches, so compare with explore on those
     full = explore(lk, TOL, replace(FAST, closed_form=False))
-    # (the closed-form candidates are cross-checked in tests/engine/dyads/test_candidates.py)
+    # (the closed-form candidates are cross-checked in tests/engine/space/dyads/test_candidates.py)
     fast = find_critical_points(lk, TOL, replace(FAST, critical_closed_form=False))
     assert len(fast.critical_points) == len(full.critical_points)
     for a, b in zip(fast.critical_points, full.critical_points, strict=True):
@@ -250,8 +251,8 @@ def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
     reaches them, against the loop over every seed generated up front (as it was): the same
     curves, point for point; the same report, but for the counts of the seeds generated when
     the component budget stops the loop before the random ones (then never projected)."""
-    import engine.configuration_space.explorer as explorer_module
-    from engine import assembly
+    import engine.space.configuration_space.explorer as explorer_module
+    from engine.space import assembly
 
     lk = build_preset(*LINKAGES[name])
     opt = SpaceOptions(angles=24, random_starts=4, max_components=budget)
@@ -328,8 +329,8 @@ def _on_curve_full_query(ex, us, curve):
     every row, every rank of neighbour."""
     from scipy.spatial import cKDTree
 
-    from engine.configuration_space.explorer import NEAREST, pass_minima
-    from engine.tolerances import SAME_POINT_REL
+    from engine.model.tolerances import SAME_POINT_REL
+    from engine.space.configuration_space.explorer import NEAREST, pass_minima
 
     pts, tans = np.array(curve.points), np.array(curve.tangents)
     k = min(NEAREST, len(pts))
@@ -356,7 +357,7 @@ def test_the_bounded_curve_query_marks_what_the_full_query_marks(name, monkeypat
     with the 16 nearest points looked up however far and every row and rank tested (the code
     it replaces), for the seeds, for points at about the step bound from the curves and for
     points of the curves between their traced points."""
-    import engine.configuration_space.explorer as explorer_module
+    import engine.space.configuration_space.explorer as explorer_module
 
     lk = build_preset(*LINKAGES[name])
     opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
@@ -436,7 +437,7 @@ def test_the_lazy_tree_and_curve_arrays_change_no_exploration(case, monkeypatch)
     """The explorer's k-d tree built when first read (and the curves' arrays built once)
     gives the same tree, and the same exploration (components, critical points, segments,
     near misses, report), as the tree built from the lists after every traced curve."""
-    import engine.configuration_space.explorer as explorer_module
+    import engine.space.configuration_space.explorer as explorer_module
 
     lk = build_preset(*case)
     opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
@@ -486,7 +487,7 @@ def test_bounded_neighbour_search_and_per_curve_nearest_change_nothing(case, mon
     curve's own tree, all points at once, are the tree of all curves' nearest points one by
     one; whole explorations are the same with the unbounded queries and the tree of all
     curves queried point by point."""
-    import engine.configuration_space.explorer as explorer_module
+    import engine.space.configuration_space.explorer as explorer_module
 
     lk = build_preset(*case)
     opt = SpaceOptions(closed_form=False, angles=24, random_starts=4,
@@ -546,8 +547,8 @@ def test_curve_arrays_joined_from_blocks_are_the_lists_converted(case, path, mon
     row by row: bit for bit the same arrays, same dtypes, on the traced curves of
     explorations (closed and open, with and without crossings) and the segments' curves;
     and after a list is changed behind its back, the conversion of the list."""
-    import engine.trace as trace_module
-    from engine import trace_kernel
+    import engine.space.trace as trace_module
+    from engine.space import trace_kernel
 
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, path)
     if path == "numba":
@@ -563,8 +564,8 @@ def test_curve_arrays_joined_from_blocks_are_the_lists_converted(case, path, mon
         curves.append(curve)
         return curve
 
-    monkeypatch.setattr("engine.configuration_space.explorer.trace_curve", keep)
-    monkeypatch.setattr("engine.configuration_space.segments.trace_curve", keep)
+    monkeypatch.setattr("engine.space.configuration_space.explorer.trace_curve", keep)
+    monkeypatch.setattr("engine.space.configuration_space.segments.trace_curve", keep)
     explore(lk, TOL, opt)
     assert curves
     for curve in curves:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.errors import InvalidLinkage, LimitExceeded
-from engine.linkage import BarSpec, Limits, VertexSpec, build_linkage
+from engine.model.errors import InvalidLinkage, LimitExceeded
+from engine.model.linkage import BarSpec, Limits, VertexSpec, build_linkage
 
 P = VertexSpec("P", [0, 0], True)
 Q = VertexSpec("Q", [2, 0], True)
@@ -82,9 +82,9 @@ def test_model_basics():
 
 
 def _loop_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    import engine.linkage
+    import engine.model.linkage
 
-    monkeypatch.setattr(engine.linkage, "_build_vectorised", lambda *args: None)
+    monkeypatch.setattr(engine.model.linkage, "_build_vectorised", lambda *args: None)
 
 
 def _same_linkage(a, b) -> None:
@@ -111,16 +111,16 @@ def test_vectorised_build_equals_the_checking_loop(seed, monkeypatch):
         both_pinned = vertices[i].fixed is True and vertices[j].fixed is True
         length = None if both_pinned or rng.random() < 0.5 else float(rng.uniform(0.5, 2))
         bars.append(BarSpec(f"b{k}", (f"v{i}", f"v{j}"), length))
-    import engine.linkage
+    import engine.model.linkage
 
-    assert engine.linkage._build_vectorised(d, vertices, bars, 1e-9) is not None
+    assert engine.model.linkage._build_vectorised(d, vertices, bars, 1e-9) is not None
     fast = build_linkage(d, vertices, bars)
     _loop_only(monkeypatch)
     _same_linkage(fast, build_linkage(d, vertices, bars))
 
 
 def test_vectorised_build_of_a_large_chain_equals_the_loop(monkeypatch):
-    from engine.presets import build_preset
+    from engine.catalogue.presets import build_preset
 
     lk = build_preset("kl-chain", {"n": 500})
     vertices = [VertexSpec(v, p.tolist(), bool(f.all()))

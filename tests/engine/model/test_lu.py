@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from engine.lu import Factor
+from engine.model.lu import Factor
 
 
 @pytest.mark.parametrize("n", [1, 2, 4, 7, 30])

@@ -14,8 +14,16 @@ import time
 
 import pytest
 
-from engine.errors import LimitExceeded
-from engine.linkage import (
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import (
+    DENSE_FALLBACK_MAX_FREE,
+    SPARSE_MAX_NULLITY,
+    first_order,
+    plan_first_order,
+)
+from engine.local.second_order import second_order, second_order_memory
+from engine.model.errors import LimitExceeded
+from engine.model.linkage import (
     MEMORY_CHECK_MIN_BYTES,
     BarSpec,
     Linkage,
@@ -25,14 +33,6 @@ from engine.linkage import (
     build_linkage,
     check_memory,
 )
-from engine.presets import build_preset
-from engine.rigidity import (
-    DENSE_FALLBACK_MAX_FREE,
-    SPARSE_MAX_NULLITY,
-    first_order,
-    plan_first_order,
-)
-from engine.second_order import second_order, second_order_memory
 from tests.service.test_uvicorn_process import ROOT
 
 
@@ -122,11 +122,11 @@ def test_estimates_grow_with_the_null_space():
 # before anything is allocated (not a MemoryError half way).
 _RUN = textwrap.dedent("""
     import resource, sys
-    from engine.linkage import MemoryLimitExceeded, _status_bytes
-    from engine.presets import build_preset
-    from engine.rigidity import first_order, plan_first_order
-    from engine.second_order import second_order, second_order_memory
-    from tests.engine.test_memory import floppy
+    from engine.model.linkage import MemoryLimitExceeded, _status_bytes
+    from engine.catalogue.presets import build_preset
+    from engine.local.rigidity import first_order, plan_first_order
+    from engine.local.second_order import second_order, second_order_memory
+    from tests.engine.model.test_memory import floppy
 
     kind, size, which, share = sys.argv[1], int(sys.argv[2]), sys.argv[3], float(sys.argv[4])
     sparse = {"default": None, "sparse": True, "dense": False}[sys.argv[5]]

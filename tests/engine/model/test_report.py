@@ -6,11 +6,11 @@ import doctest
 
 import pytest
 
-import engine.report
-from engine.budget import Deadline, granted
-from engine.configuration_space import explore, find_critical_points
-from engine.presets import build_preset
-from engine.report import SearchReport
+import engine.model.report
+from engine.catalogue.presets import build_preset
+from engine.model.budget import Deadline, granted
+from engine.model.report import SearchReport
+from engine.space.configuration_space import explore, find_critical_points
 
 
 @pytest.mark.parametrize(("flags", "reason"), [
@@ -46,4 +46,4 @@ def test_every_search_answers_a_report_with_the_seconds_it_was_given():
 
 
 def test_the_module_example_holds():
-    assert doctest.testmod(engine.report).failed == 0
+    assert doctest.testmod(engine.model.report).failed == 0

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine import assembly
-from engine.assembly import assemblies_at, assemblies_at_angles, dyad_plan, rotors, seeds
-from engine.errors import EngineError
-from engine.presets import PRESETS, build_preset
-from engine.tolerances import Tolerances
+from engine.catalogue.presets import PRESETS, build_preset
+from engine.model.errors import EngineError
+from engine.model.tolerances import Tolerances
+from engine.space import assembly
+from engine.space.assembly import assemblies_at, assemblies_at_angles, dyad_plan, rotors, seeds
 
 TOL = Tolerances()
 GRID = 2 * np.pi * (np.arange(40) + (np.sqrt(5) - 1) / 2) / 40

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.chain_count import chain_components
-from engine.configuration_space import SpaceOptions, explore
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
-from engine.presets import build_preset, circle_intersection
+from engine.catalogue.presets import build_preset, circle_intersection
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.space.chain_count import chain_components
+from engine.space.configuration_space import SpaceOptions, explore
 
 
 def chain(a: list[float], r: list[float], lc: list[float], side: float = 1.0) -> Linkage | None:
@@ -108,7 +108,7 @@ def test_long_spinner_chain_total() -> None:
 def test_four_bar_rule_matches_grashof_on_random_lengths() -> None:
     """The same 200 seeded generic four-bars whose traced components the configuration-space
     tests check against Grashof's rule."""
-    from tests.engine.configuration_space.test_search import classical, random_four_bars
+    from tests.engine.space.configuration_space.test_search import classical, random_four_bars
 
     for l1, l2, l3 in random_four_bars(200):
         count = chain_components(build_preset("four-bar", {"L1": l1, "L2": l2, "L3": l3}))

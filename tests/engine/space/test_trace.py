@@ -14,17 +14,17 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import engine.configuration_space.explorer as cs  # where the seeds are drawn
-import engine.trace as tr
-from engine import trace_kernel
-from engine.assembly import iter_seeds, seeds
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.constraints import Constraints
-from engine.lu import Factor
-from engine.presets import build_preset
-from engine.rigidity import first_order
-from engine.tolerances import Tolerances
-from engine.trace import TraceOptions, factor_augmented, polyline_distance, segment_distance
+import engine.space.configuration_space.explorer as cs  # where the seeds are drawn
+import engine.space.trace as tr
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import first_order
+from engine.model.constraints import Constraints
+from engine.model.lu import Factor
+from engine.model.tolerances import Tolerances
+from engine.space import trace_kernel
+from engine.space.assembly import iter_seeds, seeds
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.space.trace import TraceOptions, factor_augmented, polyline_distance, segment_distance
 
 TOL = Tolerances()
 CATALOGUE = [

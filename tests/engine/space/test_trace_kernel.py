@@ -1,4 +1,4 @@
-"""The tracer's compiled path (:mod:`engine.trace_kernel`, numba) against the Python loop it
+"""The tracer's compiled path (:mod:`engine.space.trace_kernel`, numba) against the Python loop it
 replaces (``LINKAGE_TRACER_KERNEL=numpy``), on catalogue and random linkages:
 
 * the compiled LU of ``[row; J]`` (dense, and band with the rank-one update) gives the sign,
@@ -27,15 +27,15 @@ import threading
 import numpy as np
 import pytest
 
-import engine.trace as tr
-from engine import trace_kernel
-from engine.budget import Deadline
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.constraints import Constraints
-from engine.presets import build_preset
-from engine.rigidity import first_order
-from engine.tolerances import Tolerances
-from engine.trace import TraceOptions, trace_curve
+import engine.space.trace as tr
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import first_order
+from engine.model.budget import Deadline
+from engine.model.constraints import Constraints
+from engine.model.tolerances import Tolerances
+from engine.space import trace_kernel
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.space.trace import TraceOptions, trace_curve
 
 TOL = Tolerances()
 
@@ -124,7 +124,7 @@ def test_environment_chooses_the_path(monkeypatch: pytest.MonkeyPatch) -> None:
     ("kl-chain", {"n": 30}, False), ("gated-kl-chain", {"n": 30, "gate": 15}, False),
 ])
 def test_compiled_factor_matches_dense_lu(name: str, params: dict, dense: bool) -> None:
-    from engine._trace_numba import _factor, _solve
+    from engine.space._trace_numba import _factor, _solve
 
     lk = build_preset(name, params)
     cons = Constraints(lk)
@@ -170,7 +170,13 @@ def _random_band(rng: np.random.Generator, n: int, kl: int, ku: int,
 def test_chain_band_kernels_match_any_band_bit_for_bit(zeros: float) -> None:
     """``kl = ku = 2`` (a chain's band): the unrolled LU and the solve with its window in
     registers against the loops for any band, for every size around the edge cases."""
-    from engine._trace_numba import _band_lu, _band_lu_from, _band_solve, _band_solve_any, _diagonal
+    from engine.space._trace_numba import (
+        _band_lu,
+        _band_lu_from,
+        _band_solve,
+        _band_solve_any,
+        _diagonal,
+    )
 
     rng = np.random.default_rng(int(100 * zeros) + 7)
     for n in list(range(1, 24)) + [57, 200]:
@@ -203,7 +209,7 @@ def test_chain_band_kernels_match_any_band_bit_for_bit(zeros: float) -> None:
 def test_a_zero_pivot_in_the_chain_band() -> None:
     """An exactly singular chain band: the unrolled LU stops at the zero pivot as the loop
     for any band does."""
-    from engine._trace_numba import _band_lu, _band_lu_from
+    from engine.space._trace_numba import _band_lu, _band_lu_from
 
     for col in (0, 11, 25, 29):  # in the unrolled columns and in the tail
         ab = _random_band(np.random.default_rng(col), 30, 2, 2, 0.0)
@@ -220,7 +226,7 @@ def test_kernel_reductions_match_their_loops() -> None:
     """The corrector's and the step control's reductions without a branch per entry or with
     partial sums against the plain expressions they replace (NaN and infinite entries
     included: a NaN residual is within no tolerance, a NaN strain strains)."""
-    from engine._trace_numba import (
+    from engine.space._trace_numba import (
         _dist2,
         _dot,
         _dot_gather,
@@ -279,7 +285,7 @@ def test_band_values_are_the_bordered_band(name: str, params: dict) -> None:
     """The kernel's ``[e_k; J]`` in band storage (the Jacobian's values written through flat
     indices straight from ``u`` and the fixed coordinates) is what
     ``Constraints.unit_bordered_band`` builds, for every ``k``."""
-    from engine._trace_numba import _band_values, _factor
+    from engine.space._trace_numba import _band_values, _factor
 
     lk = build_preset(name, params)
     cons = Constraints(lk)
@@ -319,7 +325,7 @@ def test_chain_band_curves_match_python_loop(name: str, params: dict, band: tupl
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """Chains of several sizes on the band path: the band they take (so the specialised
     kernels run, or not), and the same curve as the Python loop."""
-    from engine._trace_numba import _factor
+    from engine.space._trace_numba import _factor
 
     lk = build_preset(name, params)
     cons = Constraints(lk)
@@ -480,7 +486,7 @@ def test_exploration_matches_python_loop(name: str, params: dict,
 def test_without_numba_the_python_loop_traces(monkeypatch: pytest.MonkeyPatch) -> None:
     """numba missing (the import fails): the tracer is the Python loop, with the same curve."""
     cons, fast = _trace("kl-chain", {"n": 10}, "numba", monkeypatch)
-    monkeypatch.setitem(sys.modules, "engine._trace_numba", None)  # import raises ImportError
+    monkeypatch.setitem(sys.modules, "engine.space._trace_numba", None)  # import raises ImportError
     monkeypatch.setattr(trace_kernel, "_kernel", None)
     monkeypatch.setattr(trace_kernel, "_loader", None)
     assert not trace_kernel.load()
@@ -505,7 +511,7 @@ def test_a_forked_child_loads_again(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_a_kernel_that_fails_to_compile_leaves_the_python_loop_and_says_why(monkeypatch):
     """E.g. numba with no writable cache directory: the loader thread must not die with a
     traceback and leave nothing behind; the failure is kept and the Python loop traces."""
-    from engine import trace_kernel
+    from engine.space import trace_kernel
 
     def broken() -> None:
         raise RuntimeError("cannot cache function: no locator available")
@@ -523,7 +529,7 @@ def test_explorations_call_the_kernel_with_its_one_signature(
     signature, compiled or loaded from numba's cache during the first exploration."""
     monkeypatch.setenv(trace_kernel.KERNEL_ENV, "numba")
     assert trace_kernel.load()
-    from engine._trace_numba import run
+    from engine.space._trace_numba import run
 
     opt = SpaceOptions(closed_form=False, angles=24, random_starts=4, max_components=8)
     for name, params in [("four-bar", {}), ("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),
@@ -541,7 +547,7 @@ def test_factorisations_into_shared_work_arrays_are_those_with_their_own(
     """The kernel's loop factorises into work arrays it keeps for the whole call
     (``_factor_into``): one after another into the same arrays, each factorisation is bit
     for bit the one made with arrays of its own (``_factor``), and solves alike."""
-    from engine._trace_numba import _factor, _factor_into, _solve
+    from engine.space._trace_numba import _factor, _factor_into, _solve
 
     lk = build_preset(name, params)
     cons = Constraints(lk)

@@ -1,4 +1,4 @@
-"""The tracer's step (:func:`engine.trace._attempt`) against the step it replaces:
+"""The tracer's step (:func:`engine.space.trace._attempt`) against the step it replaces:
 
 * the predictor: without a previous point the tangent ``u + h t``; with one the cubic through
   both points and tangents, exact on a line, off a circle by O(h^4) (the tangent by O(h^2));
@@ -18,14 +18,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import engine.trace as tr
-from engine import trace_kernel
-from engine.configuration_space import SpaceOptions, explore
-from engine.constraints import Constraints
-from engine.presets import build_preset
-from engine.rigidity import first_order
-from engine.tolerances import CORRECT_TIGHT, Tolerances
-from engine.trace import TraceOptions, predict, trace_curve
+import engine.space.trace as tr
+from engine.catalogue.presets import build_preset
+from engine.local.rigidity import first_order
+from engine.model.constraints import Constraints
+from engine.model.tolerances import CORRECT_TIGHT, Tolerances
+from engine.space import trace_kernel
+from engine.space.configuration_space import SpaceOptions, explore
+from engine.space.trace import TraceOptions, predict, trace_curve
 
 TOL = Tolerances()
 TIGHT = CORRECT_TIGHT * TOL.residual_atol
@@ -170,7 +170,7 @@ def test_traced_points_are_within_the_tight_tolerance(
     """Every point after the start that is not a crossed critical point (those are refined by
     their own search) is within ``CORRECT_TIGHT * residual_atol``: the accuracy the chord run
     to that tolerance gave (a point at ``residual_atol`` may sit ``residual_atol / s`` off the
-    curve near critical lengths, see :data:`engine.tolerances.CORRECT_TIGHT`)."""
+    curve near critical lengths, see :data:`engine.model.tolerances.CORRECT_TIGHT`)."""
     cons, curve = _curve(name, params, path, monkeypatch)
     logd = curve.array("logdets")
     res = [cons.max_residual(p) for k, p in enumerate(curve.points)

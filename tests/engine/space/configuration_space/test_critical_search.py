@@ -24,9 +24,9 @@ import zlib
 import numpy as np
 import pytest
 
-from engine.configuration_space import explore, find_critical_points, rays
-from engine.constraints import Constraints
-from engine.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.model.constraints import Constraints
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.space.configuration_space import explore, find_critical_points, rays
 
 #: (name, a, L1, L2, L3, crank angle of the start, side of the start's dyad)
 FAMILIES = [

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.constraints import Constraints
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset
-from engine.tolerances import CORRECT_TIGHT, Tolerances
-from engine.trace import correct
+from engine.catalogue.presets import build_preset
+from engine.model.constraints import Constraints
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from engine.model.tolerances import CORRECT_TIGHT, Tolerances
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.space.trace import correct
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
@@ -289,7 +289,7 @@ def test_a_count_that_disagrees_with_the_chain_rule_is_unresolved(monkeypatch):
     """Fault injection: with a membership test that never recognises a traced curve, every seed
     is traced again; the four-bar rule's independent count then disagrees and the answer must
     say so instead of reporting a confident count."""
-    from engine.configuration_space import explorer
+    from engine.space.configuration_space import explorer
 
     monkeypatch.setattr(explorer.Explorer, "on_traced", lambda self, u: False)
     monkeypatch.setattr(explorer.Explorer, "on_curve",

@@ -1,4 +1,5 @@
-"""The segments' stop test (:func:`engine.configuration_space.segments.captured`, one vectorised
+"""The segments' stop test (:func:`engine.space.configuration_space.segments.captured`, one
+vectorised
 pass over the critical points a step) against the loop it replaced (``segment_distance`` to one
 critical point at a time): the same critical point on random steps, and the same segments of
 whole explorations."""
@@ -7,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.configuration_space import segments as segments_module
-from engine.presets import build_preset
-from engine.tolerances import Tolerances
-from engine.trace import distances_to_segment, segment_distance
+from engine.catalogue.presets import build_preset
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore
+from engine.space.configuration_space import segments as segments_module
+from engine.space.trace import distances_to_segment, segment_distance
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)

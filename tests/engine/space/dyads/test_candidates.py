@@ -1,4 +1,5 @@
-"""Critical points of planar dyad chains from closed-form candidates (engine.dyads), cross-checked
+"""Critical points of planar dyad chains from closed-form candidates (engine.space.dyads),
+cross-checked
 against the general search (traced curves, sign changes and minima of the augmented determinant,
 multistart): ``find_critical_points`` with ``closed_form=False``. The fast path is opt-in
 (``SpaceOptions.critical_closed_form``); these tests turn it on.
@@ -15,7 +16,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.configuration_space import (
+from engine.catalogue.presets import build_preset
+from engine.model.errors import InvalidParameter
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import (
     CriticalSearch,
     SpaceOptions,
     _closed_form_critical,
@@ -23,10 +27,7 @@ from engine.configuration_space import (
     explore,
     find_critical_points,
 )
-from engine.dyads import critical_candidates
-from engine.errors import InvalidParameter
-from engine.presets import build_preset
-from engine.tolerances import Tolerances
+from engine.space.dyads import critical_candidates
 
 TOL = Tolerances()
 FAST = SpaceOptions(critical_closed_form=True)
@@ -164,7 +165,7 @@ def test_near_critical_three_rotor_declines(eps):
 
 def test_degenerate_three_rotor_declines():
     # pins on a line: non-isolated critical sets; the general search (tested in
-    # tests/engine/configuration_space/test_search.py) answers, the fast path never does
+    # tests/engine/space/configuration_space/test_search.py) answers, the fast path never does
     lk = build_preset("three-rotor", {"phi": 0.0})
     ex = _Explorer(lk, TOL, FAST)
     assert _closed_form_critical(ex) is None

@@ -1,4 +1,4 @@
-"""The closed form of planar dyad chains (engine.dyads) against the general tracer.
+"""The closed form of planar dyad chains (engine.space.dyads) against the general tracer.
 
 Each case runs :func:`explore` twice: closed form first (``search["method"] == "closed form"``)
 and with ``closed_form=False`` (seeds, predictor-corrector tracing, critical-point search). They
@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from engine.configuration_space import SpaceOptions, explore, rotor_angles, winding
-from engine.constraints import Constraints
-from engine.dyads import chain_of, closed_form_space
-from engine.linkage import BarSpec, VertexSpec, build_linkage
-from engine.presets import build_preset, circle_intersection
-from engine.tolerances import Tolerances
-from tests.engine.configuration_space.test_search import classical, random_four_bars
+from engine.catalogue.presets import build_preset, circle_intersection
+from engine.model.constraints import Constraints
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.space.dyads import chain_of, closed_form_space
+from tests.engine.space.configuration_space.test_search import classical, random_four_bars
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
@@ -247,9 +247,10 @@ def test_linkages_that_are_not_dyad_chains_are_declined():
 
 
 def test_placing_in_blocks_changes_no_bit(monkeypatch):
-    """:func:`engine.dyads.chain.place` works in blocks of PLACE_BLOCK samples; every operation
+    """:func:`engine.space.dyads.chain.place` works in blocks of PLACE_BLOCK samples; every
+    operation
     is elementwise, so the positions, ``nu`` and ``d2`` are bitwise those of one block."""
-    from engine.dyads import chain as chain_module
+    from engine.space.dyads import chain as chain_module
 
     rng = np.random.default_rng(3)
     for lk in (build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}),
@@ -273,10 +274,10 @@ def test_placing_in_blocks_changes_no_bit(monkeypatch):
 
 def test_walk_distance_is_the_polyline_distance():
     """The distance from the start to a closed-form walk, measured on the segments near it only,
-    is the distance to the whole polyline (engine.trace.polyline_distance), on random walks
+    is the distance to the whole polyline (engine.space.trace.polyline_distance), on random walks
     with their step bound and targets near and far."""
-    from engine.configuration_space.closed_form import walk_distance
-    from engine.trace import polyline_distance
+    from engine.space.configuration_space.closed_form import walk_distance
+    from engine.space.trace import polyline_distance
 
     rng = np.random.default_rng(8)
     for _ in range(200):

@@ -1,4 +1,4 @@
-"""The closed form's compiled loops (:mod:`engine.dyads.kernel`, numba) against the numpy path
+"""The closed form's compiled loops (:mod:`engine.space.dyads.kernel`, numba) against the numpy path
 they replace (``LINKAGE_DYADS_KERNEL=numpy``), on catalogue and random dyad chains:
 
 * each kernel against its numpy code: the placement (positions, ``nu``, ``d2``; one sheet or
@@ -20,18 +20,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.configuration_space import SpaceOptions, explore
-from engine.configuration_space.closed_form import walk_distance
-from engine.dyads import chain as chain_module
-from engine.dyads import closed_form as cf_module
-from engine.dyads import kernel
-from engine.dyads.chain import chain_of, place, place_free
-from engine.linkage import Linkage
-from engine.presets import build_preset
-from engine.tolerances import Tolerances
-from engine.trace import polyline_distance
-from tests.engine.configuration_space.test_search import classical, random_four_bars
-from tests.engine.dyads.test_closed_form import six_bar, six_bars, three_rotors
+from engine.catalogue.presets import build_preset
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
+from engine.space.configuration_space import SpaceOptions, explore
+from engine.space.configuration_space.closed_form import walk_distance
+from engine.space.dyads import chain as chain_module
+from engine.space.dyads import closed_form as cf_module
+from engine.space.dyads import kernel
+from engine.space.dyads.chain import chain_of, place, place_free
+from engine.space.trace import polyline_distance
+from tests.engine.space.configuration_space.test_search import classical, random_four_bars
+from tests.engine.space.dyads.test_closed_form import six_bar, six_bars, three_rotors
 
 TOL = Tolerances()
 FAST = SpaceOptions(angles=24, random_starts=4)
