@@ -32,7 +32,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,7 @@ from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
 from service import jobs, mappers, serialise
 from service.config import Settings
+from service.job_state import Job
 from service.schemas.common import AnalysisRequest
 from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.design import DesignRequest
@@ -178,38 +179,6 @@ def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np
 
 
 # -- in the service --------------------------------------------------------------------------
-
-
-@dataclass
-class Job:
-    """One job's state (guarded by the manager's lock)."""
-
-    id: str
-    operation: str
-    end_wall: float
-    sizes: list[int]
-    names: tuple[str, ...] = ()
-    status: str = "queued"
-    done: list[float] = field(default_factory=list)
-    message: str = "queued"
-    created: float = field(default_factory=time.time)
-    started: float | None = None
-    finished: float | None = None
-    result: Any = None
-    error: dict[str, Any] | None = None
-    futures: list[Future] = field(default_factory=list)
-    parts: dict[int, Any] = field(default_factory=dict)
-
-    @property
-    def fraction(self) -> float:
-        if self.status == "done":
-            return 1.0
-        total = sum(self.sizes)
-        return sum(d * s for d, s in zip(self.done, self.sizes, strict=True)) / total
-
-    @property
-    def finished_state(self) -> bool:
-        return self.status in ("done", "failed", "cancelled")
 
 
 def _failure(err: BaseException) -> dict[str, Any]:

@@ -13,10 +13,10 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from tests.engine.local.test_prestress import check_certificate
 
 from engine.local.second_order import second_order
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from tests.engine.local.test_prestress import check_certificate
 
 PYRIGI_CASES: dict[str, Callable[[Any], Any]] = {
     "CnSymmetricFourRegular(8)": lambda db: db.CnSymmetricFourRegular(8),

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.engine.local.test_rigidity import check_invariants, same_subspace
 
 from engine.catalogue.presets import build_preset
 from engine.local.rigidity import FIRST_ORDER_DENSE_MAX_FREE, first_order
 from engine.model.constraints import Constraints
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 from engine.model.lu import Factor, parity
+from tests.engine.local.test_rigidity import check_invariants, same_subspace
 
 
 def straight_kl_chain(n: int) -> Linkage:

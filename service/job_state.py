@@ -1,0 +1,42 @@
+"""A job's state, kept by :class:`service.tasks.JobManager` and mapped out by
+:func:`service.mappers.jobs.job_out` (below both, so neither imports the other)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from distributed import Future
+
+
+@dataclass
+class Job:
+    """One job's state (guarded by the manager's lock)."""
+
+    id: str
+    operation: str
+    end_wall: float
+    sizes: list[int]
+    names: tuple[str, ...] = ()
+    status: str = "queued"
+    done: list[float] = field(default_factory=list)
+    message: str = "queued"
+    created: float = field(default_factory=time.time)
+    started: float | None = None
+    finished: float | None = None
+    result: Any = None
+    error: dict[str, Any] | None = None
+    futures: list[Future] = field(default_factory=list)
+    parts: dict[int, Any] = field(default_factory=dict)
+
+    @property
+    def fraction(self) -> float:
+        if self.status == "done":
+            return 1.0
+        total = sum(self.sizes)
+        return sum(d * s for d, s in zip(self.done, self.sizes, strict=True)) / total
+
+    @property
+    def finished_state(self) -> bool:
+        return self.status in ("done", "failed", "cancelled")

@@ -1,0 +1,158 @@
+"""Conversions of the design loop: splitting, design, robustness and critical-value maps."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Literal, TypedDict
+
+import numpy as np
+
+from engine.design.critical_values import Slice
+from engine.design.design import Check, DesignResult, Target
+from engine.design.robustness import Margin
+from engine.design.splitting import Split
+from engine.local.critical import CriticalPoint
+from engine.model.linkage import Linkage as EngineLinkage
+from engine.model.tolerances import Tolerances as EngineTolerances
+
+#: Default margin of ``/v1/design/splitting``, relative to the median bar length.
+from service.mappers.common import DEFAULT_MARGIN, positions_out, tolerances_out
+from service.mappers.space import search_out
+from service.schemas import common as c
+from service.schemas import critical_values as cv_schemas
+from service.schemas import design as design_schemas
+from service.schemas import robustness as robustness_schemas
+from service.schemas import splitting as splitting_schemas
+
+
+def splitting_out(
+    linkage: EngineLinkage, splits: list[Split], found: int, tol: EngineTolerances,
+    crit: list[CriticalPoint], search: Mapping[str, object],
+) -> splitting_schemas.SplittingResponse:
+    return splitting_schemas.SplittingResponse(
+        branch_points=[
+            splitting_schemas.BranchSplitOut(
+                index=s.index,
+                configuration=positions_out(linkage, linkage.positions_of(crit[s.index].u)),
+                delta=s.delta,
+                delta_linear=s.delta_linear,
+                shift=s.shift.tolist(),
+                sign=s.sign,
+                connects=[list(p) for p in s.connects],
+            )
+            for s in splits
+        ],
+        critical_points_found=found,
+        search=c.SearchReport.model_validate(search_out(search)),
+        tolerances=tolerances_out(tol),
+    )
+
+
+def robustness_in(
+    body: robustness_schemas.RobustnessRequest,
+) -> tuple[list[str] | None, Literal["auto", "closed-form", "multistart"]]:
+    """The adjustable bars (None: every bar with a free end) and the method (default auto)."""
+    adjustable = None if body.adjustable is None else list(body.adjustable)
+    return adjustable, body.method or "auto"
+
+
+class SliceOptions(TypedDict, total=False):
+    """Keyword arguments of :func:`engine.design.critical_values.critical_value_slice` that a
+    request
+    may set (those it leaves out keep the engine's defaults)."""
+
+    resolution: int
+    seeds_per_axis: int
+
+
+def critical_values_in(
+    body: cv_schemas.CriticalValuesRequest,
+) -> tuple[list[tuple[str, float, float]], SliceOptions]:
+    """The slice's axes ``(bar, min, max)`` and the options the request sets; its time budget
+    goes to the deadline, not to the slice."""
+    axes = [(a.bar, a.min, a.max) for a in body.axes]
+    opts = SliceOptions()
+    if body.options is not None and body.options.resolution is not None:
+        opts["resolution"] = body.options.resolution
+    if body.options is not None and body.options.seeds_per_axis is not None:
+        opts["seeds_per_axis"] = body.options.seeds_per_axis
+    return axes, opts
+
+
+def design_in(body: design_schemas.DesignRequest) -> tuple[list[Target], list[str]]:
+    """The targets and the adjustable bars of a design request."""
+    return [Target(t.branch_point, t.sign) for t in body.targets], list(body.adjustable)
+
+
+def design_margin(body: design_schemas.DesignRequest, linkage: EngineLinkage) -> float:
+    """The required margin: the request's, else ``DEFAULT_MARGIN`` of the median bar length
+    (of the bars with a free end)."""
+    if body.margin is not None:
+        return body.margin
+    return DEFAULT_MARGIN * float(np.median(linkage.lengths[linkage.active]))
+
+
+def design_out(
+    linkage: EngineLinkage,
+    result: DesignResult,
+    adjustable: list[str],
+    checks: list[Check],
+    tol: EngineTolerances,
+    search: Mapping[str, object],
+) -> design_schemas.DesignResponse:
+    return design_schemas.DesignResponse(
+        feasible=result.feasible,
+        perturbation={
+            bar: float(result.perturbation[linkage.bar_ids.index(bar)]) for bar in adjustable
+        },
+        largest_change=result.largest_change,
+        predicted=[
+            design_schemas.PredictedOut(
+                branch_point=c.branch_point,
+                sign=c.sign,
+                delta=c.delta,
+                connects=[list(p) for p in c.connects],
+                traced_connects=None if c.traced is None else [list(p) for p in c.traced],
+            )
+            for c in checks
+        ],
+        conflicts=[
+            design_schemas.ConflictOut(branch_points=c.branch_points, reason=c.reason)
+            for c in result.conflicts
+        ],
+        verified=all(c.agrees for c in checks) if checks and not any(c.skipped for c in checks)
+        else None,
+        search=c.SearchReport.model_validate(search_out(search)),
+        tolerances=tolerances_out(tol),
+    )
+
+
+def robustness_out(
+    linkage: EngineLinkage, res: Margin, tol: EngineTolerances
+) -> robustness_schemas.RobustnessResponse:
+    return robustness_schemas.RobustnessResponse(
+        margin=res.margin if np.isfinite(res.margin) else None,
+        nearest=dict(zip(linkage.bar_ids, res.nearest.tolist(), strict=True)),
+        critical_configuration=positions_out(linkage, linkage.positions_of(res.critical_u)),
+        starts=res.starts,
+        converged=res.converged,
+        success=res.success,
+        message=res.message,
+        method=res.method,
+        guarantee=res.guarantee,
+        search=robustness_schemas.RobustnessSearch.model_validate(search_out(res.search)),
+        tolerances=tolerances_out(tol),
+    )
+
+
+def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.CriticalValuesResponse:
+    return cv_schemas.CriticalValuesResponse(
+        curves=[c.tolist() for c in res.curves],
+        regions=[
+            cv_schemas.RegionOut(point=list(r.point), components=r.components,
+                                 signature=r.signature, cells=r.cells)
+            for r in res.regions
+        ],
+        search=cv_schemas.SliceSearch.model_validate(search_out(res.search)),
+        tolerances=tolerances_out(tol),
+    )

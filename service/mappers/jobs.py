@@ -1,0 +1,166 @@
+"""Conversions of jobs and sweeps (sweep requests in; job states, sweep rows and CSV out)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ValidationError
+
+from engine.catalogue.presets import build_preset
+from engine.design.sweep import (
+    COMPUTE,
+    BarFamily,
+    Family,
+    GridAxis,
+    PointResult,
+    PresetFamily,
+    SampleAxis,
+    grid_points,
+    sample_points,
+    summarize,
+)
+from engine.model.errors import InvalidParameter, InvalidRequest, UnknownPreset
+from engine.model.linkage import Limits
+from engine.model.tolerances import Tolerances as EngineTolerances
+from engine.model.tolerances import scaled_tolerances
+from engine.space.configuration_space import (
+    SpaceOptions,
+)
+from service.job_state import Job
+
+#: Default margin of ``/v1/design/splitting``, relative to the median bar length.
+from service.mappers.common import problem_in
+from service.mappers.space import space_options_in
+from service.schemas import jobs as job_schemas
+
+
+@dataclass(frozen=True)
+class SweepJob:
+    """A sweep request in engine terms: the family, its points (N, P) and what to compute;
+    ``names`` are the swept bars or parameters (the columns of ``points``)."""
+
+    family: Family
+    points: np.ndarray
+    compute: tuple[str, ...]
+    tolerances: EngineTolerances
+    options: SpaceOptions
+    names: tuple[str, ...]
+
+
+def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
+    """Validate a sweep (names, lengths, limits) before any point is analysed; an unknown
+    bar or parameter is an error of the request, at ``grid``/``samples``."""
+    axes_loc = "grid" if body.grid is not None else "samples"
+    names = tuple(body.grid or body.samples or {})
+    family: Family
+    try:
+        if body.linkage is not None:
+            linkage, tol = problem_in(body.linkage, body.tolerances, limits)
+            family = BarFamily(linkage, names)
+        else:
+            assert body.preset is not None
+            base = build_preset(body.preset.name, body.preset.parameters, limits)
+            given = body.tolerances.model_dump(exclude_none=True) if body.tolerances else {}
+            tol = scaled_tolerances(float(np.median(base.lengths)), **given)
+            family = PresetFamily(body.preset.name, dict(body.preset.parameters), names)
+    except InvalidParameter as err:  # of the preset: in the body, not in a query
+        raise InvalidRequest(err.message, loc=("preset", "parameters", *err.loc)) from None
+    except UnknownPreset as err:  # in the body: a 422, not the 404 of a path
+        raise InvalidRequest(err.message, loc=("preset", "name")) from None
+    except InvalidRequest as err:
+        if err.loc and isinstance(err.loc[0], int):  # k-th swept name
+            raise InvalidRequest(err.message, loc=(axes_loc, names[err.loc[0]])) from None
+        raise
+    if body.grid is not None:
+        points = grid_points([GridAxis(k, a.min, a.max, a.steps) for k, a in body.grid.items()])
+    else:
+        assert body.samples is not None and body.count is not None
+        points = sample_points([SampleAxis(k, a.mean, a.sd) for k, a in body.samples.items()],
+                               body.count, body.seed)
+    compute = tuple(c for c in COMPUTE if c in body.compute)
+    return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
+
+
+def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.SweepResult:
+    s = summarize(rows)
+    return job_schemas.SweepResult(
+        rows=[
+            job_schemas.SweepRow(
+                lengths=dict(zip(names, r.values, strict=True)),
+                components=r.components,
+                complete=r.complete,
+                critical_points=r.critical_points,
+                margin=r.margin,
+                windings=None if r.windings is None else list(r.windings),
+                gated=r.gated,
+                error=r.error,
+            )
+            for r in rows
+        ],
+        summary=job_schemas.SweepSummary(
+            points=s.points,
+            topologies=s.topologies,
+            gated=s.gated,
+            fraction_gated=s.fraction_gated,
+            smallest_margin=s.margin,
+            smallest_margin_at=None if s.margin_at is None
+            else dict(zip(names, s.margin_at, strict=True)),
+            critical=s.critical,
+            incomplete=s.incomplete,
+            errors=s.errors,
+        ),
+    )
+
+
+def job_body_in(model: type[BaseModel], body: dict[str, Any]) -> BaseModel:
+    """A job's ``body`` validated as the synchronous endpoint validates its request (JSON
+    mode); errors are located under ``body.body``."""
+    try:
+        return model.model_validate_json(json.dumps(body))
+    except ValidationError as err:
+        raise RequestValidationError(
+            [{**e, "loc": ("body", "body", *e["loc"])} for e in err.errors()]
+        ) from None
+
+
+def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
+    return job_schemas.JobOut(
+        id=job.id,
+        operation=job.operation,
+        status=job.status,  # type: ignore[arg-type]
+        progress=job_schemas.Progress(fraction=job.fraction, message=job.message),
+        created=job.created,
+        started=job.started,
+        finished=job.finished,
+        expires=expires,
+        result=job.result,
+        error=None if job.error is None else job_schemas.JobError(**job.error),
+    )
+
+
+#: Columns of a sweep's CSV after the swept names, in this order.
+SWEEP_CSV_COLUMNS = ("components", "complete", "critical_points", "margin", "gated", "windings",
+                     "error")
+
+
+def sweep_csv(result: dict[str, Any]) -> str:
+    """A sweep's rows as CSV: one row per point, the swept values first (empty cells where a
+    value was not computed; windings joined by ``|``)."""
+    rows = result["rows"]
+    names = list(rows[0]["lengths"]) if rows else []
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow([*names, *SWEEP_CSV_COLUMNS])
+    for row in rows:
+        cells = {k: row.get(k) for k in SWEEP_CSV_COLUMNS}
+        if cells["windings"] is not None:
+            cells["windings"] = "|".join(cells["windings"])
+        writer.writerow([*(repr(float(row["lengths"][n])) for n in names),
+                         *("" if v is None else v for v in cells.values())])
+    return out.getvalue()
