@@ -317,7 +317,7 @@ def _build_vectorised(
     ends = ends.reshape(len(bars), 2)
     if np.any(ends[:, 0] == ends[:, 1]):
         return None
-    current = np.linalg.norm(positions[ends[:, 0]] - positions[ends[:, 1]], axis=1)
+    current = _norms(positions[ends[:, 0]] - positions[ends[:, 1]])
     raw = [b.length for b in bars]
     missing = np.array([x is None for x in raw], dtype=bool)
     try:
@@ -475,7 +475,7 @@ def _checked_bars(
         bar_index[b.id] = k
         i0, i1 = _checked_ends(b, k, index)
         ends[k] = (i0, i1)
-        current = float(np.linalg.norm(positions[i0] - positions[i1]))
+        current = float(_norms(positions[i0] - positions[i1]))
         if b.length is None:
             if current == 0.0:
                 raise InvalidLinkage(
@@ -529,6 +529,13 @@ def _checked_length(
             loc=("bars", k, "length"),
         )
     return length
+
+
+def _norms(diff: np.ndarray) -> np.ndarray:
+    """Euclidean norms along the last axis, summed in the same order for one vector and for
+    many (``np.linalg.norm`` of one vector goes through BLAS ``dot``, with fused multiply-adds on
+    some CPUs: the checking loop and the vectorised build then differed by an ulp)."""
+    return np.sqrt(np.add.reduce(diff * diff, axis=-1))
 
 
 def _check_no_tiny_bar(bars: Sequence[BarLike], lengths: np.ndarray) -> None:
