@@ -37,7 +37,7 @@ from scipy.optimize import OptimizeResult, least_squares, minimize
 
 from engine.design.dyad_margin import exact_margin
 from engine.local.critical import refine_critical
-from engine.model.budget import NEVER, Deadline, granted
+from engine.model.budget import ARGUMENT_DERIVED, NEVER, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.hessian import dense_stress_hessian
@@ -277,7 +277,10 @@ def robustness(
                 if found else "no critical value is reachable by the adjustable bars",
                 method="closed-form", guarantee="exact",
                 search=SearchReport({"planes": exact.planes},
-                                    time_budget_s=_granted(deadline)),
+                                    time_budget_s=_granted(deadline),
+                                    argument=ARGUMENT_DERIVED,
+                                    argument_detail=f"the nearest of the {exact.planes} critical "
+                                    "hyperplanes of a one-loop dyad chain, in closed form"),
             )
     if method == "closed-form":
         raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "

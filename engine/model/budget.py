@@ -23,6 +23,14 @@ REASON_BUDGET = "budget"
 REASON_DEGENERATE = "degenerate"
 #: a curve or segment that stopped open for a numerical reason (e.g. near a split branch point)
 REASON_UNRESOLVED = "unresolved"
+#: nothing was cut short, but no argument proves that nothing was missed (seeds and random starts
+#: found what they found)
+REASON_SEARCHED = "searched"
+
+#: Arguments that make a search complete (``search["argument"]``): a closed form, chain rules or a
+#: certified decomposition (derived), or every solution of a polynomial system found (proved).
+ARGUMENT_DERIVED = "derived"
+ARGUMENT_PROVED = "proved"
 
 
 #: ``progress(fraction, message)``: how far a search has come (0..1), from the engine itself.

@@ -3,23 +3,41 @@
 Every search of :mod:`engine.space.configuration_space` (the tracer, the closed forms) ends in one
 :class:`SearchReport`. Its ``details`` are the counts of what was done (seeds, curves, candidates,
 closed-form samples: they differ between methods); whether the answer is complete, and if not
-why, is decided in one place from four flags, :attr:`SearchReport.complete` and
-:attr:`SearchReport.reason`. It reads like the ``search`` object of the HTTP answers (a read-only
-mapping: ``report["complete"]``, ``report.get("seeds")``), which :meth:`SearchReport.as_dict`
-gives.
+why, is decided in one place from four flags and an argument, :attr:`SearchReport.complete` and
+:attr:`SearchReport.reason`: a search is complete only when nothing was cut short *and* an
+argument proves that nothing was missed (``derived``: a closed form, chain rules, a certified
+decomposition; ``proved``: every solution of a polynomial system found, see
+:mod:`engine.space.witnesses`), named in ``argument`` with a sentence in ``argument_detail``;
+without one the answer is incomplete with reason ``searched``. It reads like the ``search``
+object of the HTTP answers (a read-only mapping: ``report["complete"]``,
+``report.get("seeds")``), which :meth:`SearchReport.as_dict` gives.
 
 >>> r = SearchReport({"method": "tracer", "curves_traced": 3}, budget=True)
 >>> r.complete, r.reason, r["curves_traced"]
 (False, 'budget', 3)
+>>> SearchReport({"method": "tracer"}).reason
+'searched'
+>>> SearchReport({}, argument="derived", argument_detail="closed form").complete
+True
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
-from engine.model.budget import REASON_BUDGET, REASON_DEGENERATE, REASON_TIME, REASON_UNRESOLVED
+from engine.model.budget import (
+    REASON_BUDGET,
+    REASON_DEGENERATE,
+    REASON_SEARCHED,
+    REASON_TIME,
+    REASON_UNRESOLVED,
+)
+
+#: What proves a search complete (:data:`engine.model.budget.ARGUMENT_DERIVED` or
+#: :data:`engine.model.budget.ARGUMENT_PROVED`).
+Argument = Literal["derived", "proved"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +59,11 @@ class SearchReport(Mapping[str, Any]):
         A curve or segment stopped open for a numerical reason (e.g. near a split branch point).
     time_budget_s : float or None
         Seconds the search was given (None: no deadline).
+    argument : str or None
+        What proves that nothing was missed: ``"derived"`` or ``"proved"``; None: the search
+        found what it found (reason ``searched`` when nothing else applies).
+    argument_detail : str or None
+        The argument in a sentence (which closed form, rule or system, with its counts).
     """
 
     details: Mapping[str, object] = field(default_factory=dict)
@@ -49,14 +72,17 @@ class SearchReport(Mapping[str, Any]):
     degenerate: bool = False
     unresolved: bool = False
     time_budget_s: float | None = None
+    argument: Argument | None = None
+    argument_detail: str | None = None
 
     @property
     def reason(self) -> str | None:
         """Why the search is incomplete (the first that applies: time, budget, degenerate,
-        unresolved), None when it is complete."""
+        unresolved, searched), None when it is complete."""
         return (REASON_TIME if self.timed_out else REASON_BUDGET if self.budget
                 else REASON_DEGENERATE if self.degenerate
-                else REASON_UNRESOLVED if self.unresolved else None)
+                else REASON_UNRESOLVED if self.unresolved
+                else REASON_SEARCHED if self.argument is None else None)
 
     @property
     def complete(self) -> bool:
@@ -66,11 +92,16 @@ class SearchReport(Mapping[str, Any]):
         """The same report with more (or changed) details."""
         return replace(self, details={**self.details, **more})
 
+    def with_argument(self, argument: str | None, detail: str | None) -> SearchReport:
+        """The same report with an argument (or none)."""
+        return replace(self, argument=argument, argument_detail=detail)
+
     def as_dict(self) -> dict[str, object]:
-        """The answer's ``search``: the details, ``complete``, ``reason`` and (with a deadline)
-        ``time_budget_s``."""
+        """The answer's ``search``: the details, ``complete``, ``reason``, ``argument``,
+        ``argument_detail`` and (with a deadline) ``time_budget_s``."""
         out: dict[str, object] = {**self.details, "complete": self.complete,
-                                  "reason": self.reason}
+                                  "reason": self.reason, "argument": self.argument,
+                                  "argument_detail": self.argument_detail}
         if self.time_budget_s is not None:
             out["time_budget_s"] = self.time_budget_s
         return out

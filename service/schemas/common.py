@@ -257,7 +257,7 @@ class Problem(BaseModel):
 
 
 #: Why a search is incomplete (``search.reason``).
-SearchReason = Literal["time", "budget", "degenerate", "unresolved"]
+SearchReason = Literal["time", "budget", "degenerate", "unresolved", "searched"]
 
 
 class SearchReport(BaseModel):
@@ -268,12 +268,27 @@ class SearchReport(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    complete: bool = Field(description="the search ran to its end: nothing was cut short")
+    complete: bool = Field(
+        description="nothing was cut short and an argument (``argument``) proves that nothing "
+        "was missed"
+    )
     reason: SearchReason | None = Field(
         description="why it is incomplete: time (the deadline stopped it), budget (a count ran "
         "out: components, assemblies, points of a curve), degenerate (a critical point that "
         "is not isolated), unresolved (a curve or segment stopped open for a numerical "
-        "reason); null when complete"
+        "reason), searched (nothing was cut short, but no argument proves that the seeds and "
+        "random starts found everything: what was searched is in the other fields); null when "
+        "complete"
+    )
+    argument: Literal["derived", "proved"] | None = Field(
+        None, description="what proves the answer complete: derived (a closed form, the chain "
+        "rules of rotor chains, a certified decomposition) or proved (every real solution of "
+        "a polynomial system whose solutions include a point on every component and every "
+        "critical point, found by homotopy continuation: see docs/methods.md); null without "
+        "an argument"
+    )
+    argument_detail: str | None = Field(
+        None, description="the argument in a sentence, with its counts (or why it failed)"
     )
     time_budget_s: float | None = Field(
         None, description="seconds the search was given (options.time_budget_s or "

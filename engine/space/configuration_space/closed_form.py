@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.local.critical import NearMiss
-from engine.model.budget import granted
+from engine.model.budget import ARGUMENT_DERIVED, granted
 from engine.model.constraints import Constraints
 from engine.model.report import SearchReport
 from engine.model.tolerances import NORM_FLOOR
@@ -166,9 +166,19 @@ def closed_form_answer(
         "strain_tol": opt.trace.strain_tol,
     })
     search = SearchReport(report, timed_out=ex.timed_out, budget=truncated,
-                          time_budget_s=granted(ex.deadline))
+                          time_budget_s=granted(ex.deadline), argument=ARGUMENT_DERIVED,
+                          argument_detail=CLOSED_FORM_ARGUMENT)
     return SpaceResult(components, [], [], misses, search, False)
 
+
+#: The argument of a closed-form answer (:mod:`engine.space.dyads`).
+CLOSED_FORM_ARGUMENT = (
+    "closed form of the planar dyad chain: every sheet sampled over the rotor's whole turn, "
+    "with the certificate that no fold or critical point lies between samples")
+#: The argument of a critical-point answer from the closed-form candidates.
+CANDIDATES_ARGUMENT = (
+    "closed form of the planar dyad chain: every place where its certificate is in doubt "
+    "(a candidate for a critical point) refined, each to a critical point")
 
 #: ``search["closed_form"]`` of :func:`closed_form_critical` when the closed form certifies that
 #: there is no critical point (the near misses then come from the closed-form walks).
@@ -227,5 +237,7 @@ def closed_form_critical(ex: Explorer) -> CriticalSearch | None:
     }
     # every sheet of the rotor's whole turn was searched: complete as the general search is
     # when its curves cover the space and no critical point is degenerate
-    return CriticalSearch(crit, [], SearchReport(search, time_budget_s=granted(ex.deadline)),
+    return CriticalSearch(crit, [], SearchReport(search, time_budget_s=granted(ex.deadline),
+                                                 argument=ARGUMENT_DERIVED,
+                                                 argument_detail=CANDIDATES_ARGUMENT),
                           False)

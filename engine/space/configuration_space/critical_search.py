@@ -55,9 +55,11 @@ def candidates(ex: Explorer) -> list[np.ndarray]:
     return starts
 
 
-def critical_points(ex: Explorer) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
-    """The critical points, near misses and degeneracy found from :func:`candidates`."""
-    starts = candidates(ex)
+def critical_points(ex: Explorer, extra: np.ndarray | None = None
+                    ) -> tuple[list[CriticalPoint], list[NearMiss], bool]:
+    """The critical points, near misses and degeneracy found from :func:`candidates` and the
+    ``extra`` starts (K, M) (e.g. the singular witness points of a proof)."""
+    starts = candidates(ex) + ([] if extra is None else list(extra))
     ex.report["critical_candidates"] = len(starts)
     exact, misses, degenerate, _ = resolve(ex, starts)
     return exact, misses, degenerate

@@ -41,6 +41,10 @@ SPARSE_SEED_RIGIDITY_MIN_FREE = 128
 BUDGET_STOPS = re.compile(r"max points|step budget")
 
 
+#: A seed this close (relative to the median bar length) to an isolated point of the space is
+#: that point (see ``Explorer.trace_all``).
+ISOLATED_REL = 1e-3
+
 #: Seeds tested together against the traced curves (small linkages, see ``trace_all``).
 SEED_CHUNK = 128
 
@@ -119,17 +123,28 @@ class Explorer:
         return curve
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
-               **details: object) -> SearchReport:
+               argument: tuple[str | None, str | None] = (None, None),
+               curves_needed: bool = True, **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
         flags that decide whether it is complete (:class:`engine.model.report.SearchReport`);
-        ``agreed`` False: an independent count disagrees with what was traced (unresolved)."""
+        ``agreed`` False: an independent count disagrees with what was traced (unresolved);
+        ``argument``: what proves that nothing was missed, and the sentence that says so
+        (:func:`engine.space.configuration_space.proof.argument`); ``curves_needed`` False: the
+        argument does not rest on the traced curves (critical points proved by the homotopy or
+        the chain rules), so budgets, open curves and the deadline while tracing do not make
+        the answer incomplete."""
+        if argument[0] is not None and not curves_needed:
+            return SearchReport({**self.report, **details}, degenerate=degenerate,
+                                time_budget_s=granted(self.deadline), argument=argument[0],
+                                argument_detail=argument[1])
         budget = bool(self.report.get("component_budget_reached")
                       or self.report.get("assemblies_truncated")
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
         unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
                             degenerate=degenerate, unresolved=unresolved,
-                            time_budget_s=granted(self.deadline))
+                            time_budget_s=granted(self.deadline), argument=argument[0],
+                            argument_detail=argument[1])
 
     def _rebuild_tree(self) -> None:
         """The curves changed: the tree is rebuilt when next read."""
@@ -288,7 +303,13 @@ class Explorer:
             on[which[ok & (np.linalg.norm(w - u, axis=1) <= SAME_POINT_REL * self.scale)]] = True
         return on
 
-    def trace_all(self, start: np.ndarray | None) -> None:
+    def trace_all(self, start: np.ndarray | None, extra: np.ndarray | None = None,
+                  isolated: np.ndarray | None = None) -> None:
+        """Trace a curve from every seed not on a curve already traced: ``start``, then
+        ``extra`` (K, M) (e.g. the witness points of a proof), then the rotor sweeps and the
+        random projections of :mod:`engine.space.assembly`. Seeds within ``ISOLATED_REL`` of
+        a point of ``isolated`` (L, M) (rigid critical points: isolated points of the space,
+        where no curve passes) are skipped: the tracer would crawl around rounding there."""
         # Seeds are generated on demand: once the component budget is reached the rest (on long
         # chains the costly random projections) is never computed; the report then counts the
         # seeds generated up to that point.
@@ -300,6 +321,7 @@ class Explorer:
         )
         truncated = False
         first = [start] if start is not None else []
+        first += [] if extra is None else list(extra)
         # Small linkages: the rotor sweeps' seeds are generated up front (they are cheap) and
         # tested in chunks, each against every curve traced so far in one batch per curve
         # (``tested`` counts the curves a seed has been tested against), so a seed reached in
@@ -347,6 +369,9 @@ class Explorer:
                         covered[sel[self.on_curve(stack[sel], self.curves[c])]] = True
                 tested[chunk] = len(self.curves)
             if (covered[n] if batch else self.on_traced(u)):
+                continue
+            if isolated is not None and len(isolated) and np.linalg.norm(
+                    isolated - u, axis=1).min() <= ISOLATED_REL * self.scale:
                 continue
             if len(self.curves) >= self.opt.max_components:
                 truncated = True

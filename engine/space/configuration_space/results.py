@@ -15,6 +15,7 @@ from engine.model.report import SearchReport
 from engine.space.trace import (
     TraceOptions,
 )
+from engine.space.witnesses import PATHS_MAX
 
 #: Smallest ``step_max`` accepted, relative to the median bar length.
 MIN_STEP_MAX_REL = 1e-6
@@ -44,6 +45,10 @@ class SpaceOptions:
     #: faster; it may miss one of a mirror pair of closest approaches, which seeds of a
     #: critical-value slice do not need; False: the general search's near misses).
     near_misses_closed_form: bool = False
+    #: Largest path count of the homotopy that proves completeness
+    #: (:mod:`engine.space.witnesses`); 0 skips it (the answer is then at best ``searched``,
+    #: unless a closed form or the chain rules derive it).
+    homotopy_paths_max: int = PATHS_MAX
 
 
 @dataclass(frozen=True)

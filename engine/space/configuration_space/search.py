@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from engine.local.critical import CriticalPoint, NearMiss
 from engine.model.budget import (
     NEVER,
@@ -17,8 +19,9 @@ from engine.space.configuration_space.closed_form import (
     closed_form_answer,
     closed_form_critical,
 )
-from engine.space.configuration_space.critical_search import critical_points
+from engine.space.configuration_space.critical_search import critical_points, resolve
 from engine.space.configuration_space.explorer import Explorer
+from engine.space.configuration_space.proof import Proof, argument, gather
 from engine.space.configuration_space.results import (
     CriticalSearch,
     SpaceOptions,
@@ -72,11 +75,28 @@ def find_critical_points(
     if opt.critical_closed_form:
         ex.report["method"] = "tracer"
         ex.report.setdefault("closed_form", "off")
+    count = chain_components(linkage)
+    proof = gather(ex) if count is None else None
     ex.trace_all(start)
-    crit, misses, degenerate = critical_points(ex)
-    search = ex.finish(degenerate, critical_points_found=len(crit), step_max=ex.h_max,
+    extra = proof.critical_starts if proof is not None else None
+    crit, misses, degenerate = critical_points(ex, extra)
+    search = ex.finish(degenerate, argument=argument(ex, proof, crit, count, components=False),
+                       curves_needed=False, critical_points_found=len(crit), step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
+def _seeds_and_isolated(ex: Explorer, proof: Proof | None
+                        ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The proof's seeds, and the rigid critical points among its singular solutions (refined
+    before tracing: no seed is traced from an isolated point)."""
+    if proof is None:
+        return None, None
+    rigid = None
+    if len(proof.critical_starts):
+        found, _, _, _ = resolve(ex, list(proof.critical_starts))
+        rigid = np.array([c.u for c in found if c.kind == "rigid"]).reshape(-1, ex.cons.n_free)
+    return proof.seeds, rigid
 
 
 def explore(
@@ -117,8 +137,9 @@ def explore(
     # -- general path ---------------------------------------------------------------------
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
-    ex.trace_all(start)
     count = chain_components(linkage)
+    proof = gather(ex) if count is None else None
+    ex.trace_all(start, *_seeds_and_isolated(ex, proof))
     if count is not None and not near_misses:
         # The chain rules prove that there is no critical point (engine.space.chain_count): the
         # search would only find near misses, which the caller does not want. On long chains
@@ -128,7 +149,8 @@ def explore(
         degenerate = False
         ex.report["critical_search"] = f"skipped: {count.rule} proves no critical point"
     else:
-        crit, misses, degenerate = critical_points(ex)
+        crit, misses, degenerate = critical_points(
+            ex, proof.critical_starts if proof is not None else None)
     # Segments need every critical point classified; with a degenerate one the traced curves
     # themselves are the answer (they may pass through critical points).
     segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
@@ -147,6 +169,7 @@ def explore(
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives {count.components}")
     search = ex.finish(degenerate, seg_complete, agreed,
+                       argument(ex, proof, crit, count, len(components)),
                        critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
