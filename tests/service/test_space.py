@@ -176,7 +176,8 @@ def test_robustness_of_a_slider_crank_is_its_branch_point(client):
     body = post(client, "/v1/analysis/robustness", {"linkage": SLIDER_CRANK})
     assert body["success"] and abs(body["margin"] - 0.9 / np.sqrt(2)) < 1e-7
     assert body["method"] == "multistart"
-    assert body["guarantee"].startswith("best local minimum over")
+    assert body["guarantee"] == "upper-bound" and body["exact_margin"] is None
+    assert body["guarantee_detail"].startswith("best local minimum over")
     assert body["search"]["complete"] is True and body["search"]["starts_run"] > 0
     assert abs(body["nearest"]["crank"] - body["nearest"]["rod"]) < 1e-7
     conf = body["critical_configuration"]
