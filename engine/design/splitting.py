@@ -30,7 +30,7 @@ from engine.local.critical import CriticalPoint
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
-from engine.model.tolerances import NORM_FLOOR, Tolerances
+from engine.model.tolerances import MODEL_CONTRACTION_MAX, NORM_FLOOR, Tolerances
 from engine.space.trace import TraceOptions, correct, trace_curve
 
 
@@ -176,7 +176,8 @@ def _model_error(
     iterate is ``v2 = -J^+ q(du0)``; ``q(a) - q(b) = J_{(a+b)/2} (a - b)`` with ``J_x = J(u + x)
     - J(u)`` (``J`` is linear in the coordinates) and ``|J_x| <= 4 sqrt(deg_max) |x|``, so on the
     ball ``|v| <= 2 |v2|`` the map contracts by ``ell = (|J_du0| + 8 sqrt(deg_max) |v2|) /
-    s_gap``; for ``ell < 1/2`` the fixed point ``v*`` has ``|v* - v2| <= ell |v2| / (1 - ell)``.
+    s_gap``; for ``ell < 1/2`` (``MODEL_CONTRACTION_MAX``) the fixed point ``v*`` has
+    ``|v* - v2| <= ell |v2| / (1 - ell)``.
     The conic's constant then moves by ``2 du0^T H v* + v*^T H v*`` at its centre, and its
     critical value by at most ``|p|^2 / (4 lam_min)`` more, ``p`` the gradient of that change
     in ``c`` (``|dv/dc| <= ell / (1 - ell)``).
@@ -188,7 +189,7 @@ def _model_error(
     deg_max = float(np.bincount(ends.ravel()).max()) if ends.size else 0.0
     j_du0 = cons.jacobian(u + du0, sparse=False) - jac
     ell = (float(np.linalg.norm(j_du0, 2)) + 8.0 * np.sqrt(deg_max) * v2_norm) / s_gap
-    if ell >= 0.5:
+    if ell >= MODEL_CONTRACTION_MAX:
         return float("inf")
     h_norm = float(np.linalg.norm(hess, 2))
     big_v = v2_norm / (1.0 - ell)

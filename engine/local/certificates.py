@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares
 
 from engine.model.errors import LimitExceeded
-from engine.model.tolerances import Tolerances
+from engine.model.tolerances import DUAL_RANGE_RTOL, Tolerances
 
 #: Largest number of non-trivial flexes for which the SDP is set up (the PSD block is k x k;
 #: an interior-point step costs about k^6 / 8 flops through the k(k+1)/2 svec coordinates).
@@ -202,7 +202,7 @@ def _polish_dual(q: np.ndarray, scales: np.ndarray, dual: np.ndarray) -> np.ndar
     tolerance (about 1e-8), this linear correction brings a certificate that exists on that
     range down to rounding."""
     mu, vec = np.linalg.eigh(dual)
-    keep = mu > np.sqrt(np.finfo(float).eps) * max(float(mu[-1]), 0.0)
+    keep = mu > DUAL_RANGE_RTOL * max(float(mu[-1]), 0.0)
     r = int(keep.sum())
     if r == 0:
         return dual
