@@ -389,8 +389,8 @@ def four_bar_margin(a: float, l1: float, l2: float, l3: float, adjustable: list[
     return min(valid)
 
 
-#: (a, L1, L2, L3, turn, adjustable): a far margin (about half the lengths: where the issue's
-#: four-bar scaled by 3.95 got 4.002 for 2.092) and a near one
+#: (a, L1, L2, L3, turn, adjustable): two four-bars, every bar or one adjustable (the issue saw
+#: 4.002 for 2.092 on a four-bar scaled by 3.95; 3.95 is among the scales below)
 SCALED = [(1.3, 0.9, 1.5, 0.8, 0.4, [0, 1, 2]), (1.0, 1.2, 0.7, 1.05, 2.0, [1])]
 
 
