@@ -158,7 +158,11 @@ def design(
 
 @dataclass(frozen=True)
 class Check:
-    """Prediction and re-traced answer for one target of a design."""
+    """Prediction and re-traced answer for one target of a design.
+
+    ``sign`` is 0 (undecided, ``connects`` empty) where ``|delta| <= delta_error`` (see
+    :func:`engine.design.splitting.delta_error`): such a check never agrees.
+    """
 
     branch_point: int
     sign: int
@@ -167,10 +171,11 @@ class Check:
     traced: list[tuple[int, int]] | None
     #: not re-traced: the deadline had passed (``traced`` is then None, and says nothing)
     skipped: bool = False
+    delta_error: float = 0.0
 
     @property
     def agrees(self) -> bool:
-        return self.traced is not None and self.traced == self.connects
+        return self.sign != 0 and self.traced is not None and self.traced == self.connects
 
 
 def verify(
@@ -192,9 +197,11 @@ def verify(
         assert cp.analysis.q_eigenvalues is not None  # targets are branch points (validated)
         lam = float(np.abs(cp.analysis.q_eigenvalues).min())
         if deadline.expired():
-            out.append(Check(t.branch_point, s.sign, s.delta, s.connects, None, skipped=True))
+            out.append(Check(t.branch_point, s.sign, s.delta, s.connects, None, skipped=True,
+                             delta_error=s.delta_error))
             continue
         radius = float(np.clip(4 * np.sqrt(abs(s.delta) / lam), 0.05 * scale, 0.3 * scale))
         traced = retraced_pairing(perturbed, cp, radius, tol)
-        out.append(Check(t.branch_point, s.sign, s.delta, s.connects, traced))
+        out.append(Check(t.branch_point, s.sign, s.delta, s.connects, traced,
+                         delta_error=s.delta_error))
     return out

@@ -5,12 +5,17 @@ sit from the critical value set, where the topology of the configuration space c
 A configuration with a bar shorter than :func:`min_critical_length` is degenerate (the service
 refuses such bars as input), not critical: it is never a critical value here.
 
-Two methods, and each result says which one answered and what it guarantees:
+Two methods, and each result says which one answered and what it guarantees (``guarantee``):
 
 - ``"closed-form"`` (guarantee ``"exact"``): one-loop planar dyad chains (the four-bar family,
   any pin geometry), whose critical value set is a union of hyperplane pieces derived in
   :mod:`engine.design.dyad_margin`; the margin is the exact distance to the nearest piece.
-- ``"multistart"`` (guarantee: the best local minimum over the starts that converged): over
+- ``"multistart"`` (guarantee ``"upper-bound"``: a critical value lies at this distance, found
+  and checked, and a nearer one may have been missed; the best local minimum over the starts
+  that converged). It runs on the linkage scaled to unit median length (and ``residual_atol``
+  with it) and scales its answer back, so that the same linkage drawn at any scale gets the same
+  margin in its units. Where the closed form applies too, the multistart is compared with it:
+  ``exact_margin`` reports the exact value beside the multistart's. Over
   critical configurations ``(u, sigma)`` minimise ``sum_{a adjustable} (l_a(u) - L_a)^2``
   subject to ``J(u)^T sigma = 0``, ``sum_i (sigma_i l_i)^2 = s^2`` (the stress normalised by
   the forces it exerts, ``s`` the median length: a stress on a vanishing bar cannot satisfy
@@ -29,13 +34,13 @@ Two methods, and each result says which one answered and what it guarantees:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares, minimize
 
-from engine.design.dyad_margin import exact_margin
+from engine.design.dyad_margin import ExactMargin, exact_margin
 from engine.local.critical import refine_critical
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, Deadline, granted
 from engine.model.constraints import Constraints
@@ -68,10 +73,12 @@ class Margin:
     """``margin`` (length units), the ``nearest`` critical lengths (E,), and the critical
     configuration ``critical_u`` (M,) there; ``starts``/``converged`` count the local runs.
 
-    ``method`` is ``"closed-form"`` or ``"multistart"``; ``guarantee`` says what the margin is
-    (``"exact"``, or the best local minimum over the converged starts); ``search`` is the
-    :class:`engine.model.report.SearchReport` of the starts (``complete``, and ``reason`` ``"time"``
-    when a deadline stopped them)."""
+    ``method`` is ``"closed-form"`` or ``"multistart"``; ``guarantee`` says what the margin is:
+    ``"exact"`` (the closed form) or ``"upper-bound"`` (the multistart found a critical value at
+    this distance; a nearer one may exist), with ``guarantee_detail`` saying how it was found;
+    ``exact_margin`` is the closed form's margin where one exists beside a multistart (None
+    otherwise); ``search`` is the :class:`engine.model.report.SearchReport` of the starts
+    (``complete``, and ``reason`` ``"time"`` when a deadline stopped them)."""
 
     margin: float
     nearest: np.ndarray
@@ -81,8 +88,10 @@ class Margin:
     success: bool
     message: str
     method: Literal["closed-form", "multistart"] = "multistart"
-    guarantee: str = ""
+    guarantee: Literal["exact", "upper-bound"] = "upper-bound"
     search: SearchReport = field(default_factory=SearchReport)
+    guarantee_detail: str = ""
+    exact_margin: float | None = None
 
 
 def _adjustable_mask(linkage: Linkage, adjustable: list[str] | None) -> np.ndarray:
@@ -265,27 +274,57 @@ def robustness(
     opt = options or SpaceOptions()
     cons = Constraints(linkage)
     adj = _adjustable_mask(linkage, adjustable)
-    if method != "multistart" and opt.closed_form:
+    exact = None
+    if opt.closed_form:
         adj_all = np.zeros(linkage.n_bars, dtype=bool)
         adj_all[cons.bars[adj]] = True
         exact = exact_margin(linkage, adj_all, min_critical_length(tol), 1e3 * tol.residual_atol)
-        if exact is not None:
-            found = bool(np.isfinite(exact.margin))
-            return Margin(
-                exact.margin, exact.nearest, exact.critical_u, 0, 0, found,
-                f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
-                if found else "no critical value is reachable by the adjustable bars",
-                method="closed-form", guarantee="exact",
-                search=SearchReport({"planes": exact.planes},
-                                    time_budget_s=_granted(deadline),
-                                    argument=ARGUMENT_DERIVED,
-                                    argument_detail=f"the nearest of the {exact.planes} critical "
-                                    "hyperplanes of a one-loop dyad chain, in closed form"),
-            )
+    if method != "multistart" and exact is not None:
+        found = bool(np.isfinite(exact.margin))
+        return Margin(
+            exact.margin, exact.nearest, exact.critical_u, 0, 0, found,
+            f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
+            if found else "no critical value is reachable by the adjustable bars",
+            method="closed-form", guarantee="exact",
+            search=SearchReport({"planes": exact.planes}, time_budget_s=_granted(deadline),
+                                argument=ARGUMENT_DERIVED,
+                                argument_detail=f"the nearest of the {exact.planes} critical "
+                                "hyperplanes of a one-loop dyad chain, in closed form"),
+            guarantee_detail="the distance to the nearest critical hyperplane (closed form)",
+        )
     if method == "closed-form":
         raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "
                              "(a rotor and one dyad, no sliders)", loc=("method",))
-    return _multistart(linkage, cons, adj, tol, opt, extra_starts, deadline or NEVER)
+    scale = float(np.median(linkage.lengths[cons.bars]))
+    unit = linkage.with_positions(np.asarray(linkage.positions) / scale).with_lengths(
+        linkage.lengths / scale)
+    unit_tol = replace(tol, residual_atol=tol.residual_atol / scale)
+    res = _multistart(unit, Constraints(unit), adj, unit_tol, opt, extra_starts,
+                      deadline or NEVER)
+    return _compared(replace(res, margin=res.margin * scale, nearest=res.nearest * scale,
+                             critical_u=res.critical_u * scale), exact, tol)
+
+
+def _compared(res: Margin, exact: ExactMargin | None, tol: Tolerances) -> Margin:
+    """The multistart's answer beside the closed form's, where there is one."""
+    if exact is None:
+        return res
+    gap = res.margin - exact.margin
+    # both are distances to critical lengths located to about 1e3 residual_atol
+    same = bool(np.isfinite(res.margin) and abs(gap) <= 1e3 * tol.residual_atol) or (
+        not np.isfinite(res.margin) and not np.isfinite(exact.margin))
+    if same:
+        verdict = "equals the exact margin of the closed form"
+    elif gap > 0:
+        verdict = (f"exceeds the exact margin {exact.margin:.6g} of the closed form: the starts "
+                   "missed the nearest critical sheet")
+    else:
+        verdict = (f"is below the exact margin {exact.margin:.6g} of the closed form by "
+                   f"{-gap:.3g}: its critical configuration is not a critical value of the "
+                   "closed form")
+    return replace(res, exact_margin=float(exact.margin),
+                   message=f"{res.message}; the multistart's margin {verdict}",
+                   success=res.success and same)
 
 
 def _multistart(
@@ -342,16 +381,16 @@ def _multistart(
     search = SearchReport({"starts_planned": planned, "starts_run": run,
                            "critical_points_complete": cp_complete},
                           timed_out=not complete, time_budget_s=_granted(deadline))
-    guarantee = f"best local minimum over {converged} converged of {run} starts"
+    detail = f"best local minimum over {converged} converged of {run} starts"
     nearest = np.array(linkage.lengths, dtype=float)
     if best is None:
         return Margin(np.inf, nearest, linkage.coordinates(), run, 0, False,
                       "no local search converged to a non-degenerate critical configuration",
-                      method="multistart", guarantee=guarantee, search=search)
+                      method="multistart", search=search, guarantee_detail=detail)
     nearest[cons.bars] = best[1]
     message = "best over starts" if complete else "best over the starts run before the deadline"
     return Margin(best[0], nearest, best[2], run, converged, True, message,
-                  method="multistart", guarantee=guarantee, search=search)
+                  method="multistart", search=search, guarantee_detail=detail)
 
 
 def _granted(deadline: Deadline | None) -> float | None:

@@ -52,6 +52,17 @@ CORRECT_TIGHT = 1e-3
 #: turns fast): the tangent is then factorised again at the polished point.
 POLISH_TANGENT_MOVE = 1e-5
 
+#: A splitting's model bound (:func:`engine.design.splitting.delta_error`) holds where the
+#: off-mode move it leaves out is a contraction by less than this: the fixed point then lies in
+#: the ball of twice the first iterate (``1 / (1 - ell) <= 2``); beyond it the length change is
+#: too large for the second-order model, and the sign is left undecided.
+MODEL_CONTRACTION_MAX = 0.5
+
+#: A dual certificate's eigenvalues below this fraction of its largest are off its range when
+#: it is polished (:func:`engine.local.certificates.decide`): the solver's interior point leaves
+#: them at about the square root of its own tolerance, far above rounding.
+DUAL_RANGE_RTOL = float(np.sqrt(np.finfo(float).eps))
+
 
 @dataclass(frozen=True)
 class Tolerances:

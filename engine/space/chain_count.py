@@ -154,3 +154,208 @@ def chain_components(linkage: Linkage) -> ChainCount | None:
         return ChainCount(2 if grashof else 1, ids, None,
                           "four-bar: Grashof (2 components) or not (1)")
     return None
+
+
+# -- chains with the paper's gate ------------------------------------------------------------
+
+@dataclass(frozen=True)
+class GatedChain:
+    """A rotor chain with the paper's gate (Sec. V): a slider ``G`` held at distance ``D`` from
+    the pin ``P_g`` of rotor ``gate`` (the rotor bars' order index) by a bar, a rocker ``L1``
+    from ``G`` to a free vertex ``R`` and a bar ``L2`` from the gate rotor's tip to ``R``.
+
+    ``G`` moves on a line and ``|G - P_g| = D`` holds it at one of the (generically two)
+    points where that line meets the circle about ``P_g``: a four-bar ``P_g T_g R G`` (ground
+    ``D``, crank ``r_g``, coupler ``L2``, rocker ``L1``) hangs on the chain at each.
+    ``slider_positions`` counts those points (0, 1 or 2).
+    """
+
+    rotors: tuple[str, ...]
+    gate: int
+    sides: tuple[float, float, float, float]  # (D, r_g, L2, L1)
+    slider_positions: int
+    chain_driven: bool  # the driver rule holds with the gate rotor as driver
+
+
+@dataclass(frozen=True)
+class GateDecision:
+    """Whether the gate stops every rotor from completing a turn (``gated``), or None with the
+    ``reason`` it cannot be decided here; ``gate_type`` names the gate four-bar's type."""
+
+    gated: bool | None
+    gate_type: str
+    reason: str
+
+
+def _gate_type(sides: tuple[float, float, float, float], scale: float) -> tuple[str, bool | None]:
+    """The gate four-bar's Grashof type and whether its crank ``r_g`` turns fully (None where a
+    flat configuration exists: a critical length, not generic)."""
+    d, r, l2, l1 = sides
+    signs = np.array(np.meshgrid(*[[1.0, -1.0]] * 3, indexing="ij")).reshape(3, -1).T
+    if np.min(np.abs(d + signs @ np.array([r, l2, l1]))) <= GENERIC_RTOL * scale:
+        return "critical (a flat configuration exists)", None
+    srt = sorted(sides)
+    if srt[0] + srt[3] > srt[1] + srt[2]:
+        return "non-Grashof (triple rocker: one circuit, the gate rotor rocks)", False
+    shortest = int(np.argmin(np.array(sides)))
+    kind = {0: "Grashof double crank (the ground D shortest)",
+            1: "Grashof crank-rocker (the gate rotor the crank)",
+            2: "Grashof double rocker (the coupler L2 shortest)",
+            3: "Grashof rocker-crank (the rocker L1 the crank, the gate rotor rocks)"}[shortest]
+    return kind, shortest in (0, 1)
+
+
+def gated_chain(linkage: Linkage) -> GatedChain | None:
+    """The gated chain's parts, or None when ``linkage`` is not a planar rotor chain with the
+    paper's gate (one slider vertex, held by one bar to a pin of the chain, and one free vertex
+    joined to it and to that pin's tip)."""
+    if linkage.dimension != 2:
+        return None
+    fixed = np.asarray(linkage.fixed, dtype=bool)
+    full: np.ndarray = np.asarray(fixed.all(axis=1), dtype=bool)
+    sliders = np.flatnonzero(fixed.any(axis=1) & ~full)
+    if len(sliders) != 1:
+        return None
+    g = int(sliders[0])
+    ends = np.asarray(linkage.ends)
+    at_g = np.flatnonzero((ends == g).any(axis=1))
+    if len(at_g) != 2:
+        return None
+    other = [int(ends[k, 1] if ends[k, 0] == g else ends[k, 0]) for k in at_g]
+    if full[other[0]] == full[other[1]]:
+        return None
+    d_bar, l1_bar = (at_g[0], at_g[1]) if full[other[0]] else (at_g[1], at_g[0])
+    pin, rocker = (other[0], other[1]) if full[other[0]] else (other[1], other[0])
+    at_r = np.flatnonzero((ends == rocker).any(axis=1))
+    if len(at_r) != 2:
+        return None
+    l2_bar = int(at_r[0] if at_r[1] == l1_bar else at_r[1])
+    tip = int(ends[l2_bar, 1] if ends[l2_bar, 0] == rocker else ends[l2_bar, 0])
+    keep_v = np.ones(linkage.n_vertices, dtype=bool)
+    keep_v[[g, rocker]] = False
+    keep_b = ~np.isin(np.arange(linkage.n_bars), [d_bar, l1_bar, l2_bar])
+    new_index = np.cumsum(keep_v) - 1
+    chain = Linkage(2, tuple(v for v, k in zip(linkage.vertex_ids, keep_v, strict=True) if k),
+                    np.asarray(linkage.positions)[keep_v], fixed[keep_v],
+                    tuple(b for b, k in zip(linkage.bar_ids, keep_b, strict=True) if k),
+                    new_index[ends[keep_b]], np.asarray(linkage.lengths)[keep_b])
+    found = _chain_order(chain)
+    if found is None or int(new_index[tip]) not in found[0]:
+        return None
+    tips, rotor_bars, _ = found
+    gate = tips.index(int(new_index[tip]))
+    pins = [int(chain.ends[b, 0]) if int(chain.ends[b, 1]) == t else int(chain.ends[b, 1])
+            for b, t in zip(rotor_bars, tips, strict=True)]
+    if pins[gate] != int(new_index[pin]):
+        return None  # the slider is held from another pin than the gate rotor's
+    lengths = np.asarray(linkage.lengths)
+    sides = (float(lengths[d_bar]), float(chain.lengths[rotor_bars[gate]]),
+             float(lengths[l2_bar]), float(lengths[l1_bar]))
+    # the slider's line: through G along its free axis; its points at distance D from P_g
+    pos = np.asarray(linkage.positions, dtype=float)
+    axis = (~fixed[g]).astype(float)
+    off = pos[pin] - pos[g]
+    perp = float(np.linalg.norm(off - (off @ axis) * axis))
+    scale = max(sides)
+    positions = 2 if perp < sides[0] - GENERIC_RTOL * scale else (
+        1 if perp <= sides[0] + GENERIC_RTOL * scale else 0)
+    return GatedChain(tuple(chain.bar_ids[b] for b in rotor_bars), gate, sides, positions,
+                      _driven_from(chain, found, gate))
+
+
+def _driven_from(chain: Linkage, found: tuple[list[int], list[int], list[int]], m: int) -> bool:
+    """The driver rule of :func:`chain_components` holds with rotor ``m`` as the driver."""
+    tips, rotor_bars, couplers = found
+    pos = np.asarray(chain.positions, dtype=float)
+    pins = [int(chain.ends[b, 0]) if int(chain.ends[b, 1]) == t else int(chain.ends[b, 1])
+            for b, t in zip(rotor_bars, tips, strict=True)]
+    r = np.array([chain.lengths[b] for b in rotor_bars], dtype=float)
+    lc = np.array([chain.lengths[b] for b in couplers], dtype=float)
+    a = np.array([np.linalg.norm(pos[pins[k + 1]] - pos[pins[k]]) for k in range(len(tips) - 1)])
+    scale = float(max(r.max(), lc.max(), a.max()))
+
+    def crank(k: int, left: bool) -> bool:
+        rd, ro = (r[k], r[k + 1]) if left else (r[k + 1], r[k])
+        return _strictly_less(abs(lc[k] - ro), abs(rd - a[k]), scale) and \
+            _strictly_less(rd + a[k], lc[k] + ro, scale)
+
+    n = len(tips)
+    return all(crank(k, False) for k in range(m)) and all(crank(k, True) for k in range(m, n - 1))
+
+
+def gated_chain_components(linkage: Linkage) -> ChainCount | None:
+    """The exact number of components of a gated rotor chain, or None where the rule does not
+    apply (not a gated chain, the chain not driven from the gate rotor, critical lengths).
+
+    With the chain driven from the gate rotor (every cell's rotor turns fully outwards from it,
+    its two assembly modes apart), each of the chain's ``2^(n-1)`` components is a graph over
+    the gate angle ``theta_g``, so its fibred product with a component of the gate four-bar
+    (over ``theta_g``) is that component again: the count is ``2^(n-1)`` times the gate
+    four-bar's components (2 Grashof, 1 not) times the slider's positions (2). For the paper's
+    chain (``r = l = 3a/2``, ``L1 = L2 = 2a``): ``2^(n+1)`` for ``D < 5a/2`` (Grashof, ungated),
+    ``2^n`` above (non-Grashof, gated).
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> gated_chain_components(build_preset("gated-kl-chain", {"n": 4, "gate": 1})).components
+    32
+    >>> gated_chain_components(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0})
+    ...                        ).components
+    16
+    """
+    parts = gated_chain(linkage)
+    if parts is None or not parts.chain_driven or parts.slider_positions != 2:
+        return None
+    _, turns = _gate_type(parts.sides, max(parts.sides))
+    if turns is None:
+        return None
+    d, r, l2, l1 = parts.sides
+    srt = sorted(parts.sides)
+    gate_components = 2 if srt[0] + srt[3] < srt[1] + srt[2] else 1
+    n = len(parts.rotors)
+    return ChainCount(2 ** (n - 1) * gate_components * 2, parts.rotors, parts.gate,
+                      f"gated chain: 2^{n - 1} chain components (driven from the gate rotor) x "
+                      f"{gate_components} of the gate four-bar (D {d:g}, r {r:g}, L2 {l2:g}, "
+                      f"L1 {l1:g}) x 2 slider positions")
+
+
+def gate_decision(linkage: Linkage) -> GateDecision:
+    """Whether the gate stops every rotor from completing a full turn on every component.
+
+    Decided from the gate four-bar's Grashof type and the chain's cells, not from a trace: with
+    the chain driven from the gate rotor, every rotor angle is a function of ``theta_g`` on each
+    component (a map of the circle), so no rotor completes a turn where the gate rotor does not
+    (its winding is that map's degree times 0), and the gate rotor itself turns iff it is a
+    crank of the gate four-bar (Grashof, with ``r_g`` or ``D`` the shortest side).
+    Otherwise ``gated`` is None with the reason (a neighbour cell could then turn fully while
+    the gate rotor rocks).
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> gate_decision(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0})).gated
+    True
+    """
+    parts = gated_chain(linkage)
+    if parts is None:
+        return GateDecision(None, "", "not a planar rotor chain with the paper's gate")
+    kind, turns = _gate_type(parts.sides, max(parts.sides))
+    if parts.slider_positions == 0:
+        return GateDecision(None, kind, "the slider's line does not reach distance D from "
+                            "the gate's pin: the linkage does not assemble")
+    if turns is None:
+        return GateDecision(None, kind, "the gate four-bar has critical lengths (a flat "
+                            "configuration): its branch point joins the turning and rocking "
+                            "motions")
+    if not parts.chain_driven:
+        return GateDecision(None, kind, "the chain is not driven from the gate rotor (some "
+                            "cell outwards from it has a rotor that does not turn fully, or "
+                            "assembly modes that meet): which rotors turn is not decided by "
+                            "the cells' closed form")
+    if turns:
+        return GateDecision(False, kind, "ungated: the gate rotor is a crank of the gate "
+                            "four-bar: it completes a turn")
+    return GateDecision(True, kind, "gated: the gate rotor rocks in the gate four-bar, and "
+                        "every rotor angle is a function of it on each component, so none "
+                        "completes a turn")

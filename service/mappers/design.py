@@ -36,6 +36,8 @@ def splitting_out(
                 configuration=positions_out(linkage, linkage.positions_of(crit[s.index].u)),
                 delta=s.delta,
                 delta_linear=s.delta_linear,
+                delta_error=s.delta_error,
+                resolved=s.resolved,
                 shift=s.shift.tolist(),
                 sign=s.sign,
                 connects=[list(p) for p in s.connects],
@@ -111,6 +113,7 @@ def design_out(
                 branch_point=c.branch_point,
                 sign=c.sign,
                 delta=c.delta,
+                delta_error=c.delta_error,
                 connects=[list(p) for p in c.connects],
                 traced_connects=None if c.traced is None else [list(p) for p in c.traced],
             )
@@ -140,6 +143,9 @@ def robustness_out(
         message=res.message,
         method=res.method,
         guarantee=res.guarantee,
+        guarantee_detail=res.guarantee_detail,
+        exact_margin=None if res.exact_margin is None or not np.isfinite(res.exact_margin)
+        else res.exact_margin,
         search=robustness_schemas.RobustnessSearch.model_validate(search_out(res.search)),
         tolerances=tolerances_out(tol),
     )

@@ -37,9 +37,11 @@ class DesignRequest(Strict):
 
 class PredictedOut(BaseModel):
     branch_point: int
-    sign: int
+    sign: int = Field(description="sign of delta where |delta| > delta_error, else 0 "
+                      "(undecided: the target is not verified)")
     delta: float
-    connects: list[list[int]]
+    delta_error: float = Field(description="the scale of delta's own error (as in splitting)")
+    connects: list[list[int]] = Field(description="joined ray pairs (empty where sign is 0)")
     traced_connects: list[list[int]] | None = Field(
         description="ray pairs found by tracing the perturbed linkage"
     )

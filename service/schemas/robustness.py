@@ -62,9 +62,18 @@ class RobustnessResponse(BaseModel):
     success: bool
     message: str
     method: Literal["closed-form", "multistart"] = Field(description="the method that answered")
-    guarantee: str = Field(
-        description="what the margin is: exact (closed form), or the best local minimum over "
-        "the converged starts (multistart)"
+    guarantee: Literal["exact", "upper-bound"] = Field(
+        description="what the margin is: exact (closed form), or upper-bound (multistart: a "
+        "critical value lies at this distance, found and checked; a nearer one may have been "
+        "missed)"
+    )
+    guarantee_detail: str = Field(
+        description="how the margin was found (the closed form's hyperplane, or the best local "
+        "minimum over the converged starts)"
+    )
+    exact_margin: float | None = Field(
+        description="multistart where the closed form applies too: the exact margin it was "
+        "compared with (success is false where they differ); null otherwise"
     )
     search: RobustnessSearch
     tolerances: TolerancesUsed

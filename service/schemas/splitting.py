@@ -30,8 +30,14 @@ class BranchSplitOut(BaseModel):
     delta: float = Field(description="Delta of the conic (c - dc)^T Q (c - dc) = Delta")
     delta_linear: float = Field(description="first-order Delta = 4 sum sigma_a L_a dL_a")
     shift: list[float] = Field(description="dc, the centre shift on the zero modes")
-    sign: int
-    connects: list[list[int]] = Field(description="joined ray pairs")
+    delta_error: float = Field(
+        description="the scale of delta's own error (the self-stress's error, the critical "
+        "point's residual, rounding, and the term the second-order model leaves out)"
+    )
+    resolved: bool = Field(description="|delta| > delta_error: the sign is decided")
+    sign: int = Field(description="sign of delta: 1 or -1 where resolved, 0 (undecided: "
+                      "|delta| <= delta_error) otherwise")
+    connects: list[list[int]] = Field(description="joined ray pairs (empty where sign is 0)")
 
 
 class SplittingResponse(BaseModel):

@@ -270,3 +270,23 @@ def test_request_linkage_survives_pickling_as_columns():
         assert type(x) is type(y) and x.model_fields_set == y.model_fields_set
     assert back.linkage.model_fields_set == req.linkage.model_fields_set
     assert back.tolerances == req.tolerances
+
+
+def test_prestress_within_q_rtol_of_the_boundary_is_null(client):
+    """7 collinear vertices in 3D (10 bars, 10 flexes, 4 stresses), prestress stable by an
+    exact rational certificate (tests/engine/local/test_certificates.py) with a margin below the
+    default q_rtol: null with the reason (it was a definite false), true at q_rtol = 1e-9."""
+    xs = [1, 2, 3, 6, 7, 8, 12]
+    edges = [(2, 3), (0, 6), (0, 4), (1, 2), (0, 5), (1, 5), (1, 4), (2, 4), (3, 5), (1, 6)]
+    lk = {"dimension": 3,
+          "vertices": [{"id": f"v{i}", "position": [x, 0, 0]} for i, x in enumerate(xs)],
+          "bars": [{"id": f"e{k}", "ends": [f"v{a}", f"v{b}"]} for k, (a, b) in enumerate(edges)]}
+    r = client.post("/v1/analysis/second-order", json={"linkage": lk})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["prestress_stable"] is None and body["second_order_rigid"] is None
+    assert "borderline" in body["stability_reason"] and body["certificate"] is None
+    r = client.post("/v1/analysis/second-order",
+                    json={"linkage": lk, "tolerances": {"q_rtol": 1e-9}})
+    assert r.status_code == 200, r.text
+    assert r.json()["prestress_stable"] is True

@@ -78,6 +78,27 @@ def test_splitting_endpoint(client):
         assert abs(a["delta"] - a["delta_linear"]) < 0.01 * abs(a["delta_linear"])
 
 
+def test_splitting_signs_only_where_resolved(client):
+    """The issue's case: the three-rotor at critical lengths with r1 + 0.05. Where the tip A is
+    off the line P1-B, equilibrium at A leaves r1 and L1 unstressed: those branch points stay
+    exactly critical, and their Delta (rounding) is sign 0, unresolved, without a pairing; the
+    others keep a resolved sign with delta_error far below |delta|."""
+    lk = preset(client, "three-rotor")
+    body = post(client, "/v1/analysis/splitting",
+                {"linkage": lk, "perturbation": {"r1": 0.05}, "options": FAST})
+    seen = {True: 0, False: 0}
+    for bp in body["branch_points"]:
+        pos = bp["configuration"]
+        p1, a, b = (np.array(pos[v]) for v in ("P1", "A", "B"))
+        (ex, ey), (fx, fy) = a - p1, b - a
+        on_line = bool(abs(ex * fy - ey * fx) < 1e-6)
+        seen[on_line] += 1
+        assert bp["resolved"] is on_line and (bp["sign"] != 0) is on_line, bp
+        assert (abs(bp["delta"]) > bp["delta_error"]) is on_line
+        assert len(bp["connects"]) == (2 if on_line else 0)
+    assert seen == {True: 6, False: 6}
+
+
 def test_design_endpoint(client):
     lk = preset(client, "three-rotor")
     body = post(client, "/v1/design/splitting", {
@@ -176,7 +197,8 @@ def test_robustness_of_a_slider_crank_is_its_branch_point(client):
     body = post(client, "/v1/analysis/robustness", {"linkage": SLIDER_CRANK})
     assert body["success"] and abs(body["margin"] - 0.9 / np.sqrt(2)) < 1e-7
     assert body["method"] == "multistart"
-    assert body["guarantee"].startswith("best local minimum over")
+    assert body["guarantee"] == "upper-bound" and body["exact_margin"] is None
+    assert body["guarantee_detail"].startswith("best local minimum over")
     assert body["search"]["complete"] is True and body["search"]["starts_run"] > 0
     assert abs(body["nearest"]["crank"] - body["nearest"]["rod"]) < 1e-7
     conf = body["critical_configuration"]

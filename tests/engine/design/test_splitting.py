@@ -118,3 +118,86 @@ def test_design_rejects_bad_margin_and_max_change(margin, max_change, loc):
     with pytest.raises(InvalidRequest) as info:
         design(FOUR_BAR, CRIT["four-bar"], [Target(0, 1)], ["L2"], margin, max_change)
     assert info.value.loc == (loc,)
+
+
+def _retrace(linkage, cp, s, d_l):
+    """The pairing that tracing the perturbed linkage finds at branch point ``cp``."""
+    scale = float(np.median(linkage.lengths))
+    lam = float(np.abs(cp.analysis.q_eigenvalues).min())
+    radius = float(np.clip(4 * np.sqrt(abs(s.delta) / lam), 0.05 * scale, 0.3 * scale))
+    return retraced_pairing(linkage.with_lengths(linkage.lengths + d_l), cp, radius, TOL)
+
+
+def _four_bar_signs(cp) -> np.ndarray:
+    """At a collinear branch point of the four-bar (P1, P2, A, B on the x axis),
+    ``P2 - P1 = (A - P1) + (B - A) + (P2 - B)`` reads ``a = s . (L1, L2, L3)`` with ``s_i`` the
+    directions of the three bars along x: the lengths stay critical, with this point a branch
+    point, exactly where ``s . dL = 0`` (a plane: the Grashof equality is linear)."""
+    p1, p2, a, b = FOUR_BAR.positions_of(cp.u)
+    return np.sign([a[0] - p1[0], b[0] - a[0], p2[0] - b[0]])
+
+
+@pytest.mark.parametrize("unit", [2.0**-7, 2.0**-13])
+@pytest.mark.parametrize("point", [0, 1, 2])
+def test_a_length_change_along_a_critical_set_leaves_the_sign_undecided(point, unit):
+    """``dL`` with ``s . dL = 0`` exactly (dyadic values: no rounding in the sum) keeps branch
+    point ``point`` exactly critical (Delta = 0): it reports sign 0 and no pairing, whatever
+    rounding gives ``delta``; the other two points move off their critical sets and keep a
+    resolved sign that re-tracing confirms (at the small change)."""
+    crit = CRIT["four-bar"]
+    s = _four_bar_signs(crit[point])
+    assert abs(s @ FOUR_BAR.lengths - 1.0) < 1e-9  # a = 1: the geometry's relation holds
+    # orthogonal to s in exact arithmetic (2 - 1 - 1); for any other sign pattern s',
+    # |s' . d_l| >= 2 unit
+    d_l = unit * np.array([2 * s[0], -s[1], -s[2]])
+    assert s @ d_l == 0.0
+    for k, cp in enumerate(crit):
+        sp = split(FOUR_BAR, k, cp, d_l)
+        if k == point:
+            assert sp.sign == 0 and sp.connects == [], (k, sp.delta, sp.delta_error)
+            assert abs(sp.delta) <= sp.delta_error
+            continue
+        other = _four_bar_signs(cp)
+        assert abs(other @ d_l) >= 2 * unit  # this point's lengths are no longer critical
+        assert sp.sign == np.sign(sp.delta) and abs(sp.delta) > sp.delta_error
+        assert len(sp.connects) == 2
+        if unit < 1e-3:  # the re-trace's radius is made for small changes
+            assert _retrace(FOUR_BAR, cp, sp, d_l) == sp.connects, (k, d_l)
+
+
+@pytest.mark.parametrize("change", [{"r1": 0.05}, {"r1": 0.03, "L1": -0.02}, {"L1": 1e-4}])
+def test_three_rotor_bars_a_branch_point_does_not_stress_leave_it_undecided(change):
+    """The issue's case (r1 + 0.05 at the twelve branch points) and two more: where the tip A
+    is not on the line P1-B, equilibrium at A gives r1 and L1 no stress, the point stays
+    exactly critical when only r1 and L1 change, and its Delta (rounding, 1e-19 or 1e-34 in
+    the issue) has sign 0; the points where A is on that line are resolved and re-tracing
+    (dL = 1e-4 only: slow for the larger changes) confirms the pairing."""
+    crit = CRIT["three-rotor"]
+    d_l = length_change(THREE_ROTOR, change)
+    undecided = resolved = 0
+    for k, cp in enumerate(crit):
+        pos = THREE_ROTOR.positions_of(cp.u)
+        p1, a, b = pos[0], pos[3], pos[4]
+        e, f = a - p1, b - a
+        on_line = abs(e[0] * f[1] - e[1] * f[0]) < 1e-6
+        sp = split(THREE_ROTOR, k, cp, d_l)
+        if not on_line:
+            assert sp.sign == 0 and sp.connects == [], (k, sp.delta, sp.delta_error)
+            undecided += 1
+            continue
+        assert sp.sign != 0 and len(sp.connects) == 2, (k, sp.delta, sp.delta_error)
+        assert sp.delta_error < 0.01 * abs(sp.delta)
+        if max(abs(v) for v in change.values()) <= 1e-4:
+            assert _retrace(THREE_ROTOR, cp, sp, d_l) == sp.connects, k
+        resolved += 1
+    assert undecided == 6 and resolved == 6
+
+
+def test_delta_error_is_rounding_scale_for_small_changes():
+    """A resolved sign's error scale is far below Delta for the small changes the design loop
+    makes (dL = 1e-4: Delta about 1e-4, its error a few 1e-12 at most: the model's third-order
+    term is 1e-12 and the rest is rounding)."""
+    crit = CRIT["four-bar"]
+    for k, cp in enumerate(crit):
+        sp = split(FOUR_BAR, k, cp, length_change(FOUR_BAR, {"L2": 1e-4}))
+        assert 0 < sp.delta_error < 1e-10 and abs(sp.delta) > 1e-5

@@ -1,13 +1,16 @@
-"""The closed-form component count of rotor chains against full enumeration by the tracer."""
+"""The closed-form component count of rotor chains against full enumeration by the tracer, and
+of gated chains (with the gate decision) against dense sampling with circle intersections."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from engine.catalogue.presets import build_preset, circle_intersection
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
-from engine.space.chain_count import chain_components
+from engine.space.chain_count import chain_components, gate_decision, gated_chain_components
 from engine.space.configuration_space import SpaceOptions, explore
 
 
@@ -136,3 +139,150 @@ def test_search_skipped_where_the_rules_prove_smoothness(n: int) -> None:
     gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1}), near_misses=False,
                     options=SpaceOptions(max_components=2))
     assert "critical_search" not in gated.search
+
+
+# -- gated chains against dense sampling --------------------------------------------------------
+
+def _meet(c0: np.ndarray, r0: float, c1: np.ndarray, r1: float, side: float) -> np.ndarray:
+    """Closed-form intersection of circles (c0, r0) and (c1, r1), (N, 2) centres, on ``side``
+    of the line from c0 to c1 (NaN where they do not meet)."""
+    d = c1 - c0
+    dist = np.hypot(d[:, 0], d[:, 1])
+    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
+    with np.errstate(invalid="ignore"):
+        h = np.sqrt(r0**2 - along**2)
+    unit = d / dist[:, None]
+    normal = np.column_stack([-unit[:, 1], unit[:, 0]])
+    return c0 + along[:, None] * unit + side * h[:, None] * normal
+
+
+def sampled_gated_chain(n: int, a: float, r: float, coupler: float, gate: int, d: float, l1: float,
+                        l2: float, samples: int = 3000) -> tuple[int, bool]:
+    """Components of the gated chain and whether any rotor completes a turn on one, by dense
+    sampling: the gate angle at ``samples`` values, every other vertex by closed-form circle
+    intersections (the slider at ``P_g + (0, -+D)``, ``R`` and every tip outwards on either side
+    of its centre line), one node per sample and choice of sides that exists. Nodes of the same
+    choices at neighbouring samples are joined; where one intersection stops existing between
+    two samples (a fold) the two sides of that intersection are joined at the last sample.
+    Windings: each rotor's angle is unwound along a spanning tree of each component; an edge
+    that closes a loop with a 2 pi jump is a full turn."""
+    theta = 2 * np.pi * np.arange(samples) / samples
+    pins = [np.array([k * a, 0.0]) for k in range(n)]
+    tip_g = pins[gate] + r * np.column_stack([np.cos(theta), np.sin(theta)])
+    right, left = list(range(gate + 1, n)), list(range(gate - 1, -1, -1))
+    steps = 2 + len(right) + len(left)  # slider, R, then the chain outwards
+    labels = 2 ** steps
+    exists = np.zeros((samples, labels), dtype=bool)
+    step_ok = np.zeros((steps, samples, labels), dtype=bool)
+    angles = np.zeros((n, samples, labels))
+    full = np.ones(samples, dtype=bool)
+    for lab in range(labels):
+        bits = [(lab >> s) & 1 for s in range(steps)]
+        sign = [1.0 if b else -1.0 for b in bits]
+        g = np.tile(pins[gate] + np.array([0.0, sign[0] * d]), (samples, 1))
+        ok = full.copy()
+        step_ok[0, :, lab] = ok
+        rk = _meet(tip_g, l2, g, l1, sign[1])
+        ok = ok & ~np.isnan(rk[:, 0])
+        step_ok[1, :, lab] = ok
+        tips = {gate: tip_g}
+        for s, (k, prev) in enumerate([(k, k - 1) for k in right] + [(k, k + 1) for k in left]):
+            tip = _meet(tips[prev], coupler, np.tile(pins[k], (samples, 1)), r,
+                        sign[2 + s] * (1.0 if k > gate else -1.0))
+            ok = ok & ~np.isnan(tip[:, 0])
+            step_ok[2 + s, :, lab] = ok
+            tips[k] = tip
+        exists[:, lab] = ok
+        for k in range(n):
+            v = tips[k] - pins[k]
+            angles[k, :, lab] = np.arctan2(v[:, 1], v[:, 0])
+    node = np.arange(samples * labels).reshape(samples, labels)
+    rows, cols = [], []
+    nxt = np.roll(np.arange(samples), -1)
+    both = exists & exists[nxt]
+    rows.append(node[both])
+    cols.append(node[nxt][both])
+    for s in range(1, steps):  # folds of step s: it exists here, upstream exists next door
+        bit = 1 << s
+        lab = np.array([x for x in range(labels) if not x & bit])
+        for other in (nxt, np.roll(np.arange(samples), 1)):
+            upstream = step_ok[s - 1][other][:, lab]
+            fold = step_ok[s][:, lab] & upstream & ~step_ok[s][other][:, lab]
+            fold &= exists[:, lab] & exists[:, lab | bit]
+            rows.append(node[:, lab][fold])
+            cols.append(node[:, lab | bit][fold])
+    r_idx, c_idx = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(r_idx)), (r_idx, c_idx)),
+                       shape=(samples * labels,) * 2).tocsr()
+    count, comp = connected_components(graph, directed=False)
+    live = exists.ravel()
+    components = len(np.unique(comp[live]))
+    flat = angles.reshape(n, -1)
+    pot = np.zeros_like(flat)
+    seen = np.zeros(samples * labels, dtype=bool)
+    for root in np.flatnonzero(live):
+        if seen[root]:
+            continue
+        order, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
+        seen[order] = True
+        pot[:, root] = flat[:, root]
+        for v in order[1:]:
+            u = pred[v]
+            pot[:, v] = pot[:, u] + np.angle(np.exp(1j * (flat[:, v] - flat[:, u])))
+    inc = np.angle(np.exp(1j * (flat[:, c_idx] - flat[:, r_idx])))
+    jump = np.round((pot[:, c_idx] - pot[:, r_idx] - inc) / (2 * np.pi))
+    return components, bool(np.any(jump != 0))
+
+
+GATED = [  # (n, a, r, l, gate, D, L1, L2): the gate four-bar's critical D are 1.5, 2.5, 5.5
+    (3, 1.0, 1.5, 1.5, 1, 1.2, 2.0, 2.0),   # Grashof double crank: ungated
+    (4, 1.0, 1.5, 1.5, 1, 2.0, 2.0, 2.0),   # crank-rocker, the paper's red side of 5a/2
+    (4, 1.0, 1.5, 1.5, 1, 2.9, 2.0, 2.0),   # non-Grashof, the blue side: gated
+    (5, 1.0, 1.5, 1.5, 2, 2.4, 2.0, 2.0),   # just below 5a/2
+    (5, 1.0, 1.5, 1.5, 2, 2.6, 2.0, 2.0),   # just above
+    (6, 1.0, 1.5, 1.5, 3, 4.0, 2.0, 2.0),   # far above
+    (4, 1.0, 1.5, 1.5, 2, 2.2, 1.2, 2.0),   # Grashof, L1 the crank: two circuits, gated
+    (3, 1.0, 1.2, 1.2, 1, 2.0, 1.7, 2.0),   # another chain (r = l = 1.2 a), ungated
+    (5, 2.0, 2.6, 2.6, 1, 3.0, 3.1, 2.8),   # another scale and gate: Grashof (D + r - L1 - L2
+    (5, 2.0, 2.6, 2.6, 1, 3.6, 3.1, 2.8),   # = -0.3), then not (+0.3): the two sides of it
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", GATED, ids=lambda c: "-".join(f"{v:g}" for v in c))
+def test_gated_chain_count_and_gate_against_dense_sampling(case):
+    """The closed-form count and gate decision against the sampled configuration space."""
+    n, a, r, coupler, gate, d, l1, l2 = case
+    lk = build_preset("gated-kl-chain", {"n": n, "a": a, "r": r, "l": coupler, "gate": gate,
+                                         "D": d, "L1": l1, "L2": l2})
+    count = gated_chain_components(lk)
+    decision = gate_decision(lk)
+    components, turns = sampled_gated_chain(*case)
+    assert count is not None and count.components == components, (count, components)
+    assert decision.gated is (not turns), decision
+
+
+def test_the_paper_gate_threshold_at_five_halves():
+    """r = l = 3a/2, L1 = L2 = 2a: ungated with 2^(n+1) components below D = 5a/2, gated with
+    2^n above (the issue's 4-rotor numbers: 32 and 16)."""
+    for d, expected, gated in ((2.4, 32, False), (2.6, 16, True)):
+        lk = build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": d})
+        count = gated_chain_components(lk)
+        assert count is not None and count.components == expected
+        assert gate_decision(lk).gated is gated
+
+
+def test_undecided_gates_say_why():
+    """A chain not driven from the gate rotor (couplers shorter than the pin spacing: a cell
+    whose rotors do not turn fully) and critical gate lengths (D = 5a/2): None with a reason,
+    and no count."""
+    lk = build_preset("gated-kl-chain", {"n": 4, "gate": 1, "r": 0.9, "l": 0.9, "D": 2.0,
+                                         "L1": 1.5, "L2": 1.5})
+    assert gated_chain_components(lk) is None
+    dec = gate_decision(lk)
+    assert dec.gated is None and "not driven" in dec.reason
+    critical = build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 2.5})
+    assert gated_chain_components(critical) is None
+    dec = gate_decision(critical)
+    assert dec.gated is None and "critical" in dec.reason
+    assert gate_decision(build_preset("kl-chain", {"n": 4})).gated is None
