@@ -22,7 +22,7 @@ def json_name(f: dataclasses.Field[Any]) -> str:
 
 
 @cache
-def _hints(cls: type) -> dict[str, Any]:
+def _hints(cls: Any) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
@@ -39,7 +39,7 @@ def build(cls: type[T], data: Any) -> T:
 
 def generic(cls: type[T], data: Mapping[str, Any]) -> T:
     """The field-by-field construction that ``Model.from_json`` does unless a model has its own."""
-    hints = _hints(cls)
+    hints = _hints(typing.cast(Any, cls))
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
         if f.name == "raw":
@@ -83,7 +83,8 @@ def _union(args: tuple[Any, ...], value: Any) -> Any:
     if len(options) == 1:
         return convert(options[0], value)
     for option in options:  # dataclasses: the first whose required keys are all present
-        if dataclasses.is_dataclass(option) and isinstance(value, Mapping):
+        if isinstance(option, type) and dataclasses.is_dataclass(option) \
+                and isinstance(value, Mapping):
             required = {json_name(f) for f in dataclasses.fields(option)
                         if f.default is dataclasses.MISSING
                         and f.default_factory is dataclasses.MISSING}

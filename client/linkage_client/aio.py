@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Coroutine, Mapping, Sequence
 from types import TracebackType
-from collections.abc import Coroutine
 from typing import Any, TypeVar
 
 import httpx
@@ -40,8 +39,8 @@ Opts = Mapping[str, Any] | None
 
 
 class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
-    """The service over HTTP without blocking an event loop, one method per operation (``analyseRigidity`` is
-    ``analyse_rigidity``), answers as typed models with numpy arrays.
+    """The service over HTTP without blocking an event loop: the methods of ``Client``, each a
+    coroutine (``await client.analyse_rigidity(linkage)``).
 
     Parameters
     ----------
@@ -65,7 +64,8 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
     """
 
     def __init__(self, base_url: str = DEFAULT_URL, *, timeout: float = 120.0,
-                 retry: RetryPolicy | None = None, transport: httpx.AsyncBaseTransport | None = None,
+                 retry: RetryPolicy | None = None,
+                 transport: httpx.AsyncBaseTransport | None = None,
                  http: httpx.AsyncClient | None = None) -> None:
         self.retry = retry if retry is not None else RetryPolicy()
         self._own = http is None
@@ -134,8 +134,9 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
         """Components as ``(n, V, d)`` arrays (asked compact unless ``compact=False``)."""
         return await self._run(ops.configuration_space(linkage, options, tolerances, compact))
 
-    async def predict_splitting(self, linkage: ops.LinkageIn, perturbation: Mapping[str, float], *,
-                          options: Opts = None, tolerances: Opts = None) -> SplittingResult:
+    async def predict_splitting(self, linkage: ops.LinkageIn,
+                                perturbation: Mapping[str, float], *, options: Opts = None,
+                                tolerances: Opts = None) -> SplittingResult:
         return await self._run(ops.splitting(linkage, perturbation, options, tolerances))
 
     async def compute_robustness_margin(self, linkage: ops.LinkageIn, *,
@@ -144,16 +145,16 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
                                   tolerances: Opts = None) -> RobustnessResult:
         return await self._run(ops.robustness(linkage, adjustable, method, options, tolerances))
 
-    async def map_critical_values(self, linkage: ops.LinkageIn, axes: Sequence[Mapping[str, Any]], *,
-                            options: Opts = None,
-                            tolerances: Opts = None) -> CriticalValuesResult:
+    async def map_critical_values(self, linkage: ops.LinkageIn,
+                                  axes: Sequence[Mapping[str, Any]], *, options: Opts = None,
+                                  tolerances: Opts = None) -> CriticalValuesResult:
         """``axes``: two ``{"bar": id, "min": x, "max": y}``."""
         return await self._run(ops.critical_values(linkage, axes, options, tolerances))
 
-    async def design_splitting(self, linkage: ops.LinkageIn, targets: Sequence[Mapping[str, Any]],
-                         adjustable: Sequence[str], *, max_change: float | None = None,
-                         margin: float | None = None, options: Opts = None,
-                         tolerances: Opts = None) -> DesignResult:
+    async def design_splitting(self, linkage: ops.LinkageIn,
+                               targets: Sequence[Mapping[str, Any]], adjustable: Sequence[str],
+                               *, max_change: float | None = None, margin: float | None = None,
+                               options: Opts = None, tolerances: Opts = None) -> DesignResult:
         return await self._run(ops.design(linkage, targets, adjustable, max_change, margin, options,
                                     tolerances))
 
@@ -168,12 +169,13 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
                                  tolerances: Opts = None) -> str:
         return await self._run(ops.draw_space(linkage, axes, options, tolerances))
 
-    async def draw_critical_values(self, linkage: ops.LinkageIn, axes: Sequence[Mapping[str, Any]], *,
-                             options: Opts = None, tolerances: Opts = None) -> str:
+    async def draw_critical_values(self, linkage: ops.LinkageIn,
+                                   axes: Sequence[Mapping[str, Any]], *, options: Opts = None,
+                                   tolerances: Opts = None) -> str:
         return await self._run(ops.draw_critical_values(linkage, axes, options, tolerances))
 
-    async def draw_splitting(self, linkage: ops.LinkageIn, perturbation: Mapping[str, float], *,
-                       options: Opts = None, tolerances: Opts = None) -> str:
+    async def draw_splitting(self, linkage: ops.LinkageIn, perturbation: Mapping[str, float],
+                             *, options: Opts = None, tolerances: Opts = None) -> str:
         return await self._run(ops.draw_splitting(linkage, perturbation, options, tolerances))
 
     # ------------------------------------------------------------ jobs and sweeps
@@ -207,14 +209,14 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
                                   compute, options, tolerances)
         return await self._run(ops.create_sweep(body))
 
-    async def wait(self, job: Job | str, *, progress: ProgressArg = None, poll_s: float = 0.25,
-             timeout_s: float | None = None) -> Job:
+    async def wait(self, job: Job | str, *, progress: ProgressArg = None,
+                   poll_s: float = 0.25, timeout_s: float | None = None) -> Job:
         """Poll until ``job`` is finished; the finished job (result included).
 
         ``progress``: a callback given the job at every change, or True for a text bar.
-        On ``timeout_s``, KeyboardInterrupt or the task's cancellation the job is cancelled on the service (no work is
-        left running) and JobTimeout or the interrupt is raised; a failed or cancelled job
-        raises JobFailed or JobCancelled.
+        On ``timeout_s``, KeyboardInterrupt or the task's cancellation the job is cancelled on
+        the service (no work is left running) and JobTimeout, the interrupt or the
+        CancelledError is raised; a failed or cancelled job raises JobFailed or JobCancelled.
         """
         job_id = job if isinstance(job, str) else job.id
         report = Changes(reporter(progress))
@@ -233,15 +235,17 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
             await asyncio.shield(self.cancel_job(job_id))
             raise
 
-    async def run_job(self, operation: str, body: Mapping[str, Any], *, progress: ProgressArg = None,
-                timeout_s: float | None = None) -> Any:
+    async def run_job(self, operation: str, body: Mapping[str, Any], *,
+                      progress: ProgressArg = None, timeout_s: float | None = None) -> Any:
         """Create a job, wait for it, and answer its result as the operation's model."""
-        job = await self.wait(await self.create_job(operation, body), progress=progress, timeout_s=timeout_s)
+        job = await self.wait(await self.create_job(operation, body), progress=progress,
+                              timeout_s=timeout_s)
         return result_of(job.operation, job.result)
 
-    async def sweep(self, body: Mapping[str, Any] | None = None, *, progress: ProgressArg = None,
-              timeout_s: float | None = None, **keywords: Any) -> SweepResult:
+    async def sweep(self, body: Mapping[str, Any] | None = None, *,
+                    progress: ProgressArg = None, timeout_s: float | None = None,
+                    **keywords: Any) -> SweepResult:
         """``create_sweep`` then ``wait``: the sweep's rows and summary."""
         job = await self.wait(await self.create_sweep(body, **keywords), progress=progress,
                         timeout_s=timeout_s)
-        return SweepResult.from_json(job.result)
+        return SweepResult.from_json(job.result or {})

@@ -250,4 +250,4 @@ class Client(PresetRoutes[Linkage]):
         """``create_sweep`` then ``wait``: the sweep's rows and summary."""
         job = self.wait(self.create_sweep(body, **keywords), progress=progress,
                         timeout_s=timeout_s)
-        return SweepResult.from_json(job.result)
+        return SweepResult.from_json(job.result or {})

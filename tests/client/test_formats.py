@@ -91,7 +91,7 @@ def test_networkx_round_trip(presets: dict[str, Linkage]) -> None:
         pos = nx.get_node_attributes(graph, "pos")  # what networkx.draw takes
         assert all(pos[v.id] == tuple(v.position) for v in lk.vertices)
         lengths = lk.lengths()
-        for u, v, data in graph.edges(data=True):  # networkx's own view of the bars
+        for _, _, data in graph.edges(data=True):  # networkx's own view of the bars
             assert data["length"] == lengths[data["id"]]
         back = F.from_networkx(graph)
         assert_same(lk, back)
