@@ -7,14 +7,16 @@ import inspect
 import itertools
 import math
 import re
+import tomllib
 import xml.etree.ElementTree as ET
 from typing import Any
 
+import linkage_client
 import numpy as np
 import pytest
 from linkage_client import AsyncClient, Client, Labelled, Linkage, ProblemError
 
-from tests.client.conftest import OPENAPI, operations
+from tests.client.conftest import OPENAPI, ROOT, operations
 
 FAST = {"angles": 24, "random_starts": 4}
 
@@ -82,6 +84,8 @@ def test_presets_every_route_and_the_generic_one(sync: Client) -> None:
 def test_health_and_metrics(sync: Client) -> None:
     health = sync.get_health()
     assert health.status == "ok" and health.version == OPENAPI["info"]["version"]
+    client_project = tomllib.loads((ROOT / "client" / "pyproject.toml").read_text())["project"]
+    assert linkage_client.__version__ == client_project["version"] == health.version
     assert "linkage_requests_total" in sync.get_metrics()
 
 
