@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from collections.abc import Coroutine, Mapping, Sequence
 from types import TracebackType
@@ -13,7 +14,7 @@ import httpx
 from linkage_client import _ops as ops
 from linkage_client._http import Call, RetryPolicy, raise_for_problem
 from linkage_client._presets import PresetRoutes
-from linkage_client.errors import JobTimeout
+from linkage_client.errors import ClientError, JobTimeout
 from linkage_client.models import (
     CriticalPointsResult,
     CriticalValuesResult,
@@ -232,7 +233,8 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
                 await asyncio.sleep(poll_s)
         except (KeyboardInterrupt, asyncio.CancelledError):
             # the caller gave up (task cancelled): stop the job too, shielded from the cancel
-            await asyncio.shield(self.cancel_job(job_id))
+            with contextlib.suppress(ClientError, httpx.HTTPError):  # the cancel comes first
+                await asyncio.shield(self.cancel_job(job_id))
             raise
 
     async def run_job(self, operation: str, body: Mapping[str, Any], *,

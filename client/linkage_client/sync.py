@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Mapping, Sequence
 from types import TracebackType
@@ -12,7 +13,7 @@ import httpx
 from linkage_client import _ops as ops
 from linkage_client._http import Call, RetryPolicy, raise_for_problem
 from linkage_client._presets import PresetRoutes
-from linkage_client.errors import JobCancelled, JobFailed, JobTimeout
+from linkage_client.errors import ClientError, JobCancelled, JobFailed, JobTimeout
 from linkage_client.models import (
     CriticalPointsResult,
     CriticalValuesResult,
@@ -236,7 +237,8 @@ class Client(PresetRoutes[Linkage]):
                     raise JobTimeout(self.cancel_job(job_id), time.monotonic() - start)
                 time.sleep(poll_s)
         except KeyboardInterrupt:
-            self.cancel_job(job_id)
+            with contextlib.suppress(ClientError, httpx.HTTPError):  # the interrupt comes first
+                self.cancel_job(job_id)
             raise
 
     def run_job(self, operation: str, body: Mapping[str, Any], *, progress: ProgressArg = None,

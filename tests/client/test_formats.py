@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import json
 import math
+import string
 from collections.abc import Iterator
 from typing import Any
 
 import networkx as nx
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from linkage_client import Client, Linkage
 from linkage_client import formats as F
 from pylinkage.mechanism import Mechanism, mechanism_from_dict, mechanism_to_dict
@@ -275,3 +278,44 @@ def test_fold_crease_pattern_without_our_fields() -> None:
     assert len(braced.bars) == 6 and braced.dimension == 3
     with pytest.raises(ValueError, match="abstract"):
         F.from_fold({"edges_vertices": [[0, 1]], "edges_length": [1.0]})
+
+
+# ---------------------------------------------------------------- property: any linkage
+
+IDS = st.text(alphabet=string.ascii_letters + string.digits + "-_:.", min_size=1, max_size=6)
+
+
+@st.composite
+def linkages(draw: st.DrawFn) -> Linkage:
+    """Connected linkages with arbitrary ids, coordinates, pins and sliders (2D), and lengths
+    given or not."""
+    d = draw(st.sampled_from([2, 3]))
+    n = draw(st.integers(2, 8))
+    ids = draw(st.lists(IDS, min_size=n, max_size=n, unique=True))
+    coord = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+    pos = [draw(st.lists(coord, min_size=d, max_size=d)) for _ in range(n)]
+    pairs = {frozenset((k, draw(st.integers(0, k - 1)))) for k in range(1, n)}
+    extra = draw(st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)),
+                          max_size=n))
+    pairs |= {frozenset(p) for p in extra if p[0] != p[1]}
+    kinds: list[Any] = [False, True] + ([[True, False], [False, True]] if d == 2 else [])
+    vertices = [{"id": ids[k], "position": pos[k], "fixed": draw(st.sampled_from(kinds))}
+                for k in range(n)]
+    bars = []
+    for j, pair in enumerate(sorted(tuple(sorted(p)) for p in pairs)):
+        bar: dict[str, Any] = {"id": f"b{j}", "ends": [ids[pair[0]], ids[pair[1]]]}
+        if draw(st.booleans()):
+            bar["length"] = distance(pos[pair[0]], pos[pair[1]])
+        bars.append(bar)
+    return Linkage.from_json({"dimension": d, "vertices": vertices, "bars": bars})
+
+
+@settings(max_examples=60, deadline=None)
+@given(linkages())
+def test_every_format_round_trips_any_linkage(lk: Linkage) -> None:
+    assert_same(lk, F.from_networkx(F.to_networkx(lk)))
+    assert_same(lk, F.from_pyrigi(F.to_pyrigi(lk)))
+    assert_same(lk, F.from_fold(json.loads(json.dumps(F.to_fold(lk)))))
+    if lk.dimension == 2:
+        mechanism = mechanism_from_dict(F.to_pylinkage(lk))
+        assert_same(lk, F.from_pylinkage(mechanism))
