@@ -84,7 +84,10 @@ async def busy_then(busy_app: Any, retry: RetryPolicy) -> tuple[Any, float, int]
         chain = await client.get_preset_kl_chain(n=40)
         slow = asyncio.create_task(raw.post("/v1/analysis/configuration-space", json={
             "linkage": chain.to_json(), "options": {"max_components": 1000}}))
-        await asyncio.sleep(0.5)
+        deadline = time.monotonic() + 60
+        while busy_app.state.engine_pool.admitted < 1:  # the slow one holds the only place
+            assert time.monotonic() < deadline and not slow.done()
+            await asyncio.sleep(0.05)
         four = await client.get_preset_four_bar()
         start = time.monotonic()
         try:

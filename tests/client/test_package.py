@@ -9,6 +9,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,7 +19,7 @@ import numpy as np
 import pytest
 from linkage_client import AsyncClient, Client
 
-from tests.service.test_uvicorn_process import free_port, stop, wait_until_ready
+from tests.service.test_uvicorn_process import free_port, stop
 
 ROOT = Path(__file__).resolve().parents[2]
 CLIENT = ROOT / "client"
@@ -69,6 +70,26 @@ def test_client_builds_as_its_own_distribution(tmp_path: Path) -> None:
     assert sorted(r.split(">")[0] for r in requires) == ["httpx", "numpy"]
 
 
+#: Generous: the machine is shared (a load of 10 on 2 cores seen while writing this), and the
+#: start loads the compiled kernels and warms the engine worker.
+STARTUP_TIMEOUT_S = 120.0
+
+
+def wait_until_ready(base: str, proc: subprocess.Popen[bytes], stderr: Path) -> None:
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    with httpx.Client(base_url=base) as probe:
+        while time.monotonic() < deadline:
+            assert proc.poll() is None, stderr.read_text(errors="replace")
+            try:
+                if probe.get("/health", timeout=1.0).status_code == 200:
+                    return
+            except httpx.TransportError:
+                pass
+            time.sleep(0.1)
+    raise AssertionError(f"no /health after {STARTUP_TIMEOUT_S} s:\n"
+                         + stderr.read_text(errors="replace"))
+
+
 @pytest.fixture(scope="module")
 def served() -> Iterator[str]:
     """The README's service: a real uvicorn on a free loopback port, one engine worker."""
@@ -83,8 +104,7 @@ def served() -> Iterator[str]:
                 cwd=ROOT, stdout=subprocess.DEVNULL, stderr=err,
                 env={**os.environ, "LINKAGE_WORKERS": "1"})
         try:
-            with httpx.Client(base_url=base) as probe:
-                wait_until_ready(probe, proc, stderr)
+            wait_until_ready(base, proc, stderr)
             yield base
         finally:
             stop(proc)
