@@ -1,4 +1,5 @@
-"""Static checks run with the test suite: ruff on the code, mypy on engine/ and service/."""
+"""Static checks run with the test suite: ruff on the code, mypy on engine/, service/ and the
+client (client/linkage_client)."""
 
 import subprocess
 import sys
@@ -17,10 +18,13 @@ def run(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_ruff():
-    res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts", "bench")
+    res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts", "bench",
+              "client")
     assert res.returncode == 0, res.stdout + res.stderr
 
 
 def test_mypy():
     res = run(sys.executable, "-m", "mypy", "engine", "service")
+    assert res.returncode == 0, res.stdout + res.stderr
+    res = run(sys.executable, "-m", "mypy", "client/linkage_client")
     assert res.returncode == 0, res.stdout + res.stderr

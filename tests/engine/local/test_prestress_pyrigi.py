@@ -1,5 +1,5 @@
 """Agreement with PyRigi 1.3 ``is_prestress_stable`` / ``is_second_order_rigid`` (optional:
-skips when PyRigi, from the ``bench`` extra, is not installed).
+skips when PyRigi, from the ``test`` and ``bench`` extras, is not installed).
 
 PyRigi decides only where there is one flex or one stress (it raises otherwise); there both
 answers must agree. Where it raises, ours must still decide and carry a certificate that checks

@@ -1,0 +1,298 @@
+"""The answers of the analysis and design operations."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Self
+
+import numpy as np
+
+from linkage_client._build import Model
+from linkage_client.labelled import Labelled
+from linkage_client.models.linkage import SearchReport, TangentForm, TolerancesUsed
+
+JSON = dict[str, Any]
+
+
+def _raw() -> Any:
+    return field(default_factory=dict, repr=False, compare=False)
+
+
+# ---------------------------------------------------------------- first and second order
+
+
+@dataclass(frozen=True)
+class RigidityResult(Model):
+    """``POST /v1/analysis/rigidity``: vectors as ``(V, d)`` arrays, stresses as ``(E,)``."""
+
+    projection_residual: float
+    input_residual: float
+    projection_distance: float
+    configuration: Labelled
+    rank: int
+    n_free: int
+    n_constraints: int
+    expected_dof: int
+    dof: int
+    critical: bool
+    singular_values: np.ndarray
+    singular_values_complete: bool
+    zero_modes: list[Labelled]
+    trivial_motions: int
+    self_stresses: list[Labelled]
+    tangent_form: TangentForm | None
+    method: str
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class StressCertificate(Model):
+    stress: Labelled
+    min_eigenvalue: float | None
+
+
+@dataclass(frozen=True)
+class DualCertificate(Model):
+    dual: np.ndarray
+    flexes: list[Labelled]
+    dual_residual: float
+
+
+@dataclass(frozen=True)
+class SecondOrderFlex(Model):
+    velocity: Labelled
+    acceleration: Labelled
+
+
+@dataclass(frozen=True)
+class SecondOrderResult(Model):
+    """``POST /v1/analysis/second-order``."""
+
+    projection_residual: float
+    input_residual: float
+    projection_distance: float
+    configuration: Labelled
+    kind: str
+    reason: str | None
+    critical: bool
+    self_stress: Labelled | None
+    zero_modes: list[Labelled]
+    q: np.ndarray | None
+    q_eigenvalues: np.ndarray | None
+    tangents: list[Labelled]
+    tangent_coefficients: np.ndarray
+    prestress_stable: bool | None
+    second_order_rigid: bool | None
+    stability_reason: str
+    certificate: StressCertificate | DualCertificate | None
+    second_order_flex: SecondOrderFlex | None
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+# ---------------------------------------------------------------- configuration spaces
+
+
+@dataclass(frozen=True)
+class CriticalPoint(Model):
+    index: int
+    configuration: Labelled
+    kind: str
+    reason: str | None
+    self_stress: Labelled | None
+    zero_modes: list[Labelled]
+    q_eigenvalues: np.ndarray | None
+    tangents: list[Labelled]
+    residual: float
+    stress_residual: float
+
+
+@dataclass(frozen=True)
+class NearMiss(Model):
+    configuration: Labelled
+    singular_gap: float
+    distance: float
+    length_gap: float
+    critical_configuration: Labelled
+
+
+@dataclass(frozen=True)
+class CriticalPointsResult(Model):
+    """``POST /v1/analysis/critical-points``."""
+
+    projection_residual: float
+    input_residual: float
+    projection_distance: float
+    configuration: Labelled
+    critical_points: list[CriticalPoint]
+    near_misses: list[NearMiss]
+    degenerate: bool
+    search: SearchReport
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class Component(Model):
+    """One traced component: ``positions`` ``(n, V, d)`` and ``angles`` ``(n, R)`` arrays.
+
+    Decoded alike from the compact (packed base64) and the default (per-vertex lists) answer.
+    """
+
+    closed: bool
+    through_start: bool
+    positions: Labelled
+    angles: Labelled
+    winding: dict[str, int | None]
+    critical_points: list[int]
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Self:
+        def points(value: Mapping[str, Any]) -> Labelled:
+            if "base64" in value:
+                return Labelled.from_packed(value)
+            return Labelled.from_series(value)
+
+        return cls(closed=data["closed"], through_start=data["through_start"],
+                   positions=points(data["positions"]), angles=points(data["angles"]),
+                   winding=dict(data["winding"]), critical_points=list(data["critical_points"]))
+
+
+@dataclass(frozen=True)
+class Segment(Model):
+    from_: int = field(metadata={"json": "from"})
+    to: int
+    component: int
+    from_ray: int
+    to_ray: int
+
+
+@dataclass(frozen=True)
+class SpaceResult(Model):
+    """``POST /v1/analysis/configuration-space``."""
+
+    projection_residual: float
+    input_residual: float
+    projection_distance: float
+    configuration: Labelled
+    components: list[Component]
+    critical_points: list[CriticalPoint]
+    segments: list[Segment]
+    degenerate: bool
+    search: SearchReport
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class BranchSplit(Model):
+    index: int
+    configuration: Labelled
+    delta: float
+    delta_linear: float
+    shift: np.ndarray
+    sign: int
+    connects: list[list[int]]
+
+
+@dataclass(frozen=True)
+class SplittingResult(Model):
+    """``POST /v1/analysis/splitting``."""
+
+    branch_points: list[BranchSplit]
+    critical_points_found: int
+    search: SearchReport
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class RobustnessSearch(Model):
+    complete: bool
+    reason: str | None
+    time_budget_s: float | None = None
+    starts_planned: int | None = None
+    starts_run: int | None = None
+    critical_points_complete: bool | None = None
+    planes: int | None = None
+
+
+@dataclass(frozen=True)
+class RobustnessResult(Model):
+    """``POST /v1/analysis/robustness``."""
+
+    margin: float | None
+    nearest: dict[str, float]
+    critical_configuration: Labelled
+    starts: int
+    converged: int
+    success: bool
+    message: str
+    method: str
+    guarantee: str
+    search: RobustnessSearch
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class Region(Model):
+    point: np.ndarray
+    components: int | None
+    signature: str
+    cells: int
+
+
+@dataclass(frozen=True)
+class SliceSearch(Model):
+    complete: bool
+    reason: str | None
+    regions_explored: int
+    curves: int
+    resolution: int
+    time_budget_s: float | None = None
+
+
+@dataclass(frozen=True)
+class CriticalValuesResult(Model):
+    """``POST /v1/analysis/critical-values``: each curve a ``(n, 2)`` array."""
+
+    curves: list[np.ndarray]
+    regions: list[Region]
+    search: SliceSearch
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
+@dataclass(frozen=True)
+class Predicted(Model):
+    branch_point: int
+    sign: int
+    delta: float
+    connects: list[list[int]]
+    traced_connects: list[list[int]] | None
+
+
+@dataclass(frozen=True)
+class Conflict(Model):
+    branch_points: list[int]
+    reason: str
+
+
+@dataclass(frozen=True)
+class DesignResult(Model):
+    """``POST /v1/design/splitting``."""
+
+    feasible: bool
+    perturbation: dict[str, float]
+    largest_change: float
+    predicted: list[Predicted]
+    conflicts: list[Conflict]
+    verified: bool | None
+    search: SearchReport
+    tolerances: TolerancesUsed
+    raw: JSON = _raw()
+
+
