@@ -51,7 +51,7 @@ function drawLinkage() {
   const ctx = canvas.getContext("2d");
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   const { linkage, space } = state;
-  if (!linkage) { canvas.dataset.handles = "{}"; return; }
+  if (!linkage || !state.drawable) { canvas.dataset.handles = "{}"; return; }
   const dim = linkage.dimension || 2;
   const pos = currentPositions();
   if (!view.drag) { // a view that holds the whole motion, so that it does not jump
@@ -119,7 +119,7 @@ function canvasPoint(canvas, event) {
  * bar's length, then ask again after a short pause (older requests are aborted). */
 function edit(change) {
   const linkage = state.linkage;
-  if (!linkage) return;
+  if (!linkage || !state.drawable) return;
   const pos = currentPositions();
   const vertices = linkage.vertices.map((v) => ({ ...v, position: pos[v.id].slice() }));
   let bars = linkage.bars.map((b) => ({ ...b }));
@@ -153,7 +153,7 @@ function edit(change) {
 
 function grab(event) {
   const canvas = $("linkage");
-  if (!state.linkage || !view.map) return;
+  if (!state.linkage || !state.drawable || !view.map) return;
   const [x, y] = canvasPoint(canvas, event);
   const handles = JSON.parse(canvas.dataset.handles || "{}");
   const k = canvas.getBoundingClientRect().width / canvas.width;
@@ -200,7 +200,7 @@ function drop() {
 
 /** Keyboard: Tab to the drawing, [ and ] choose a vertex, the arrow keys move it. */
 function linkageKeys(event) {
-  if (!state.linkage) return;
+  if (!state.linkage || !state.drawable) return;
   const n = state.linkage.vertices.length;
   if (event.key === "[" || event.key === "]") {
     view.focus = (view.focus + (event.key === "]" ? 1 : n - 1)) % n;

@@ -19,7 +19,7 @@ function freeBars(linkage) {
 /** The panel's controls for the linkage shown: a bar and its length change, and a target sign
  * per branch point of the configuration space. */
 function splitControls() {
-  const linkage = state.linkage;
+  const linkage = state.drawable ? state.linkage : null;
   const answer = state.space;
   const branch = answer ? answer.critical_points.filter((c) => c.kind === "branch") : [];
   const bars = linkage ? freeBars(linkage) : [];

@@ -207,6 +207,7 @@ async function loadPreset() {
 function showNothing(caption) {
   stopAnimation();
   state.linkage = null;
+  state.drawable = false;
   state.space = null;
   state.at = null;
   state.source = "";
@@ -254,18 +255,28 @@ function useLinkage(linkage, source) {
   state.tasks.clear();
   state.linkage = linkage;
   state.source = source;
-  state.rotors = rotorsOf(linkage);
   state.space = null;
   state.at = null;
-  drawLinkage();
-  spaceAxesChoice(linkage);
-  drawSpace();
   $("space-caption").textContent = "computing…";
   $("animate").disabled = true;
-  for (const f of state.listeners) f(generation, "linkage");
+  // A linkage the viewer cannot draw (a pasted one with a bar to nowhere, say) is still sent:
+  // the service's answer names what is wrong with it.
+  state.drawable = drawable(linkage);
+  state.rotors = state.drawable ? rotorsOf(linkage) : [];
+  if (state.drawable) {
+    drawLinkage();
+    spaceAxesChoice(linkage);
+    for (const f of state.listeners) f(generation, "linkage");
+  } else {
+    for (const f of state.listeners) f(generation, "cleared");
+    drawLinkage();
+    $("linkage-caption").textContent = `${source}: cannot be drawn as given`;
+  }
+  drawSpace();
   call("v1/analysis/configuration-space", { linkage }, { task: "configuration space", generation })
     .then((answer) => {
       if (generation !== state.generation) return;
+      if (!state.drawable) return;
       state.space = answer;
       state.at = nearestPoint(answer, linkage);
       $("animate").disabled = !state.at;
@@ -281,6 +292,18 @@ function useLinkage(linkage, source) {
       drawSpace(err.message);
       for (const f of state.listeners) f(generation, "space-failed");
     });
+}
+
+/** Whether the viewer can draw a linkage: vertices with positions, bars between them. */
+function drawable(linkage) {
+  if (!linkage || !Array.isArray(linkage.vertices) || !Array.isArray(linkage.bars)) return false;
+  const dim = linkage.dimension || 2;
+  const ids = new Set(linkage.vertices.map((v) => v && v.id));
+  return linkage.vertices.every((v) => v && Array.isArray(v.position) &&
+                                v.position.length === dim &&
+                                v.position.every((x) => typeof x === "number")) &&
+    linkage.bars.every((b) => b && Array.isArray(b.ends) && b.ends.length === 2 &&
+                       b.ends.every((e) => ids.has(e)));
 }
 
 /** "3 components" when the search is complete; a bound when it was cut short or capped. */
