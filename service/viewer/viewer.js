@@ -7,7 +7,7 @@ const API = new URL("..", window.location.href); // the service root (the viewer
 const TAU = 2 * Math.PI;
 const COLOURS = ["#1f77b4", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
                  "#bcbd22", "#7f7f7f"];
-const KINDS = { branch: "#d62728", rigid: "#111111", degenerate: "#e66100" };
+const KINDS = { branch: "#d62728", rigid: "#111111", degenerate: "#b34700" };
 const DEBOUNCE_MS = 60; // between the last move of a drag and the request it makes
 const $ = (id) => document.getElementById(id);
 

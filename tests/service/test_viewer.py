@@ -541,7 +541,7 @@ def test_keyboard_reaches_every_control_and_text_is_readable(base_url: str,
         browser.switch_to.active_element.send_keys(Keys.TAB)
         el = browser.switch_to.active_element
         seen.add(el.get_attribute("id") or el.get_attribute("data-segment") or el.tag_name)
-    for wanted in ("preset", "param-L2", "use-linkage", "axis-x", "linkage", "space-x", "space",
+    for wanted in ("preset", "param-L2", "paste-summary", "axis-x", "linkage", "space-x", "space",
                    "split-bar", "split-dl", "split-run", "design-run", "d3-x", "view3d"):
         assert wanted in seen, (wanted, sorted(seen))
     # the drawing by keyboard: choose the joint B and move it: the lengths follow
