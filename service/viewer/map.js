@@ -24,7 +24,7 @@ function mapAxesChoice(linkage) {
 
 /** The body of the map's request for the linkage shown (null without two different bars). */
 function mapRequest() {
-  const linkage = state.linkage;
+  const linkage = state.drawable ? state.linkage : null;
   const [x, y] = [$("axis-x").value, $("axis-y").value];
   if (!linkage || !x || !y || x === y) return null;
   const bars = Object.fromEntries(linkage.bars.map((b) => [b.id, b]));
@@ -225,6 +225,7 @@ function loadMap(generation) {
       `${answer.curves.length} curves${cut}; the star is the linkage`;
     showRegions();
     drawMap();
+    $("map").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
   }).catch((err) => {
     if (err.superseded || generation !== state.generation) return;
     $("map-caption").textContent = `${x} × ${y}: no map`;
@@ -252,8 +253,18 @@ function startMap() {
     $(id).addEventListener("change", () => { if (state.linkage) loadMap(state.generation); });
   }
   state.listeners.push((generation, what) => {
+    // The map waits for the configuration space, which the other panels need first: on two
+    // workers the two searches side by side would each take twice as long.
     if (what === "linkage") {
       mapAxesChoice(state.linkage);
+      mapView.request = null;
+      mapView.answer = null;
+      mapView.margin = null;
+      $("map-caption").textContent = "waiting for the configuration space";
+      $("margin").textContent = "";
+      showRegions();
+      drawMap();
+    } else if ((what === "space" || what === "space-failed") && state.drawable) {
       loadMap(generation);
     } else if (what === "cleared") {
       mapView.request = null; mapView.answer = null; mapView.margin = null;

@@ -274,6 +274,7 @@ def test_dragging_a_joint_and_a_length_redraws_space_and_map(base_url: str, brow
     wait_for(lambda: int(data(browser, "map", "draws") or 0) > map_draws, 30, "the map")
     # from the last move to the space drawn, as the page measured it: within a second
     assert int(data(browser, "space", "latencyMs") or 1e9) < 1000
+    assert int(data(browser, "map", "latencyMs") or 1e9) < 1000
     urls = requested_urls(browser)
     spaces = [u for u in urls if u.endswith("/v1/analysis/configuration-space")]
     assert 1 <= len(spaces) < 8  # debounced: fewer requests than moves
@@ -376,7 +377,10 @@ def element_shot(driver: Any, element_id: str) -> None:
     from selenium.webdriver.common.by import By
 
     ARTIFACTS.mkdir(exist_ok=True)
-    driver.find_element(By.ID, element_id).screenshot(str(ARTIFACTS / f"panel-{element_id}.png"))
+    driver.set_window_size(1400, 2400)  # the whole panel in the viewport
+    element = driver.find_element(By.ID, element_id)
+    js(driver, "arguments[0].scrollIntoView();", element)
+    element.screenshot(str(ARTIFACTS / f"panel-{element_id}.png"))
 
 
 # -- splitting ------------------------------------------------------------------------------------
