@@ -7,6 +7,7 @@
 const TICKS = [[-Math.PI, "−π"], [-Math.PI / 2, "−π/2"], [0, "0"], [Math.PI / 2, "π/2"],
                [Math.PI, "π"]];
 const ARROWS_PER_COMPONENT = 8;
+const ARROWS_AT_MOST = 32; // requests per answer: a chain's 32 components get one arrow each
 const space = { pieces: [], selected: null, arrows: [] };
 
 const wrap = (a) => ((a + Math.PI) % TAU + TAU) % TAU - Math.PI;
@@ -240,10 +241,12 @@ async function loadArrows(generation) {
   if (!answer || (linkage.dimension || 2) !== 2) return;
   const lengths = Object.fromEntries(linkage.bars.map((b) => [b.id, barLength(linkage, b)]));
   const samples = [];
-  answer.components.forEach((comp, k) => {
+  const per = Math.max(1, Math.min(ARROWS_PER_COMPONENT,
+                                    Math.floor(ARROWS_AT_MOST / answer.components.length)));
+  answer.components.slice(0, ARROWS_AT_MOST).forEach((comp, k) => {
     const n = Object.values(comp.positions)[0].length;
-    for (let j = 0; j < ARROWS_PER_COMPONENT; j++) {
-      const i = Math.floor((j + 0.5) * (n - 1) / ARROWS_PER_COMPONENT);
+    for (let j = 0; j < per; j++) {
+      const i = Math.floor((j + 0.5) * (n - 1) / per);
       samples.push({ component: k, index: i, conf: Object.fromEntries(
         Object.entries(comp.positions).map(([v, w]) => [v, w[i]])) });
     }

@@ -465,6 +465,13 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
     # that sample has the number of components its region is labelled with
     assert int(data(browser, "space", "components") or 0) == regions[k][0]
     assert browser.find_elements(By.CSS_SELECTOR, "#params input") == []
+
+    # labels the service may add to a region (tau signs, gated) are shown as given, in the
+    # page's own labelling function; a region not explored in time says so
+    label = js(browser, "return [regionLabel({point: [1, 2], components: 2, signature: 's',"
+               " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
+               " components: null, signature: null, cells: 0, gated: false})];")
+    assert label == ["2 components, tau +-, gated", "? (not explored in time), not gated"]
     assert_stayed_local(browser)
 
 
