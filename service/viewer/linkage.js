@@ -217,3 +217,42 @@ function linkageKeys(event) {
                                   ...p.slice(2)] });
   event.preventDefault();
 }
+
+// -- rigidity at the configuration shown ---------------------------------------------------------
+
+/** First-order (and, at a critical configuration, second-order) readout of the configuration
+ * shown, from /v1/analysis/rigidity and /v1/analysis/second-order; not while animating. */
+function loadReadout(generation) {
+  clearTimeout(view.readoutTimer);
+  const el = $("readout");
+  if (!state.linkage || !state.drawable || state.animation) { el.textContent = ""; return; }
+  view.readoutTimer = setTimeout(async () => {
+    const pos = currentPositions();
+    const linkage = { ...state.linkage, bars: state.linkage.bars.map((b) => ({ ...b,
+      length: barLength(state.linkage, b) })), vertices: state.linkage.vertices.map((v) =>
+      ({ ...v, position: pos[v.id] })) };
+    try {
+      const r = await call("v1/analysis/rigidity", { linkage }, { task: "rigidity", generation });
+      if (generation !== state.generation) return;
+      let text = `here: rank ${r.rank} of J (E = ${r.n_constraints}, M = ${r.n_free}), ` +
+        `${r.dof} zero mode${r.dof === 1 ? "" : "s"}, ${r.self_stresses.length} ` +
+        `self-stress${r.self_stresses.length === 1 ? "" : "es"}, ` +
+        (r.critical ? "critical" : "regular");
+      if (r.tangent_form && r.tangent_form.orientation) {
+        text += `, tangent form orientation ${r.tangent_form.orientation > 0 ? "+1" : "−1"}`;
+      }
+      if (r.critical) {
+        const s = await call("v1/analysis/second-order", { linkage },
+                             { task: "second order", generation });
+        if (generation !== state.generation) return;
+        text += `; second order: ${s.kind}` + (s.prestress_stable === null ? ""
+          : `, prestress stable: ${s.prestress_stable}`);
+      }
+      el.textContent = text;
+      el.dataset.rank = String(r.rank);
+      el.dataset.dof = String(r.dof);
+    } catch (err) {
+      if (!err.superseded) el.textContent = "no readout (see the status line)";
+    }
+  }, 150);
+}

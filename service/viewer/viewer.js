@@ -425,6 +425,10 @@ async function start() {
   for (const button of document.querySelectorAll("[data-figure]")) {
     button.addEventListener("click", () => showFigure(button.dataset.figure));
   }
+  state.listeners.push((generation, what) => {
+    if (what === "at" || what === "space") loadReadout(generation);
+    else $("readout").textContent = "";
+  });
   startSpace();
   startMap();
   startSplitting();

@@ -593,6 +593,17 @@ def test_the_numbers_shown_equal_the_apis(base_url: str, browser: Any) -> None:
     margin = post(base_url, "/v1/analysis/robustness",
                   {"linkage": linkage, "adjustable": ["L2", "L3"]})
     assert float(data(browser, "map", "margin") or 0) == short(margin["margin"], 6)
+    # the readout of the configuration shown: the rigidity analysis of that point
+    wait_for(lambda: data(browser, "readout", "rank"), 30, "the readout")
+    k, i = map(int, re.findall(r"component (\d+), point (\d+)",
+                               text(browser, "linkage-caption"))[0])
+    walk = space["components"][k]["positions"]
+    here = {**linkage, "vertices": [{**v, "position": walk[v["id"]][i]}
+                                    for v in linkage["vertices"]]}
+    rigidity = post(base_url, "/v1/analysis/rigidity", {"linkage": here})
+    assert int(data(browser, "readout", "rank") or -1) == rigidity["rank"]
+    assert int(data(browser, "readout", "dof") or -1) == rigidity["dof"]
+    assert ("critical" in text(browser, "readout")) == rigidity["critical"]
     for panel in PANELS:
         element_shot(browser, panel)
     assert_stayed_local(browser)
