@@ -147,7 +147,7 @@ function edit(change) {
   clearTimeout(view.timer);
   view.timer = setTimeout(() => {
     $("linkage-json").value = JSON.stringify(edited, null, 1);
-    useLinkage(edited, source);
+    useLinkage(edited, source, true);
   }, DEBOUNCE_MS);
 }
 

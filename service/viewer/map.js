@@ -7,6 +7,8 @@
 
 const REGION_BASE = new Set(["point", "components", "signature", "cells"]);
 const mapView = { answer: null, margin: null, frame: null, request: null };
+const QUICK_S = 0.4; // seconds a search of the map may take while a drag goes on
+const REFINE_AFTER_MS = 400; // then, without a new move, the map is asked again in full
 
 function mapAxesChoice(linkage) {
   // Bars that can change length: not both ends pinned.
@@ -205,33 +207,52 @@ function mapClick(event) {
   if (best) loadRegion(best.k);
 }
 
-function loadMap(generation) {
-  const req = mapRequest();
-  mapView.request = req;
-  mapView.answer = null;
-  mapView.margin = null;
-  $("margin").textContent = "";
-  showRegions();
-  drawMap();
-  if (!req) { $("map-caption").textContent = ""; return; }
-  const [x, y] = req.axes.map((a) => a.bar);
-  $("map-caption").textContent = `${x} × ${y}: computing…`;
-  call("v1/analysis/critical-values", req, { task: "map", generation }).then((answer) => {
-    if (generation !== state.generation || mapView.request !== req) return;
-    mapView.answer = answer;
-    const cut = answer.search && answer.search.complete === false
-      ? ` (search cut short: ${answer.search.reason}; regions may be missing)` : "";
-    $("map-caption").textContent = `${x} × ${y}: ${answer.regions.length} regions, ` +
-      `${answer.curves.length} curves${cut}; the star is the linkage`;
+/** Ask for the map and the margin of the linkage shown. While a drag goes on (`quick`) the
+ * searches get QUICK_S seconds, so that the map follows the hand; an answer cut short is then
+ * asked again with the service's own budget (`refine`), the quick one drawn meanwhile. */
+function loadMap(generation, { quick = false, refine = false } = {}) {
+  const req = refine ? mapView.request : mapRequest();
+  if (!refine) {
+    mapView.request = req;
+    mapView.answer = null;
+    mapView.margin = null;
+    $("margin").textContent = "";
     showRegions();
     drawMap();
-    $("map").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
-  }).catch((err) => {
-    if (err.superseded || generation !== state.generation) return;
-    $("map-caption").textContent = `${x} × ${y}: no map`;
-    drawMap(err.message);
-  });
-  const body = { linkage: req.linkage, adjustable: [x, y] };
+  }
+  if (!req) { $("map-caption").textContent = ""; return; }
+  const [x, y] = req.axes.map((a) => a.bar);
+  const options = quick ? { options: { time_budget_s: QUICK_S } } : {};
+  const again = (search) => quick && search && search.complete === false;
+  const later = () => {
+    if (mapView.refining === req) return; // once for the map and the margin together
+    mapView.refining = req;
+    setTimeout(() => {
+      if (generation === state.generation && mapView.request === req) {
+        loadMap(generation, { refine: true });
+      }
+    }, REFINE_AFTER_MS);
+  };
+  if (!refine) $("map-caption").textContent = `${x} × ${y}: computing…`;
+  call("v1/analysis/critical-values", { ...req, ...options }, { task: "map", generation })
+    .then((answer) => {
+      if (generation !== state.generation || mapView.request !== req) return;
+      mapView.answer = answer;
+      const cut = answer.search && answer.search.complete === false
+        ? ` (search cut short: ${answer.search.reason}; regions may be missing` +
+          `${again(answer.search) ? "; refining" : ""})` : "";
+      $("map-caption").textContent = `${x} × ${y}: ${answer.regions.length} regions, ` +
+        `${answer.curves.length} curves${cut}; the star is the linkage`;
+      showRegions();
+      drawMap();
+      $("map").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
+      if (again(answer.search)) later();
+    }).catch((err) => {
+      if (err.superseded || generation !== state.generation) return;
+      $("map-caption").textContent = `${x} × ${y}: no map`;
+      drawMap(err.message);
+    });
+  const body = { linkage: req.linkage, adjustable: [x, y], ...options };
   call("v1/analysis/robustness", body, { task: "margin", generation }).then((answer) => {
     if (generation !== state.generation || mapView.request !== req) return;
     mapView.margin = answer;
@@ -241,6 +262,7 @@ function loadMap(generation) {
       : `no critical value found within the search (${answer.message})`;
     $("map").dataset.margin = typeof answer.margin === "number" ? fmt(answer.margin, 6) : "";
     drawMap();
+    if (again(answer.search)) later();
   }).catch((err) => {
     if (err.superseded || generation !== state.generation) return;
     $("margin").textContent = "no margin (see the status line)";
@@ -265,7 +287,7 @@ function startMap() {
       showRegions();
       drawMap();
     } else if ((what === "space" || what === "space-failed") && state.drawable) {
-      loadMap(generation);
+      loadMap(generation, { quick: state.quick });
     } else if (what === "cleared") {
       mapView.request = null; mapView.answer = null; mapView.margin = null;
       $("map-caption").textContent = "no map";

@@ -248,8 +248,9 @@ function withLengths(linkage, lengths) {
 
 /** Show a linkage: the drawing at once, then the configuration space (and, through the
  * listeners, the map, the margin and the other panels), each request replacing its older one. */
-function useLinkage(linkage, source) {
+function useLinkage(linkage, source, quick = false) {
   const generation = ++state.generation;
+  state.quick = quick; // a drag: the map's searches get a short budget first
   stopAnimation();
   for (const [name, c] of state.controllers) if (name !== "preset") c.abort();
   state.tasks.clear();
