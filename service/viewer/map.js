@@ -135,6 +135,10 @@ function drawMap(error = "") {
     ctx.fillText(`R${k}`, x, y - 13);
     ctx.textAlign = "left";
   });
+  // where each region's marker is in CSS pixels (for tests and assistive tools)
+  const k = canvas.getBoundingClientRect().width / canvas.width;
+  canvas.dataset.markers = JSON.stringify(answer.regions.map((r) => f.to(r.point).map((v) =>
+    Math.round(v * k * 10) / 10)));
   canvas.dataset.regions = String(answer.regions.length);
   canvas.dataset.curves = String(answer.curves.length);
   canvas.dataset.draws = String(Number(canvas.dataset.draws || 0) + 1);
@@ -197,8 +201,6 @@ function mapClick(event) {
   const canvas = $("map");
   const [x, y] = canvasPoint(canvas, event);
   let best = null;
-  star(ctx, ...f.to(here));
-  ctx.restore();
   answer.regions.forEach((region, k) => {
     const [rx, ry] = f.to(region.point);
     const d = Math.hypot(rx - x, ry - y);

@@ -455,6 +455,23 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
     element_shot(browser, "map-panel")
 
     regions = region_numbers(browser)
+    # a click on a region's marker on the map loads its sample
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    canvas = browser.find_element(By.ID, "map")
+    js(browser, "arguments[0].scrollIntoView({block: 'center'});", canvas)
+    markers = json.loads(data(browser, "map", "markers") or "[]")
+    rect = js(browser, "const r = arguments[0].getBoundingClientRect();"
+              "return [r.width, r.height];", canvas)
+    k = max(range(len(regions)), key=lambda i: regions[i][0])
+    ActionChains(browser).move_to_element_with_offset(
+        canvas, markers[k][0] - rect[0] / 2, markers[k][1] - rect[1] / 2).click().perform()
+    wait_for(lambda: f"map region R{k}" in text(browser, "linkage-caption")
+             and text(browser, "status") == "ready", 60, "the region's sample from the map")
+    assert int(data(browser, "space", "components") or 0) == regions[k][0]
+
+    # and so does its button (keyboard): the sample of another region
+    regions = region_numbers(browser)
     k = next(i for i, r in enumerate(regions) if r[0] >= 1)
     browser.find_elements(By.CSS_SELECTOR, "#regions button")[k].click()
     wait_for(lambda: f"map region R{k}" in text(browser, "linkage-caption")
