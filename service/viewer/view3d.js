@@ -104,6 +104,16 @@ function draw3d() {
     }
     ctx.stroke();
   });
+  // critical points by kind, as on the configuration space
+  const rotor = rotorsByBar();
+  for (const cp of answer.critical_points) {
+    const p = keys.map((key, a) => {
+      const [kind, id, axis] = key.split(":");
+      return norm(a, kind === "angle" ? rotorAngle(cp.configuration, rotor[id])
+        : cp.configuration[id][Number(axis)]);
+    });
+    if (p.every(Number.isFinite)) marker(ctx, cp.kind, ...project(p).slice(0, 2));
+  }
   if (state.at) {
     const c = comps[state.at.component];
     const [x, y] = project([0, 1, 2].map((a) => norm(a, c[a].values[state.at.index])));
