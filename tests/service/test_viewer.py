@@ -424,6 +424,19 @@ def test_splitting_panel_checks_predictions_by_the_retrace(base_url: str, browse
     wait_for(lambda: data(browser, "split", "verified") is not None, 60, "the design")
     assert "service verified: true" in text(browser, "split-perturbation")
     assert data(browser, "split", "verified") == "true"
+
+    # the three-rotor's twelve branch points split both ways under one change of r2: the
+    # re-trace confirms each, whichever way its rays join
+    open_viewer(browser, base_url, "three-rotor")
+    Select(browser.find_element(By.ID, "split-bar")).select_by_value("r2")
+    field = browser.find_element(By.ID, "split-dl")
+    field.clear()
+    field.send_keys("0.01")
+    browser.find_element(By.ID, "split-run").click()
+    wait_for(lambda: data(browser, "split", "verified") is not None, 90, "the re-trace")
+    rows = browser.find_elements(By.CSS_SELECTOR, "#split-table tr[data-branch-point]")
+    assert len(rows) == 12 and data(browser, "split", "verified") == "true"
+    assert len({r.find_elements(By.TAG_NAME, "td")[3].text for r in rows}) == 2
     assert_stayed_local(browser)
 
 
