@@ -143,6 +143,7 @@ def test_errors_set_the_status_and_captions_to_the_new_state(base_url: str, brow
         == "choose a preset…"
     assert text(browser, "linkage-caption").startswith("pasted linkage")
     assert text(browser, "space-caption").startswith("no configuration space")
+    assert js(browser, CONTRAST) == []  # the error line too is readable
 
     # not JSON at all: said in the status line, no request
     area.clear()
@@ -312,6 +313,7 @@ def test_a_new_linkage_aborts_the_requests_it_supersedes(base_url: str, browser:
     assert any(u.endswith("/v1/analysis/configuration-space") for u in cancelled), cancelled
     assert text(browser, "space-caption") == "1 component, 3 critical points"
     assert leaving(list(urls.values())) == []
+    assert console_errors(browser) == []  # an aborted request is no error
 
 
 # -- the configuration space: ticks, legend, arrows, segments -------------------------------------
