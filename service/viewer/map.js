@@ -96,8 +96,10 @@ function drawMap(error = "") {
   ctx.textAlign = "left";
   const answer = mapView.answer;
   if (!answer) {
-    ctx.fillStyle = error ? "#a30000" : "#222";
-    ctx.fillText(error ? "no map: see the status line" : "computing…", f.pad.l + 12, f.pad.t + 24);
+    const failed = error || mapView.error;
+    ctx.fillStyle = failed ? "#a30000" : "#222";
+    ctx.fillText(failed ? "no map: see the status line" : "computing…", f.pad.l + 12,
+                 f.pad.t + 24);
     return;
   }
   ctx.save();
@@ -214,6 +216,7 @@ function mapClick(event) {
  * asked again with the service's own budget (`refine`), the quick one drawn meanwhile. */
 function loadMap(generation, { quick = false, refine = false } = {}) {
   const req = refine ? mapView.request : mapRequest();
+  mapView.error = "";
   if (!refine) {
     mapView.request = req;
     mapView.answer = null;
@@ -252,7 +255,8 @@ function loadMap(generation, { quick = false, refine = false } = {}) {
     }).catch((err) => {
       if (err.superseded || generation !== state.generation) return;
       $("map-caption").textContent = `${x} × ${y}: no map`;
-      drawMap(err.message);
+      mapView.error = err.message;
+      drawMap();
     });
   const body = { linkage: req.linkage, adjustable: [x, y], ...options };
   call("v1/analysis/robustness", body, { task: "margin", generation }).then((answer) => {
