@@ -506,6 +506,14 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
                " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
                " components: null, signature: null, cells: 0, gated: false})];")
     assert label == ["2 components, tau +-, gated", "? (not explored in time), not gated"]
+
+    # the same slice as the service's SVG figure, in a dialog
+    browser.find_element(By.CSS_SELECTOR, "[data-figure='critical-values']").click()
+    img = wait_for(lambda: browser.find_elements(By.CSS_SELECTOR, "#figure-body img"), 60,
+                   "the slice figure")[0]
+    wait_for(lambda: js(browser, "return arguments[0].naturalWidth;", img) > 100, 10,
+             "the figure loaded")
+    assert js(browser, "return document.getElementById('figure-dialog').open;")
     assert_stayed_local(browser)
 
 
