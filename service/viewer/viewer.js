@@ -1,21 +1,29 @@
-// The linkage viewer: calls the service's public JSON and figure endpoints only.
+// The linkage viewer: calls the service's public JSON and figure endpoints only. This file holds
+// the state, the requests and the linkage drawing (drag a joint or a bar); space.js, map.js,
+// split.js and view3d.js draw the other panels from the same state.
 "use strict";
 
 const API = new URL("..", window.location.href); // the service root (the viewer is /viewer/)
 const TAU = 2 * Math.PI;
 const COLOURS = ["#1f77b4", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
                  "#bcbd22", "#7f7f7f"];
-const KINDS = { branch: "#d62728", rigid: "#111111", degenerate: "#ff7f0e" };
+const KINDS = { branch: "#d62728", rigid: "#111111", degenerate: "#b34700" };
+const DEBOUNCE_MS = 60; // between the last move of a drag and the request it makes
 const $ = (id) => document.getElementById(id);
 
 const state = {
   presets: [],
+  source: "", // what the linkage is: a preset's name, "pasted", or "<preset>, edited"
   linkage: null, // the linkage being looked at (as the API gives it)
   space: null, // the answer of /v1/analysis/configuration-space
   rotors: [], // [{bar, pin, tip}] bars with exactly one pinned end
   at: null, // {component, index}: the configuration shown
   generation: 0, // answers of older requests are dropped
   animation: null,
+  tasks: new Map(), // name -> {state: "pending" | "done" | "error", message}
+  controllers: new Map(), // name -> the AbortController of its request in flight
+  listeners: [], // functions (generation) called when a new linkage is shown
+  changed: 0, // performance.now() of the last change of the linkage (drag, slider, paste)
 };
 
 // -- talking to the service ---------------------------------------------------------------
@@ -32,22 +40,97 @@ function status(text, error = false) {
   el.classList.toggle("error", error);
 }
 
-async function call(path, body, accept = "json") {
+/** The status line follows the tasks of the linkage shown: the first error, else what is still
+ * computing, else ready. */
+function showTasks() {
+  const tasks = [...state.tasks.entries()];
+  const failed = tasks.find(([, t]) => t.state === "error");
+  if (failed) { status(`${failed[0]}: ${failed[1].message}`, true); return; }
+  const pending = tasks.filter(([, t]) => t.state === "pending").map(([name]) => name);
+  if (pending.length) status(`computing ${pending.join(", ")}…`);
+  else status(state.linkage ? "ready" : "choose a preset or paste a linkage");
+}
+
+/** A problem+json (RFC 9457) or any other failed answer as one readable line. */
+async function problemText(res) {
+  const head = `${res.status} ${res.statusText || ""}`.trim();
+  let body = "";
+  try { body = await res.text(); } catch (e) { return head; }
+  try {
+    const p = JSON.parse(body);
+    const parts = [p.title, p.detail].filter((s) => typeof s === "string" && s);
+    const where = Array.isArray(p.errors)
+      ? p.errors.map((e) => `${(e.loc || []).join(".")}: ${e.msg}`).filter((s) => s) : [];
+    const text = parts.join(": ") + (where.length && !parts.join("").includes(where[0])
+      ? ` (${where.join("; ")})` : "");
+    return text ? `${text} [${p.status || res.status}]` : head;
+  } catch (e) {
+    return body.trim() ? `${head}: ${body.trim().slice(0, 200)}` : head;
+  }
+}
+
+/** One request to the service: the answer, or an Error whose message is the problem's title and
+ * detail (any 4xx or 5xx). */
+async function request(path, body, accept, signal) {
+  const init = body === undefined ? { signal } : {
+    method: "POST", headers: { "content-type": "application/json" },
+    body: JSON.stringify(body), signal,
+  };
   setBusy(1);
   try {
-    const init = body === undefined ? {} : {
-      method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(body),
-    };
     const res = await fetch(new URL(path, API), init);
-    if (!res.ok) {
-      let detail = `${res.status} ${res.statusText}`;
-      try { const p = await res.json(); detail = `${p.title}: ${p.detail}`; } catch (e) { /* */ }
-      throw new Error(detail);
-    }
-    return accept === "json" ? res.json() : res.blob();
+    if (!res.ok) throw new Error(await problemText(res));
+    return await (accept === "json" ? res.json() : res.blob());
+  } catch (err) {
+    if (err.name === "AbortError") err.superseded = true;
+    throw err;
   } finally {
     setBusy(-1);
   }
+}
+
+/** A named task of the linkage shown: it replaces the task of that name still in flight (which
+ * is aborted) and its progress shows in the status line. `work(signal)` does the requests. */
+async function runTask(task, generation, work) {
+  const controller = new AbortController();
+  const old = state.controllers.get(task);
+  if (old) old.abort();
+  state.controllers.set(task, controller);
+  state.tasks.set(task, { state: "pending" });
+  showTasks();
+  const current = () => state.controllers.get(task) === controller &&
+    (generation === null || generation === state.generation);
+  try {
+    const answer = await work(controller.signal);
+    if (current()) { state.tasks.set(task, { state: "done" }); showTasks(); }
+    if (controller.signal.aborted) {
+      const e = new Error("superseded");
+      e.superseded = true;
+      throw e;
+    }
+    return answer;
+  } catch (err) {
+    if (err.name === "AbortError" || controller.signal.aborted) err.superseded = true;
+    else if (current()) {
+      state.tasks.set(task, { state: "error", message: err.message });
+      showTasks();
+    }
+    throw err;
+  } finally {
+    if (state.controllers.get(task) === controller) state.controllers.delete(task);
+  }
+}
+
+/** POST (with a body) or GET a path of the service as a task (see runTask). */
+function call(path, body, { accept = "json", task = "request", generation = null } = {}) {
+  return runTask(task, generation, (signal) => request(path, body, accept, signal));
+}
+
+/** Abort every request in flight (a new linkage supersedes them all). */
+function abortAll() {
+  for (const c of state.controllers.values()) c.abort();
+  state.controllers.clear();
+  state.tasks.clear();
 }
 
 // -- controls -------------------------------------------------------------------------------
@@ -86,20 +169,53 @@ function paramControl(name, value) {
 function showParams() {
   const preset = state.presets.find((p) => p.name === $("preset").value);
   const box = $("params");
+  if (!preset) { box.replaceChildren(); return; }
   box.replaceChildren(...Object.entries(preset.parameters).map(([k, v]) => paramControl(k, v)));
+}
+
+/** The preset's sliders no longer describe the linkage (pasted, or edited on the drawing). */
+function forgetParams(note) {
+  $("preset").value = "";
+  const p = document.createElement("p");
+  p.className = "hint";
+  p.id = "params-note";
+  p.textContent = note;
+  $("params").replaceChildren(p);
 }
 
 async function loadPreset() {
   const name = $("preset").value;
+  if (!name) return;
   const query = new URLSearchParams();
   for (const input of $("params").querySelectorAll("input")) query.set(input.name, input.value);
+  const generation = ++state.generation;
+  abortAll();
+  state.changed = performance.now();
   try {
-    const linkage = await call(`v1/presets/${encodeURIComponent(name)}?${query}`);
+    const linkage = await call(`v1/presets/${encodeURIComponent(name)}?${query}`, undefined,
+                               { task: "preset", generation });
+    if (generation !== state.generation) return;
     $("linkage-json").value = JSON.stringify(linkage, null, 1);
-    await useLinkage(linkage);
+    useLinkage(linkage, name);
   } catch (err) {
-    status(`preset ${name}: ${err.message}`, true);
+    if (err.superseded || generation !== state.generation) return;
+    showNothing(`preset ${name}: no linkage`);
   }
+}
+
+/** After a failed request for the linkage itself: no drawing of the previous one stays. */
+function showNothing(caption) {
+  stopAnimation();
+  state.linkage = null;
+  state.drawable = false;
+  state.space = null;
+  state.at = null;
+  state.source = "";
+  $("linkage-caption").textContent = caption;
+  $("space-caption").textContent = "no configuration space";
+  for (const f of state.listeners) f(state.generation, "cleared");
+  drawLinkage();
+  drawSpace();
 }
 
 function pinned(v, dim) {
@@ -123,276 +239,95 @@ function barLength(linkage, bar) {
   return Math.hypot(...p.map((x, i) => x - q[i]));
 }
 
-function sliceAxes(linkage) {
-  // Bars that can change length: not both ends pinned.
-  const pins = new Set(linkage.vertices.filter((v) => pinned(v, linkage.dimension || 2))
-                                      .map((v) => v.id));
-  const bars = linkage.bars.filter((b) => !(pins.has(b.ends[0]) && pins.has(b.ends[1])));
-  for (const [id, pick] of [["axis-x", 1], ["axis-y", 2]]) {
-    const sel = $(id);
-    const keep = sel.value;
-    sel.replaceChildren(...bars.map((b) => new Option(b.id, b.id)));
-    if (bars.some((b) => b.id === keep)) sel.value = keep;
-    else if (bars.length) sel.value = bars[Math.min(pick, bars.length - 1)].id;
-  }
+/** A copy of the linkage with some bars' lengths changed ({bar_id: length}); the positions stay
+ * and the service projects them onto the new lengths. */
+function withLengths(linkage, lengths) {
+  return { ...linkage, bars: linkage.bars.map((b) => (b.id in lengths
+    ? { ...b, length: lengths[b.id] } : { ...b, length: barLength(linkage, b) })) };
 }
 
-async function useLinkage(linkage) {
+/** Show a linkage: the drawing at once, then the configuration space (and, through the
+ * listeners, the map, the margin and the other panels), each request replacing its older one. */
+function useLinkage(linkage, source, quick = false) {
   const generation = ++state.generation;
+  state.quick = quick; // a drag: the map's searches get a short budget first
   stopAnimation();
+  for (const [name, c] of state.controllers) if (name !== "preset") c.abort();
+  state.tasks.clear();
   state.linkage = linkage;
-  state.rotors = rotorsOf(linkage);
+  state.source = source;
   state.space = null;
   state.at = null;
-  sliceAxes(linkage);
-  drawLinkage();
-  drawSpace();
-  status("computing the configuration space…");
-  const space = call("v1/analysis/configuration-space", { linkage }).then((answer) => {
-    if (generation !== state.generation) return;
-    state.space = answer;
-    state.at = nearestPoint(answer, linkage);
-    $("animate").disabled = !state.at;
-    drawSpace();
+  $("space-caption").textContent = "computing…";
+  $("animate").disabled = true;
+  // A linkage the viewer cannot draw (a pasted one with a bar to nowhere, say) is still sent:
+  // the service's answer names what is wrong with it.
+  state.drawable = drawable(linkage);
+  state.rotors = state.drawable ? rotorsOf(linkage) : [];
+  if (state.drawable) {
     drawLinkage();
-    const n = answer.components.length;
-    const m = answer.critical_points.length;
-    $("space-caption").textContent = `${n} component${n === 1 ? "" : "s"}, ` +
-      `${m} critical point${m === 1 ? "" : "s"}`;
-  });
-  const slice = drawSlice(generation);
-  try {
-    await Promise.all([space, slice]);
-    if (generation === state.generation) status("ready");
-  } catch (err) {
-    if (generation === state.generation) status(err.message, true);
-  }
-}
-
-async function drawSlice(generation) {
-  const linkage = state.linkage;
-  const [x, y] = [$("axis-x").value, $("axis-y").value];
-  const el = $("slice");
-  if (!x || !y || x === y) {
-    el.textContent = "choose two different bars";
-    return;
-  }
-  const bars = Object.fromEntries(linkage.bars.map((b) => [b.id, b]));
-  const factor = Math.max(1.1, Number($("axis-range").value) || 2.5);
-  const axes = [x, y].map((id) => {
-    const len = barLength(linkage, bars[id]);
-    return { bar: id, min: len / factor, max: len * factor };
-  });
-  $("slice-caption").textContent = `${x} × ${y}: computing…`;
-  let blob;
-  try {
-    blob = await call("v1/figures/critical-values", { linkage, axes }, "blob");
-  } catch (err) {
-    if (generation === state.generation) {
-      $("slice-caption").textContent = `${x} × ${y}: no slice`;
-      el.textContent = err.message;
-    }
-    throw err;
-  }
-  if (generation !== state.generation) return;
-  const img = new Image();
-  img.alt = `critical values in the lengths of ${x} and ${y}`;
-  img.src = URL.createObjectURL(blob);
-  el.replaceChildren(img);
-  el.dataset.draws = String(Number(el.dataset.draws) + 1);
-  $("slice-caption").textContent = `${x} × ${y}; the star marks the linkage's lengths`;
-}
-
-// -- drawing ----------------------------------------------------------------------------------
-
-function currentPositions() {
-  const { space, at, linkage } = state;
-  if (space && at) {
-    const comp = space.components[at.component];
-    return Object.fromEntries(Object.entries(comp.positions).map(([v, walk]) =>
-      [v, walk[at.index]]));
-  }
-  return Object.fromEntries(linkage.vertices.map((v) => [v.id, v.position]));
-}
-
-function fit(ctx, points, pad = 30) {
-  const xs = points.map((p) => p[0]);
-  const ys = points.map((p) => p[1]);
-  const [x0, x1, y0, y1] = [Math.min(...xs), Math.max(...xs), Math.min(...ys), Math.max(...ys)];
-  const w = ctx.canvas.width - 2 * pad;
-  const h = ctx.canvas.height - 2 * pad;
-  const s = Math.min(w / Math.max(x1 - x0, 1e-9), h / Math.max(y1 - y0, 1e-9));
-  const cx = (x0 + x1) / 2;
-  const cy = (y0 + y1) / 2;
-  return (p) => [ctx.canvas.width / 2 + s * (p[0] - cx), ctx.canvas.height / 2 - s * (p[1] - cy)];
-}
-
-function nearestPoint(space, linkage) {
-  // Start where the linkage is: the point of the answer closest to the given positions.
-  let best = null;
-  space.components.forEach((comp, k) => {
-    const n = Object.values(comp.positions)[0].length;
-    for (let i = 0; i < n; i++) {
-      let d = 0;
-      for (const v of linkage.vertices) {
-        const p = comp.positions[v.id][i];
-        d += p.reduce((acc, x, j) => acc + (x - v.position[j]) ** 2, 0);
-      }
-      if (!best || d < best.d) best = { d, component: k, index: i };
-    }
-  });
-  return best && { component: best.component, index: best.index };
-}
-
-function drawLinkage() {
-  const canvas = $("linkage");
-  const ctx = canvas.getContext("2d");
-  ctx.clearRect(0, 0, canvas.width, canvas.height);
-  const { linkage, space } = state;
-  if (!linkage) return;
-  const pos = currentPositions();
-  // A view that holds the whole motion, so that it does not jump while animating.
-  let extent = Object.values(pos);
-  if (space && state.at) {
-    const comp = space.components[state.at.component];
-    extent = extent.concat(...Object.values(comp.positions).map((w) =>
-      w.filter((_, i) => i % 4 === 0)));
-  }
-  const map = fit(ctx, extent);
-  ctx.lineCap = "round";
-  for (const bar of linkage.bars) {
-    const [p, q] = bar.ends.map((v) => map(pos[v]));
-    ctx.strokeStyle = "#555"; ctx.lineWidth = 4;
-    ctx.beginPath(); ctx.moveTo(...p); ctx.lineTo(...q); ctx.stroke();
-    ctx.fillStyle = "#345"; ctx.font = "12px sans-serif";
-    ctx.fillText(bar.id, (p[0] + q[0]) / 2 + 5, (p[1] + q[1]) / 2 - 5);
-  }
-  for (const v of linkage.vertices) {
-    const [x, y] = map(pos[v.id]);
-    ctx.beginPath();
-    if (pinned(v, linkage.dimension || 2)) {
-      ctx.moveTo(x, y - 8); ctx.lineTo(x + 8, y + 6); ctx.lineTo(x - 8, y + 6); ctx.closePath();
-      ctx.fillStyle = "#111"; ctx.fill();
-    } else if (Array.isArray(v.fixed) && v.fixed.some(Boolean)) {
-      ctx.rect(x - 6, y - 6, 12, 12); ctx.fillStyle = "#9467bd"; ctx.fill();
-    } else {
-      ctx.arc(x, y, 5, 0, TAU); ctx.fillStyle = "#fff"; ctx.fill();
-      ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5; ctx.stroke();
-    }
-    ctx.fillStyle = "#111"; ctx.font = "11px sans-serif";
-    ctx.fillText(v.id, x - 14, y + 18);
-  }
-  const at = state.at;
-  $("linkage-caption").textContent = at
-    ? `component ${at.component}, point ${at.index}` : "as given";
-}
-
-const wrap = (a) => ((a + Math.PI) % TAU + TAU) % TAU - Math.PI;
-
-function spaceAxes() {
-  const comp = state.space && state.space.components[0];
-  const bars = comp ? Object.keys(comp.angles) : state.rotors.map((r) => r.bar);
-  return bars.slice(0, 2);
-}
-
-function spaceMap(canvas) {
-  const pad = 40;
-  const s = Math.min(canvas.width - 2 * pad, canvas.height - 2 * pad) / TAU;
-  const ox = pad + s * Math.PI;
-  const oy = canvas.height - pad - s * Math.PI;
-  return { s, to: (a, b) => [ox + s * a, oy - s * b], from: (x, y) => [(x - ox) / s, (oy - y) / s] };
-}
-
-function drawSpace() {
-  const canvas = $("space");
-  const ctx = canvas.getContext("2d");
-  ctx.clearRect(0, 0, canvas.width, canvas.height);
-  const axes = spaceAxes();
-  const { to } = spaceMap(canvas);
-  // the square of the torus, with axis labels
-  const [x0, y0] = to(-Math.PI, Math.PI);
-  const [x1, y1] = to(Math.PI, -Math.PI);
-  ctx.strokeStyle = "#aaa"; ctx.lineWidth = 1; ctx.strokeRect(x0, y0, x1 - x0, y1 - y0);
-  ctx.fillStyle = "#333"; ctx.font = "12px sans-serif";
-  ctx.fillText(axes[0] ? `angle of ${axes[0]}` : "", (x0 + x1) / 2 - 30, y1 + 28);
-  ctx.fillText("−π", x0 - 8, y1 + 14); ctx.fillText("π", x1 - 4, y1 + 14);
-  ctx.save(); ctx.translate(x0 - 14, (y0 + y1) / 2 + 30); ctx.rotate(-Math.PI / 2);
-  ctx.fillText(axes[1] ? `angle of ${axes[1]}` : "", 0, 0); ctx.restore();
-  const space = state.space;
-  if (!space) {
-    ctx.fillText(state.linkage ? "computing…" : "", (x0 + x1) / 2 - 30, (y0 + y1) / 2);
-    return;
-  }
-  if (axes.length < 2) {
-    ctx.fillText("needs two rotors (bars with one pinned end)", x0 + 10, (y0 + y1) / 2);
+    spaceAxesChoice(linkage);
+    for (const f of state.listeners) f(generation, "linkage");
   } else {
-    space.components.forEach((comp, k) => {
-      const a = comp.angles[axes[0]].map(wrap);
-      const b = comp.angles[axes[1]].map(wrap);
-      ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 2;
-      ctx.beginPath();
-      a.forEach((_, i) => {
-        const p = to(a[i], b[i]);
-        const jump = i > 0 && (Math.abs(a[i] - a[i - 1]) > Math.PI ||
-                               Math.abs(b[i] - b[i - 1]) > Math.PI);
-        if (i === 0 || jump) ctx.moveTo(...p); else ctx.lineTo(...p);
-      });
-      ctx.stroke();
-    });
-    const rotor = Object.fromEntries(state.rotors.map((r) => [r.bar, r]));
-    for (const cp of space.critical_points) {
-      const ang = axes.map((bar) => {
-        const r = rotor[bar];
-        const p = cp.configuration[r.pin];
-        const q = cp.configuration[r.tip];
-        return Math.atan2(q[1] - p[1], q[0] - p[0]);
-      });
-      const [x, y] = to(...ang);
-      ctx.strokeStyle = KINDS[cp.kind] || "#777"; ctx.lineWidth = 3;
-      ctx.beginPath(); ctx.moveTo(x - 6, y - 6); ctx.lineTo(x + 6, y + 6);
-      ctx.moveTo(x + 6, y - 6); ctx.lineTo(x - 6, y + 6); ctx.stroke();
-    }
-    if (state.at) {
-      const comp = space.components[state.at.component];
-      const [x, y] = to(wrap(comp.angles[axes[0]][state.at.index]),
-                        wrap(comp.angles[axes[1]][state.at.index]));
-      ctx.fillStyle = "#ffd92f"; ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5;
-      ctx.beginPath(); ctx.arc(x, y, 6, 0, TAU); ctx.fill(); ctx.stroke();
-    }
+    for (const f of state.listeners) f(generation, "cleared");
+    drawLinkage();
+    $("linkage-caption").textContent = `${source}: cannot be drawn as given`;
   }
-  canvas.dataset.components = String(space.components.length);
-  canvas.dataset.criticalPoints = String(space.critical_points.length);
-  canvas.dataset.points = String(space.components.reduce(
-    (n, c) => n + (Object.values(c.angles)[0] || []).length, 0));
-  canvas.dataset.lengths = state.linkage.bars.map((b) => barLength(state.linkage, b).toFixed(4))
-    .join(",");
-  canvas.dataset.draws = String(Number(canvas.dataset.draws) + 1);
+  drawSpace();
+  call("v1/analysis/configuration-space", { linkage }, { task: "configuration space", generation })
+    .then((answer) => {
+      if (generation !== state.generation) return;
+      if (!state.drawable) return;
+      state.space = answer;
+      state.at = nearestPoint(answer, linkage);
+      $("animate").disabled = !state.at;
+      $("space-caption").textContent = spaceCaption(answer);
+      drawSpace();
+      drawLinkage();
+      $("space").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
+      for (const f of state.listeners) f(generation, "space");
+    })
+    .catch((err) => {
+      if (err.superseded || generation !== state.generation) return;
+      $("space-caption").textContent = "no configuration space (see the status line)";
+      drawSpace(err.message);
+      for (const f of state.listeners) f(generation, "space-failed");
+    });
 }
 
-function pick(event) {
-  const space = state.space;
-  const axes = spaceAxes();
-  if (!space || axes.length < 2) return;
-  const canvas = $("space");
-  const rect = canvas.getBoundingClientRect();
-  const x = (event.clientX - rect.left) * canvas.width / rect.width;
-  const y = (event.clientY - rect.top) * canvas.height / rect.height;
-  const [a, b] = spaceMap(canvas).from(x, y);
-  let best = null;
-  space.components.forEach((comp, k) => {
-    comp.angles[axes[0]].forEach((ang, i) => {
-      const da = wrap(wrap(ang) - a);
-      const db = wrap(wrap(comp.angles[axes[1]][i]) - b);
-      const d = da * da + db * db;
-      if (!best || d < best.d) best = { d, component: k, index: i };
-    });
-  });
-  if (best) {
-    stopAnimation();
-    state.at = { component: best.component, index: best.index };
-    drawSpace();
-    drawLinkage();
+/** Whether the viewer can draw a linkage: vertices with positions, bars between them. */
+function drawable(linkage) {
+  if (!linkage || !Array.isArray(linkage.vertices) || !Array.isArray(linkage.bars)) return false;
+  const dim = linkage.dimension || 2;
+  const ids = new Set(linkage.vertices.map((v) => v && v.id));
+  return linkage.vertices.every((v) => v && Array.isArray(v.position) &&
+                                v.position.length === dim &&
+                                v.position.every((x) => typeof x === "number")) &&
+    linkage.bars.every((b) => b && Array.isArray(b.ends) && b.ends.length === 2 &&
+                       b.ends.every((e) => ids.has(e)));
+}
+
+/** "3 components" when the search is complete; a bound when it was cut short or capped. */
+function spaceCaption(answer) {
+  const n = answer.components.length;
+  const m = answer.critical_points.length;
+  const search = answer.search || {};
+  const total = search.components_total;
+  const plural = (k, word) => `${k} ${word}${k === 1 ? "" : "s"}`;
+  let comps;
+  if (Number.isInteger(total) && total > n) {
+    comps = `${n} of ${total} components traced (${total} by ${search.components_total_rule ||
+      "the chain count"})`;
+  } else if (Number.isInteger(total)) {
+    comps = plural(total, "component");
+  } else if (search.complete === false) {
+    comps = `at least ${plural(n, "component")} (search cut short: ${search.reason})`;
+  } else {
+    comps = plural(n, "component");
   }
+  const crit = search.complete === false && !Number.isInteger(total)
+    ? `at least ${plural(m, "critical point")}` : plural(m, "critical point");
+  return `${comps}, ${crit}`;
 }
 
 // -- animation --------------------------------------------------------------------------------
@@ -410,37 +345,51 @@ function animate() {
   const step = (time) => {
     if (time - last > 30 && state.space && state.at) {
       last = time;
-      const comp = state.space.components[state.at.component];
-      const n = Object.values(comp.angles)[0].length;
-      state.at = { component: state.at.component,
-                   index: comp.closed ? (state.at.index + 1) % n
-                     : (state.at.index + 1 < n ? state.at.index + 1 : 0) };
-      drawLinkage();
-      drawSpace();
+      moveAlong(1);
     }
     state.animation = requestAnimationFrame(step);
   };
   state.animation = requestAnimationFrame(step);
 }
 
+/** One step along the component shown (the arrow keys on the configuration space). */
+function moveAlong(delta) {
+  if (!state.space || !state.at) return;
+  const comp = state.space.components[state.at.component];
+  const n = Object.values(comp.angles)[0].length;
+  state.at = { component: state.at.component, index: ((state.at.index + delta) % n + n) % n };
+  showAt();
+}
+
+/** Redraw whatever depends on the configuration shown. */
+function showAt() {
+  drawLinkage();
+  drawSpace();
+  for (const f of state.listeners) f(state.generation, "at");
+}
+
 // -- figures from the service ---------------------------------------------------------------
 
 async function showFigure(kind) {
   if (!state.linkage) return;
-  const body = kind === "linkage"
-    ? { linkage: { ...state.linkage, vertices: state.linkage.vertices.map((v) =>
-        ({ ...v, position: currentPositions()[v.id] })) }, show: ["zero_modes"] }
-    : { linkage: state.linkage };
+  let body;
+  if (kind === "linkage") {
+    body = { linkage: { ...state.linkage, vertices: state.linkage.vertices.map((v) =>
+      ({ ...v, position: currentPositions()[v.id] })) }, show: ["zero_modes"] };
+  } else if (kind === "critical-values") {
+    body = mapRequest();
+    if (!body) return;
+  } else {
+    body = { linkage: state.linkage };
+  }
   try {
-    const blob = await call(`v1/figures/${kind}`, body, "blob");
+    const blob = await call(`v1/figures/${kind}`, body, { accept: "blob", task: `${kind} figure` });
     const img = new Image();
     img.src = URL.createObjectURL(blob);
     img.alt = `${kind} figure`;
     $("figure-body").replaceChildren(img);
     $("figure-dialog").showModal();
-  } catch (err) {
-    status(`${kind} figure: ${err.message}`, true);
-  }
+  } catch (err) { /* the status line says it */ }
 }
 
 // -- start ------------------------------------------------------------------------------------
@@ -456,25 +405,38 @@ async function start() {
     try {
       linkage = JSON.parse($("linkage-json").value);
     } catch (err) {
-      status(`not JSON: ${err.message}`, true);
+      abortAll();
+      state.tasks.set("pasted linkage", { state: "error", message: `not JSON: ${err.message}` });
+      showTasks();
       return;
     }
-    useLinkage(linkage.linkage || linkage);
+    forgetParams("a pasted linkage: drag its joints and bars on the drawing");
+    state.changed = performance.now();
+    useLinkage(linkage.linkage || linkage, "pasted linkage");
   });
-  for (const id of ["axis-x", "axis-y", "axis-range"]) {
-    $(id).addEventListener("change", () => {
-      if (state.linkage) drawSlice(state.generation).catch((e) => status(e.message, true));
-    });
-  }
-  $("space").addEventListener("click", pick);
+  const canvas = $("linkage");
+  canvas.addEventListener("pointerdown", grab);
+  canvas.addEventListener("pointermove", dragMove);
+  canvas.addEventListener("pointerup", drop);
+  canvas.addEventListener("pointercancel", drop);
+  canvas.addEventListener("keydown", linkageKeys);
+  canvas.addEventListener("focus", drawLinkage);
+  canvas.addEventListener("blur", drawLinkage);
   $("animate").addEventListener("click", animate);
   for (const button of document.querySelectorAll("[data-figure]")) {
     button.addEventListener("click", () => showFigure(button.dataset.figure));
   }
+  state.listeners.push((generation, what) => {
+    if (what === "at" || what === "space") loadReadout(generation);
+    else $("readout").textContent = "";
+  });
+  startSpace();
+  startMap();
+  startSplitting();
+  start3d();
   try {
-    state.presets = await call("v1/presets");
+    state.presets = await call("v1/presets", undefined, { task: "presets" });
   } catch (err) {
-    status(`presets: ${err.message}`, true);
     return;
   }
   $("preset").replaceChildren(new Option("choose a preset…", ""),
@@ -485,8 +447,9 @@ async function start() {
     showParams();
     await loadPreset();
   } else {
-    status("choose a preset or paste a linkage");
+    state.tasks.clear();
+    showTasks();
   }
 }
 
-start();
+window.addEventListener("DOMContentLoaded", start);

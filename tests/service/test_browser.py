@@ -154,10 +154,10 @@ def test_viewer_draws_the_four_bar_and_redraws_when_a_length_moves(
     lengths = data(browser, "space", "lengths")
     assert lengths == "1.0000,1.0000,1.0000"
 
-    # the critical-value slice arrives as an SVG figure
-    wait_for(lambda: int(data(browser, "slice", "draws") or 0) >= 1, 60, "the slice figure")
-    img = browser.find_element(By.CSS_SELECTOR, "#slice img")
-    assert browser.execute_script("return arguments[0].naturalWidth;", img) > 100
+    # the map of critical values arrives (JSON drawn on a canvas)
+    wait_for(lambda: int(data(browser, "map", "draws") or 0) >= 1
+             and data(browser, "map", "regions"), 60, "the map")
+    assert int(data(browser, "map", "curves") or 0) >= 1
     shot(browser, "viewer-four-bar.png")
 
     # clicking the configuration space moves the linkage there

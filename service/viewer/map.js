@@ -1,0 +1,305 @@
+// The map panel: the critical values in the lengths of two bars (/v1/analysis/critical-values),
+// each region labelled as the service labels it (its number of components and whatever else the
+// answer gives a region, e.g. tau signs or gated), the robustness margin in those two lengths
+// (/v1/analysis/robustness) drawn around the linkage's point, and a click on a region loads the
+// linkage at the region's sample lengths.
+"use strict";
+
+const REGION_BASE = new Set(["point", "components", "signature", "cells"]);
+const mapView = { answer: null, margin: null, frame: null, request: null };
+const QUICK_S = 0.4; // seconds a search of the map may take while a drag goes on
+const REFINE_AFTER_MS = 400; // then, without a new move, the map is asked again in full
+
+function mapAxesChoice(linkage) {
+  // Bars that can change length: not both ends pinned.
+  const pins = new Set(linkage.vertices.filter((v) => pinned(v, linkage.dimension || 2))
+                                      .map((v) => v.id));
+  const bars = linkage.bars.filter((b) => !(pins.has(b.ends[0]) && pins.has(b.ends[1])));
+  for (const [id, pick] of [["axis-x", 1], ["axis-y", 2]]) {
+    const sel = $(id);
+    const keep = sel.value;
+    sel.replaceChildren(...bars.map((b) => new Option(b.id, b.id)));
+    if (bars.some((b) => b.id === keep)) sel.value = keep;
+    else if (bars.length) sel.value = bars[Math.min(pick, bars.length - 1)].id;
+  }
+}
+
+/** The body of the map's request for the linkage shown (null without two different bars). */
+function mapRequest() {
+  const linkage = state.drawable ? state.linkage : null;
+  const [x, y] = [$("axis-x").value, $("axis-y").value];
+  if (!linkage || !x || !y || x === y) return null;
+  const bars = Object.fromEntries(linkage.bars.map((b) => [b.id, b]));
+  const factor = Math.max(1.1, Number($("axis-range").value) || 2.5);
+  const axes = [x, y].map((id) => {
+    const len = barLength(linkage, bars[id]);
+    return { bar: id, min: len / factor, max: len * factor };
+  });
+  return { linkage, axes };
+}
+
+/** A number as the viewer shows it (the tests read the same rounding). */
+function fmt(x, digits = 4) {
+  return typeof x === "number" ? Number(x.toPrecision(digits)).toString() : String(x);
+}
+
+function regionLabel(region) {
+  const n = region.components;
+  const parts = [n === null || n === undefined ? "? (not explored in time)"
+    : `${n} component${n === 1 ? "" : "s"}`];
+  for (const [k, v] of Object.entries(region)) {
+    if (!REGION_BASE.has(k) && v !== null && v !== undefined) {
+      parts.push(typeof v === "boolean" ? (v ? k : `not ${k}`)
+        : `${k} ${typeof v === "object" ? JSON.stringify(v) : fmt(v)}`);
+    }
+  }
+  return parts.join(", ");
+}
+
+function mapFrame(canvas, axes) {
+  const pad = { l: 56, r: 16, t: 14, b: 44 };
+  const [w, h] = [canvas.width - pad.l - pad.r, canvas.height - pad.t - pad.b];
+  const [ax, ay] = axes;
+  const to = (p) => [pad.l + w * (p[0] - ax.min) / (ax.max - ax.min),
+                     pad.t + h * (1 - (p[1] - ay.min) / (ay.max - ay.min))];
+  const from = (x, y) => [ax.min + (x - pad.l) / w * (ax.max - ax.min),
+                          ay.min + (1 - (y - pad.t) / h) * (ay.max - ay.min)];
+  return { to, from, sx: w / (ax.max - ax.min), sy: h / (ay.max - ay.min), pad, w, h };
+}
+
+function drawMap(error = "") {
+  const canvas = $("map");
+  const ctx = canvas.getContext("2d");
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  const req = mapView.request;
+  if (!req) {
+    ctx.fillStyle = "#222"; ctx.font = "13px sans-serif";
+    ctx.fillText(state.linkage ? "choose two different bars" : "", 20, 30);
+    return;
+  }
+  const f = mapFrame(canvas, req.axes);
+  mapView.frame = f;
+  ctx.strokeStyle = "#888"; ctx.lineWidth = 1; ctx.strokeRect(f.pad.l, f.pad.t, f.w, f.h);
+  ctx.fillStyle = "#222"; ctx.font = "12px sans-serif";
+  for (let k = 0; k <= 4; k++) {
+    const vx = req.axes[0].min + k * (req.axes[0].max - req.axes[0].min) / 4;
+    const vy = req.axes[1].min + k * (req.axes[1].max - req.axes[1].min) / 4;
+    const [x] = f.to([vx, req.axes[1].min]);
+    const [, y] = f.to([req.axes[0].min, vy]);
+    ctx.textAlign = "center"; ctx.fillText(fmt(vx, 3), x, f.pad.t + f.h + 16);
+    ctx.textAlign = "right"; ctx.fillText(fmt(vy, 3), f.pad.l - 6, y + 4);
+  }
+  ctx.textAlign = "center";
+  ctx.fillText(`length of ${req.axes[0].bar}`, f.pad.l + f.w / 2, f.pad.t + f.h + 34);
+  ctx.save(); ctx.translate(14, f.pad.t + f.h / 2); ctx.rotate(-Math.PI / 2);
+  ctx.fillText(`length of ${req.axes[1].bar}`, 0, 0); ctx.restore();
+  ctx.textAlign = "left";
+  const answer = mapView.answer;
+  if (!answer) {
+    const failed = error || mapView.error;
+    ctx.fillStyle = failed ? "#a30000" : "#222";
+    ctx.fillText(failed ? "no map: see the status line" : "computing…", f.pad.l + 12,
+                 f.pad.t + 24);
+    return;
+  }
+  ctx.save();
+  ctx.beginPath(); ctx.rect(f.pad.l, f.pad.t, f.w, f.h); ctx.clip();
+  ctx.strokeStyle = "#c51b7d"; ctx.lineWidth = 2;
+  for (const curve of answer.curves) {
+    ctx.beginPath();
+    curve.forEach((p, i) => (i ? ctx.lineTo(...f.to(p)) : ctx.moveTo(...f.to(p))));
+    ctx.stroke();
+  }
+  const here = req.axes.map((a) => barLength(req.linkage,
+                                             req.linkage.bars.find((b) => b.id === a.bar)));
+  const margin = mapView.margin;
+  if (margin && typeof margin.margin === "number") {
+    const [cx, cy] = f.to(here);
+    ctx.fillStyle = "rgba(49, 130, 189, 0.18)"; ctx.strokeStyle = "#08519c"; ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    ctx.ellipse(cx, cy, margin.margin * f.sx, margin.margin * f.sy, 0, 0, TAU);
+    ctx.fill(); ctx.stroke();
+    if (margin.nearest && req.axes.every((a) => a.bar in margin.nearest)) {
+      const [nx, ny] = f.to(req.axes.map((a) => margin.nearest[a.bar]));
+      ctx.fillStyle = "#08519c"; ctx.beginPath(); ctx.arc(nx, ny, 4, 0, TAU); ctx.fill();
+      ctx.beginPath(); ctx.moveTo(cx, cy); ctx.lineTo(nx, ny); ctx.stroke();
+    }
+  }
+  star(ctx, ...f.to(here));
+  ctx.restore();
+  answer.regions.forEach((region, k) => {
+    const [x, y] = f.to(region.point);
+    ctx.fillStyle = "#fff"; ctx.strokeStyle = "#222"; ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(x, y, 9, 0, TAU); ctx.fill(); ctx.stroke();
+    ctx.fillStyle = "#111"; ctx.font = "bold 11px sans-serif"; ctx.textAlign = "center";
+    ctx.fillText(region.components ?? "?", x, y + 4);
+    ctx.font = "10px sans-serif";
+    ctx.fillText(`R${k}`, x, y - 13);
+    ctx.textAlign = "left";
+  });
+  // where each region's marker is in CSS pixels (for tests and assistive tools)
+  const k = canvas.getBoundingClientRect().width / canvas.width;
+  canvas.dataset.markers = JSON.stringify(answer.regions.map((r) => f.to(r.point).map((v) =>
+    Math.round(v * k * 10) / 10)));
+  canvas.dataset.regions = String(answer.regions.length);
+  canvas.dataset.curves = String(answer.curves.length);
+  canvas.dataset.draws = String(Number(canvas.dataset.draws || 0) + 1);
+}
+
+function star(ctx, x, y) {
+  ctx.beginPath();
+  for (let k = 0; k < 10; k++) {
+    const r = k % 2 ? 4 : 10;
+    const a = -Math.PI / 2 + k * Math.PI / 5;
+    ctx.lineTo(x + r * Math.cos(a), y + r * Math.sin(a));
+  }
+  ctx.closePath();
+  ctx.fillStyle = "#ffd92f"; ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5;
+  ctx.fill(); ctx.stroke();
+}
+
+function showRegions() {
+  const answer = mapView.answer;
+  const list = $("regions");
+  if (!answer) { list.replaceChildren(); return; }
+  list.replaceChildren(...answer.regions.map((region, k) => {
+    const b = document.createElement("button");
+    b.type = "button";
+    b.className = "region";
+    b.dataset.region = String(k);
+    b.dataset.components = String(region.components ?? "");
+    b.textContent = `R${k}: ${regionLabel(region)} at (${fmt(region.point[0])}, ` +
+      `${fmt(region.point[1])})`;
+    b.title = region.signature || "";
+    b.addEventListener("click", () => loadRegion(k));
+    return b;
+  }));
+}
+
+/** Load the linkage at a region's sample lengths (the service projects the configuration). */
+function loadRegion(k) {
+  const answer = mapView.answer;
+  const req = mapView.request;
+  if (!answer || !req) return;
+  const region = answer.regions[k];
+  if (region.components === 0) {
+    state.tasks.set("map region", { state: "error", message: `R${k} is empty: no configuration ` +
+      "has these lengths" });
+    showTasks();
+    return;
+  }
+  const lengths = Object.fromEntries(req.axes.map((a, i) => [a.bar, region.point[i]]));
+  const linkage = withLengths(req.linkage, lengths);
+  forgetParams(`the sample of map region R${k}`);
+  state.changed = performance.now();
+  $("linkage-json").value = JSON.stringify(linkage, null, 1);
+  useLinkage(linkage, `map region R${k}`);
+}
+
+function mapClick(event) {
+  const f = mapView.frame;
+  const answer = mapView.answer;
+  if (!f || !answer) return;
+  const canvas = $("map");
+  const [x, y] = canvasPoint(canvas, event);
+  let best = null;
+  answer.regions.forEach((region, k) => {
+    const [rx, ry] = f.to(region.point);
+    const d = Math.hypot(rx - x, ry - y);
+    if (d < 16 && (!best || d < best.d)) best = { d, k };
+  });
+  if (best) loadRegion(best.k);
+}
+
+/** Ask for the map and the margin of the linkage shown. While a drag goes on (`quick`) the
+ * searches get QUICK_S seconds, so that the map follows the hand; an answer cut short is then
+ * asked again with the service's own budget (`refine`), the quick one drawn meanwhile. */
+function loadMap(generation, { quick = false, refine = false } = {}) {
+  const req = refine ? mapView.request : mapRequest();
+  mapView.error = "";
+  if (!refine) {
+    mapView.request = req;
+    mapView.answer = null;
+    mapView.margin = null;
+    $("margin").textContent = "";
+    showRegions();
+    drawMap();
+  }
+  if (!req) { $("map-caption").textContent = ""; return; }
+  const [x, y] = req.axes.map((a) => a.bar);
+  const options = quick ? { options: { time_budget_s: QUICK_S } } : {};
+  const again = (search) => quick && search && search.complete === false;
+  const later = () => {
+    if (mapView.refining === req) return; // once for the map and the margin together
+    mapView.refining = req;
+    setTimeout(() => {
+      if (generation === state.generation && mapView.request === req) {
+        loadMap(generation, { refine: true });
+      }
+    }, REFINE_AFTER_MS);
+  };
+  if (!refine) $("map-caption").textContent = `${x} × ${y}: computing…`;
+  call("v1/analysis/critical-values", { ...req, ...options }, { task: "map", generation })
+    .then((answer) => {
+      if (generation !== state.generation || mapView.request !== req) return;
+      mapView.answer = answer;
+      const cut = answer.search && answer.search.complete === false
+        ? ` (search cut short: ${answer.search.reason}; regions may be missing` +
+          `${again(answer.search) ? "; refining" : ""})` : "";
+      $("map-caption").textContent = `${x} × ${y}: ${answer.regions.length} regions, ` +
+        `${answer.curves.length} curves${cut}; the star is the linkage`;
+      showRegions();
+      drawMap();
+      $("map").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
+      if (again(answer.search)) later();
+    }).catch((err) => {
+      if (err.superseded || generation !== state.generation) return;
+      $("map-caption").textContent = `${x} × ${y}: no map`;
+      mapView.error = err.message;
+      drawMap();
+    });
+  const body = { linkage: req.linkage, adjustable: [x, y], ...options };
+  call("v1/analysis/robustness", body, { task: "margin", generation }).then((answer) => {
+    if (generation !== state.generation || mapView.request !== req) return;
+    mapView.margin = answer;
+    $("margin").textContent = typeof answer.margin === "number"
+      ? `robustness margin in ${x}, ${y}: ${fmt(answer.margin, 6)} (${answer.method}, ` +
+        `${answer.guarantee}); the disc has this radius`
+      : `no critical value found within the search (${answer.message})`;
+    $("map").dataset.margin = typeof answer.margin === "number" ? fmt(answer.margin, 6) : "";
+    drawMap();
+    if (again(answer.search)) later();
+  }).catch((err) => {
+    if (err.superseded || generation !== state.generation) return;
+    $("margin").textContent = "no margin (see the status line)";
+  });
+}
+
+function startMap() {
+  $("map").addEventListener("click", mapClick);
+  for (const id of ["axis-x", "axis-y", "axis-range"]) {
+    $(id).addEventListener("change", () => { if (state.linkage) loadMap(state.generation); });
+  }
+  state.listeners.push((generation, what) => {
+    // The map waits for the configuration space, which the other panels need first: on two
+    // workers the two searches side by side would each take twice as long.
+    if (what === "linkage") {
+      mapAxesChoice(state.linkage);
+      mapView.request = null;
+      mapView.answer = null;
+      mapView.margin = null;
+      $("map-caption").textContent = "waiting for the configuration space";
+      $("margin").textContent = "";
+      showRegions();
+      drawMap();
+    } else if ((what === "space" || what === "space-failed") && state.drawable) {
+      loadMap(generation, { quick: state.quick });
+    } else if (what === "cleared") {
+      mapView.request = null; mapView.answer = null; mapView.margin = null;
+      $("map-caption").textContent = "no map";
+      $("margin").textContent = "";
+      showRegions();
+      drawMap();
+    }
+  });
+}
