@@ -38,7 +38,7 @@ from engine.design.slice_regions import (
     _regions,
 )
 from engine.local.critical import refine_critical
-from engine.model.budget import NEVER, REASON_TIME, Deadline, granted
+from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
@@ -158,8 +158,28 @@ def critical_value_slice(
         "step": h_max,
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
+        "regions_exact": sum(r.argument is not None for r in regions),
     }, timed_out=timed_out, time_budget_s=granted(dl))
+    search = search.with_argument(*_slice_argument(lines, regions))
     return Slice(curves, regions, search)
+
+
+def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region]
+                    ) -> tuple[Argument | None, str]:
+    """A slice is complete when its curves are every critical curve in the box (the closed
+    form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
+    count is exact (its exploration complete, with an argument)."""
+    inexact = sum(r.argument is None for r in regions)
+    if lines is None:
+        return None, ("the curves were traced from seed lengths: no argument proves that every "
+                      "critical curve crossing the box was found")
+    if inexact:
+        return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
+                      "regions' component counts are lower bounds")
+    return ARGUMENT_DERIVED, (
+        "every critical curve in the box is a critical hyperplane of the one-dyad chain (closed "
+        f"form) met with the plane; every one of the {len(regions)} regions' component counts "
+        "is exact (" + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
 
 
 def _closed_form_curves(

@@ -15,7 +15,7 @@ import numpy as np
 from scipy import ndimage
 
 from engine.design.slice_curves import Axis
-from engine.model.budget import NEVER, Deadline
+from engine.model.budget import NEVER, Argument, Deadline
 from engine.model.linkage import Linkage
 from engine.model.tolerances import CELL_EDGE_TOL, NORM_FLOOR, Tolerances
 from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
@@ -27,10 +27,13 @@ class Region:
     components: int | None  # None: not explored before the deadline
     signature: str
     cells: int
+    #: what proves ``components`` exact (the exploration's argument: "derived" or "proved");
+    #: None: a lower bound (or not explored)
+    argument: Argument | None = None
 
 
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
-               tol: Tolerances, deadline: Deadline = NEVER) -> tuple[int, str]:
+               tol: Tolerances, deadline: Deadline = NEVER) -> tuple[int, str, Argument | None]:
     at = linkage.with_lengths(lengths)
     # the components only: no near misses (where the closed form or the chain rules certify
     # that there is no critical point, the critical-point search is then skipped)
@@ -42,8 +45,9 @@ def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
                               for b, a in angles.items()))
     count = len(res.components)
     complete = res.search.complete
-    shown = f"{count}" if complete else f">={count} (search budget reached)"
-    return count, f"components={shown}; turns={'|'.join(sorted(patterns))}"
+    shown = f"{count}" if complete else f">={count} (incomplete: {res.search.reason})"
+    return (count, f"components={shown}; turns={'|'.join(sorted(patterns))}",
+            res.search.argument if complete else None)
 
 
 def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
@@ -151,6 +155,6 @@ def _regions(
             out.append(Region(where, None, "not explored (time)", int(cells.sum())))
             continue
         deadline.report(0.6 + 0.4 * k / count, "critical values: exploring the regions")
-        comps, sig = _signature(linkage, lengths, opt, tol, deadline)
-        out.append(Region(where, comps, sig, int(cells.sum())))
+        comps, sig, argument = _signature(linkage, lengths, opt, tol, deadline)
+        out.append(Region(where, comps, sig, int(cells.sum()), argument))
     return out

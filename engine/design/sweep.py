@@ -28,7 +28,7 @@ import numpy as np
 
 from engine.catalogue.presets import build_preset, resolve_parameters
 from engine.design.robustness import robustness
-from engine.model.budget import NEVER, Deadline
+from engine.model.budget import ARGUMENT_DERIVED, NEVER, Argument, Deadline
 from engine.model.errors import EngineError, InvalidParameter, InvalidRequest, NumericalFailure
 from engine.model.linkage import Linkage, changeable_bar
 from engine.model.tolerances import Tolerances
@@ -150,14 +150,17 @@ class PointResult:
     """One row of a sweep; fields not asked for (``compute``) are None.
 
     ``components`` is the number of components (``complete`` False when a search budget cut it
-    short), ``critical_points`` the number of critical points, ``margin`` the robustness margin
-    over the swept bars (every bar with a free end when the swept names are not all bars),
-    ``windings`` the distinct rotor-turn patterns of the components, ``gated`` whether no rotor
-    completes a turn on any component, ``error`` why the point has no answer."""
+    short or no argument proves the count: it is then a lower bound; ``argument`` says what
+    proves it where it is exact: derived or proved), ``critical_points`` the number of
+    critical points, ``margin`` the robustness margin over the swept bars (every bar with a
+    free end when the swept names are not all bars), ``windings`` the distinct rotor-turn
+    patterns of the components, ``gated`` whether no rotor completes a turn on any component,
+    ``error`` why the point has no answer."""
 
     values: tuple[float, ...]
     components: int | None = None
     complete: bool | None = None
+    argument: Argument | None = None
     critical_points: int | None = None
     margin: float | None = None
     windings: tuple[str, ...] | None = None
@@ -203,7 +206,8 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
         return PointResult(
             point,
             components=0 if "components" in want else None,
-            complete=True if "components" in want else None,
+            # (a preset that assembles at none of its sampled angles: a search, not a proof)
+            complete=False if "components" in want else None,
             critical_points=0 if "critical" in want else None,
             windings=() if "windings" in want else None,
             gated=False if "windings" in want else None,
@@ -218,6 +222,8 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
         out["components"] = (len(res.components) if complete or not isinstance(total, int)
                              else total)
         out["complete"] = complete or total is not None
+        out["argument"] = res.search.argument if complete else (
+            ARGUMENT_DERIVED if total is not None else None)
     if "critical" in want:
         if res is not None and "components" in want:
             out["critical_points"] = len(res.critical_points)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Final, Literal
 
 #: Reasons for an incomplete search, as reported in ``search["reason"]``.
 REASON_TIME = "time"
@@ -29,8 +30,9 @@ REASON_SEARCHED = "searched"
 
 #: Arguments that make a search complete (``search["argument"]``): a closed form, chain rules or a
 #: certified decomposition (derived), or every solution of a polynomial system found (proved).
-ARGUMENT_DERIVED = "derived"
-ARGUMENT_PROVED = "proved"
+Argument = Literal["derived", "proved"]
+ARGUMENT_DERIVED: Final = "derived"
+ARGUMENT_PROVED: Final = "proved"
 
 
 #: ``progress(fraction, message)``: how far a search has come (0..1), from the engine itself.

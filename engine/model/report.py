@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any
 
 from engine.model.budget import (
     REASON_BUDGET,
@@ -33,11 +33,8 @@ from engine.model.budget import (
     REASON_SEARCHED,
     REASON_TIME,
     REASON_UNRESOLVED,
+    Argument,
 )
-
-#: What proves a search complete (:data:`engine.model.budget.ARGUMENT_DERIVED` or
-#: :data:`engine.model.budget.ARGUMENT_PROVED`).
-Argument = Literal["derived", "proved"]
 
 
 @dataclass(frozen=True)
@@ -92,7 +89,7 @@ class SearchReport(Mapping[str, Any]):
         """The same report with more (or changed) details."""
         return replace(self, details={**self.details, **more})
 
-    def with_argument(self, argument: str | None, detail: str | None) -> SearchReport:
+    def with_argument(self, argument: Argument | None, detail: str | None) -> SearchReport:
         """The same report with an argument (or none)."""
         return replace(self, argument=argument, argument_detail=detail)
 

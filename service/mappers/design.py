@@ -156,7 +156,7 @@ def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.Critica
         curves=[c.tolist() for c in res.curves],
         regions=[
             cv_schemas.RegionOut(point=list(r.point), components=r.components,
-                                 signature=r.signature, cells=r.cells)
+                                 signature=r.signature, cells=r.cells, argument=r.argument)
             for r in res.regions
         ],
         search=cv_schemas.SliceSearch.model_validate(search_out(res.search)),

@@ -95,6 +95,7 @@ def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.Sw
                 lengths=dict(zip(names, r.values, strict=True)),
                 components=r.components,
                 complete=r.complete,
+                argument=r.argument,
                 critical_points=r.critical_points,
                 margin=r.margin,
                 windings=None if r.windings is None else list(r.windings),

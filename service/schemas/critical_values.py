@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field
 
@@ -51,10 +51,16 @@ class RegionOut(BaseModel):
     )
     signature: str
     cells: int = Field(description="raster cells of the region")
+    argument: Literal["derived", "proved"] | None = Field(
+        None, description="what proves ``components`` exact (the exploration's "
+        "search.argument); null: a lower bound, or not explored")
 
 
 class SliceSearch(SearchReport):
-    """The search of a slice: complete unless the deadline stopped it (``reason`` time)."""
+    """The search of a slice: complete when its curves are every critical curve in the box (the
+    closed form of a one-dyad chain) and every region's count is exact (``argument``);
+    otherwise ``reason`` is time (the deadline stopped it) or searched (traced curves, or a
+    region whose count is a lower bound)."""
 
     regions_explored: int = Field(description="regions whose components were counted")
     curves: int = Field(description="curves of the critical value set traced")

@@ -117,7 +117,12 @@ class SweepRequest(Strict):
 class SweepRow(BaseModel):
     lengths: dict[str, float] = Field(description="the swept values of this point")
     components: int | None = None
-    complete: bool | None = Field(None, description="false: a search budget cut the count short")
+    complete: bool | None = Field(
+        None, description="false: the count is a lower bound (a search budget cut it short, or "
+        "no argument proves it)")
+    argument: Literal["derived", "proved"] | None = Field(
+        None, description="what proves the count exact (as search.argument): derived (a "
+        "closed form, the chain rules, the lengths admit no configuration) or proved")
     critical_points: int | None = None
     margin: float | None = None
     windings: list[str] | None = Field(None, description="distinct rotor-turn patterns")

@@ -34,11 +34,15 @@ class RobustnessRequest(Strict):
 
 
 class RobustnessSearch(BaseModel):
-    complete: bool = Field(description="every planned start ran (always true for the closed "
-                           "form)")
-    reason: Literal["time", "budget"] | None = Field(
-        description="why the search is incomplete (time: the deadline stopped the starts)"
+    complete: bool = Field(description="the margin is exact: the closed form (argument "
+                           "derived); a multistart is an upper bound and never complete")
+    reason: Literal["time", "budget", "searched"] | None = Field(
+        description="why the search is incomplete (time: the deadline stopped the starts; "
+        "searched: every planned start ran, but a multistart finds an upper bound)"
     )
+    argument: Literal["derived", "proved"] | None = Field(
+        None, description="what proves the margin exact (derived: the closed form)")
+    argument_detail: str | None = Field(None, description="the argument in a sentence")
     starts_planned: int | None = Field(None, description="multistart: starts planned")
     starts_run: int | None = Field(None, description="multistart: starts run")
     critical_points_complete: bool | None = Field(

@@ -195,6 +195,8 @@ class BranchSplit(Model):
     shift: np.ndarray
     sign: int
     connects: list[list[int]]
+    delta_error: float | None = None
+    resolved: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -217,6 +219,8 @@ class RobustnessSearch(Model):
     starts_run: int | None = None
     critical_points_complete: bool | None = None
     planes: int | None = None
+    argument: str | None = None
+    argument_detail: str | None = None
 
 
 @dataclass(frozen=True)
@@ -234,6 +238,8 @@ class RobustnessResult(Model):
     guarantee: str
     search: RobustnessSearch
     tolerances: TolerancesUsed
+    guarantee_detail: str | None = None
+    exact_margin: float | None = None
     raw: JSON = _raw()
 
 
@@ -243,6 +249,7 @@ class Region(Model):
     components: int | None
     signature: str
     cells: int
+    argument: str | None = None
 
 
 @dataclass(frozen=True)
@@ -253,6 +260,8 @@ class SliceSearch(Model):
     curves: int
     resolution: int
     time_budget_s: float | None = None
+    argument: str | None = None
+    argument_detail: str | None = None
 
 
 @dataclass(frozen=True)
@@ -273,6 +282,7 @@ class Predicted(Model):
     delta: float
     connects: list[list[int]]
     traced_connects: list[list[int]] | None
+    delta_error: float | None = None
 
 
 @dataclass(frozen=True)

@@ -134,6 +134,8 @@ class SearchReport(Model):
     complete: bool
     reason: str | None
     time_budget_s: float | None = None
+    argument: str | None = None
+    argument_detail: str | None = None
 
 
 @dataclass(frozen=True)

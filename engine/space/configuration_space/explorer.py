@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from engine.local.rigidity import first_order
 from engine.model.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.model.budget import NEVER, Deadline, granted
+from engine.model.budget import NEVER, Argument, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
@@ -123,7 +123,7 @@ class Explorer:
         return curve
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
-               argument: tuple[str | None, str | None] = (None, None),
+               argument: tuple[Argument | None, str | None] = (None, None),
                curves_needed: bool = True, **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
         flags that decide whether it is complete (:class:`engine.model.report.SearchReport`);

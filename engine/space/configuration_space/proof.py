@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.local.critical import CriticalPoint
-from engine.model.budget import ARGUMENT_DERIVED, ARGUMENT_PROVED
+from engine.model.budget import ARGUMENT_DERIVED, ARGUMENT_PROVED, Argument
 from engine.model.constraints import project
 from engine.space.chain_count import ChainCount
 from engine.space.configuration_space.explorer import Explorer
@@ -84,7 +84,7 @@ def uncovered_seeds(ex: Explorer, proof: Proof) -> int:
 
 def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],
              count: ChainCount | None = None, traced: int | None = None,
-             components: bool = True) -> tuple[str | None, str | None]:
+             components: bool = True) -> tuple[Argument | None, str | None]:
     """The argument of a search that ran to its end (or ``(None, why not)``): ``components``
     False for the critical-point search, which needs no seed on every component."""
     if count is not None and not crit and (traced == count.components or not components):

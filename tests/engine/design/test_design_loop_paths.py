@@ -68,7 +68,10 @@ def test_closed_form_slice_is_the_traced_slice(params, axes):
     slow = critical_value_slice(lk, axes, resolution=24, options=opt, method="traced")
     assert fast.search["method"] == "closed form"
     assert slow.search["method"] == "traced"
-    assert fast.search["complete"] and slow.search["complete"]
+    # the closed-form curves and exact region counts are derived; traced curves are a search
+    assert fast.search["complete"] and fast.search["argument"] == "derived"
+    assert not slow.search["complete"] and slow.search["reason"] == "searched"
+    assert all(r.argument is not None for r in fast.regions + slow.regions)
     span = max(hi - lo for _, lo, hi in axes)
     (x, *_), (y, *_) = axes
     # the traced curves lie on the closed-form ones

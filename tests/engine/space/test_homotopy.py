@@ -133,5 +133,6 @@ def test_the_deadline_stops_the_paths_and_says_so():
     from engine.model.budget import Deadline
 
     coef = np.random.default_rng(5).normal(size=(2, 3, 3))
-    res = track(quadrics(coef), [2, 2], np.random.default_rng(5), deadline=Deadline(stop=lambda: True))
+    res = track(quadrics(coef), [2, 2], np.random.default_rng(5),
+                deadline=Deadline(stop=lambda: True))
     assert not res.success and "deadline" in res.message

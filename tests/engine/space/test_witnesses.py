@@ -119,7 +119,8 @@ def circles_of(lk) -> tuple[list, list[float], list[int]]:
     circles, tips = [], []
     for j in range(n):
         if f"A{j}" in ids:
-            a, b, ra, rb = ids.index(f"A{j}"), ids.index(f"B{j}"), lengths[f"a{j}"], lengths[f"b{j}"]
+            a, b = ids.index(f"A{j}"), ids.index(f"B{j}")
+            ra, rb = lengths[f"a{j}"], lengths[f"b{j}"]
         else:
             a, b = ids.index(f"P{j}a"), ids.index(f"P{j}b")
             ra, rb = lengths[f"r{j}a"], lengths[f"r{j}b"]
