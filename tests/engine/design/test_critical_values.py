@@ -9,13 +9,9 @@ import pytest
 from scipy import ndimage
 
 from engine.catalogue.presets import build_preset
-from engine.design.critical_values import (
-    Axis,
-    _blocked_cells,
-    _polyline_distance,
-    _System,
-    critical_value_slice,
-)
+from engine.design.critical_values import critical_value_slice
+from engine.design.slice_curves import Axis, _System
+from engine.design.slice_regions import _blocked_cells, _polyline_distance
 from engine.space.configuration_space import SpaceOptions, explore
 
 SIGNS = list(itertools.product((1, -1), repeat=3))

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from engine.catalogue.presets import build_preset
-from engine.design.critical_values import _blocked_cells, _polyline_distance, critical_value_slice
+from engine.design.critical_values import critical_value_slice
+from engine.design.slice_regions import _blocked_cells, _polyline_distance
 from engine.model.errors import InvalidRequest
 from engine.space.configuration_space import SpaceOptions, explore
 

@@ -262,7 +262,8 @@ def test_the_batched_refinement_stops_at_the_deadline():
 def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
     """A traced critical-value slice seeded through either refinement: the same curves (within
     a small fraction of the step) and the same regions (points, counts, signatures)."""
-    from engine.design.critical_values import _polyline_distance, critical_value_slice
+    from engine.design.critical_values import critical_value_slice
+    from engine.design.slice_regions import _polyline_distance
 
     lk = build_preset(name, params)
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
@@ -289,12 +290,12 @@ def test_onto_the_critical_set_batched_is_one_at_a_time(name, params, axes):
     """The seeds of a slice (near misses and critical points at sample lengths, as
     ``_CurveTracing.starts_at`` makes them) moved onto ``G = 0`` all at once and one at a time:
     the same points (the same Gauss-Newton iteration, and the same fallback)."""
-    from engine.design.critical_values import (
+    from engine.design.critical_values import _validate
+    from engine.design.slice_curves import (
         _BatchedSystem,
         _onto_solutions,
         _onto_solutions_batch,
         _System,
-        _validate,
     )
 
     lk = build_preset(name, params)

@@ -9,7 +9,8 @@ import pytest
 from scipy.optimize import least_squares
 
 from engine.catalogue.presets import build_preset
-from engine.design.critical_values import GRID_OFFSET, _onto_solutions, _System, _validate
+from engine.design.critical_values import GRID_OFFSET, _validate
+from engine.design.slice_curves import _onto_solutions, _System
 from engine.local.critical import AugmentedSystem
 from engine.model.batched import BatchedConstraints
 from engine.model.constraints import Constraints
