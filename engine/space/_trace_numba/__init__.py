@@ -3,9 +3,9 @@
 Every function mirrors a piece of :mod:`engine.space.trace` and :mod:`engine.model.lu`; the names
 say which. The rooms: :mod:`.sums` (squared lengths, the Jacobian's values, the small
 reductions), :mod:`.band` (the band LU and solve), :mod:`.factor` (the factorisation of
-``[row; J]`` and its solve), :mod:`.loop` (the corrector and :func:`run`, the committed passes).
-Matrices are in LAPACK band storage: ``ab[kl + ku + i - j, j] = A[i, j]`` with ``kl``
-extra leading rows for the fill of partial pivoting.
+``[row; J]`` and its solve), :mod:`.steps` (the corrector) and :mod:`.loop` (:func:`run`, the
+committed passes). Matrices are in LAPACK band storage: ``ab[kl + ku + i - j, j] = A[i, j]``
+with ``kl`` extra leading rows for the fill of partial pivoting.
 """
 
 from engine.space._trace_numba.band import (
