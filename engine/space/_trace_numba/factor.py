@@ -54,25 +54,7 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
     m = u.shape[0]
     ext[:m] = u
     if dense:
-        _jac_values_ext(ext, gi, gj, rows, sign, axes, vals)
-        kl = m - 1
-        ku = m - 1
-        off = kl + ku
-        ab = np.zeros((2 * kl + ku + 1, m))
-        for c in range(m):
-            ab[off - c, c] = row[c]  # row 0
-        for e in range(rows.shape[0]):
-            i = rows[e] + 1
-            c = cols[e]
-            ab[off + i - c, c] = vals[e]
-        piv = np.empty(m, dtype=np.int64)
-        if not _band_lu(ab, m, kl, ku, piv):
-            return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
-        flips, logdet = _diagonal(ab, off, piv, m)
-        if flips < 0:
-            return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
-        sgn = -1 if flips % 2 else 1
-        return _OK, ab, piv, kl, ku, sgn, logdet, empty_i, empty_f, empty_f, 1.0
+        return _factor_dense(ext, row, gi, gj, rows, cols, sign, axes, vals, empty_i, empty_f)
     # k = argmax |row| (the first largest, as np.argmax)
     k = 0
     big = abs(row[0])
@@ -81,36 +63,8 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
             big = abs(row[c])
             k = c
     ck = col_pos[k]
-    nnz = rows.shape[0]
-    if lay[0] == k:
-        kl = lay[1]
-        ku = lay[2]
-        ins = lay[3]
-        row_pos = lay_rp
-    else:
-        ins = np.searchsorted(keys, ck, side="right")
-        kl = max(ins - ck, 0)
-        ku = max(ck - ins, 0)
-        for e in range(nnz):
-            r = entry_rank[e]
-            diff = r + (1 if r >= ins else 0) - entry_col[e]
-            if diff > kl:
-                kl = diff
-            if -diff > ku:
-                ku = -diff
-        for e in range(nnz):  # flat index into the band: (band row) * m + column
-            r = entry_rank[e]
-            lay_pos[e] = (kl + ku + r + (1 if r >= ins else 0) - entry_col[e]) * m \
-                + entry_col[e]
-        row_pos = np.empty(m, dtype=np.int64)
-        row_pos[0] = ins
-        for a in range(row_rank.shape[0]):
-            r = row_rank[a]
-            row_pos[a + 1] = r + (1 if r >= ins else 0)
-        lay[0] = k
-        lay[1] = kl
-        lay[2] = ku
-        lay[3] = ins
+    kl, ku, ins, row_pos = _band_layout(k, ck, m, keys, entry_rank, entry_col, row_rank, lay,
+                                        lay_pos, lay_rp)
     if kl * (kl + ku) > band_max_work:
         return _DECLINE, np.zeros((1, 1)), empty_i, kl, ku, 0, -np.inf, row_pos, empty_f, \
             empty_f, 1.0
@@ -139,6 +93,68 @@ def _factor_into(u, row, dense, band_max_work, fixed, gi, gj, rows, cols, sign, 
         return _DECLINE, ab, piv, kl, ku, 0, -np.inf, row_pos, y0, d, gamma
     sgn = base_sign * (1 if gamma > 0 else -1)
     return _OK, ab, piv, kl, ku, sgn, logdet + math.log(abs(gamma)), row_pos, y0, d, gamma
+
+
+
+@njit(cache=True, inline="always")
+def _factor_dense(ext, row, gi, gj, rows, cols, sign, axes, vals, empty_i, empty_f):
+    """:func:`_factor_into`'s dense path: the LU of ``[row; J]`` itself with full bandwidth
+    (``ext = [u, fixed]``)."""
+    m = row.shape[0]
+    _jac_values_ext(ext, gi, gj, rows, sign, axes, vals)
+    kl = m - 1
+    ku = m - 1
+    off = kl + ku
+    ab = np.zeros((2 * kl + ku + 1, m))
+    for c in range(m):
+        ab[off - c, c] = row[c]  # row 0
+    for e in range(rows.shape[0]):
+        i = rows[e] + 1
+        c = cols[e]
+        ab[off + i - c, c] = vals[e]
+    piv = np.empty(m, dtype=np.int64)
+    if not _band_lu(ab, m, kl, ku, piv):
+        return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
+    flips, logdet = _diagonal(ab, off, piv, m)
+    if flips < 0:
+        return _SINGULAR, ab, piv, kl, ku, 0, -np.inf, empty_i, empty_f, empty_f, 1.0
+    sgn = -1 if flips % 2 else 1
+    return _OK, ab, piv, kl, ku, sgn, logdet, empty_i, empty_f, empty_f, 1.0
+
+
+@njit(cache=True, inline="always")
+def _band_layout(k, ck, m, keys, entry_rank, entry_col, row_rank, lay, lay_pos, lay_rp):
+    """The band layout of ``[e_k; J]`` (column ``ck`` of the unit row in the band order):
+    ``(kl, ku, ins, row_pos)``, kept in ``lay = [k, kl, ku, ins]`` and ``lay_pos`` (the flat
+    index of each entry in the band) for the next factorisation; ``row_pos`` (the band row of
+    each row) is ``lay_rp`` while ``k`` is the kept one, else a new array."""
+    if lay[0] == k:
+        return lay[1], lay[2], lay[3], lay_rp
+    nnz = entry_rank.shape[0]
+    ins = np.searchsorted(keys, ck, side="right")
+    kl = max(ins - ck, 0)
+    ku = max(ck - ins, 0)
+    for e in range(nnz):
+        r = entry_rank[e]
+        diff = r + (1 if r >= ins else 0) - entry_col[e]
+        if diff > kl:
+            kl = diff
+        if -diff > ku:
+            ku = -diff
+    for e in range(nnz):  # flat index into the band: (band row) * m + column
+        r = entry_rank[e]
+        lay_pos[e] = (kl + ku + r + (1 if r >= ins else 0) - entry_col[e]) * m \
+            + entry_col[e]
+    row_pos = np.empty(m, dtype=np.int64)
+    row_pos[0] = ins
+    for a in range(row_rank.shape[0]):
+        r = row_rank[a]
+        row_pos[a + 1] = r + (1 if r >= ins else 0)
+    lay[0] = k
+    lay[1] = kl
+    lay[2] = ku
+    lay[3] = ins
+    return kl, ku, ins, row_pos
 
 
 @njit(cache=True)

@@ -9,10 +9,16 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.model.tolerances import POLISH_TANGENT_MOVE
-from engine.space._trace_numba.band import _band_solve
-from engine.space._trace_numba.factor import _DECLINE, _OK, _SINGULAR, _factor_into
-from engine.space._trace_numba.steps import _correct
+from engine.space._trace_numba.factor import _DECLINE, _OK
+from engine.space._trace_numba.steps import (
+    Correcting,
+    Factoring,
+    _corrected,
+    _factor_at,
+    _polished,
+    _predict,
+    _tangent,
+)
 from engine.space._trace_numba.sums import (
     _dist2,
     _dot,
@@ -27,6 +33,49 @@ _EV_DEADLINE = 2
 
 
 @njit(cache=True)
+def _extended_work(fixed, m):
+    """A work array ``[x, fixed]`` (M + F,) for points ``x`` of ``M`` free coordinates."""
+    ext = np.empty(m + fixed.shape[0])
+    ext[m:] = fixed
+    return ext
+
+
+@njit(cache=True)
+def _work(m, dense, band_max_work, atol, fixed, gi, gj, lengths, targets, rows, cols, sign,
+          axes, entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm):
+    """The work arrays of every pass of :func:`run`, allocated once, with the arrays they go
+    with: those of the factorisations (:data:`.steps.Factoring`: ``[u, fixed]`` of a
+    factorisation, the Jacobian's values, the band layout, the empty arrays of the dense
+    path), the corrector's (:data:`.steps.Correcting`: ``[w, fixed]``, its iterate; the squared
+    lengths, its right-hand side and the band rows of its entries on the dense path), and
+    ``[v, fixed]`` of the predicted point."""
+    fd = Factoring(dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
+                   entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
+                   np.empty(rows.shape[0]), np.full(4, -1, dtype=np.int64),
+                   np.empty(rows.shape[0], dtype=np.int64), _extended_work(fixed, m),
+                   np.zeros(0, dtype=np.int64), np.zeros(0))
+    cd = Correcting(col_pos, dense, atol, fixed, gi, gj, lengths, targets,
+                    np.empty(lengths.shape[0]), _extended_work(fixed, m), np.empty(m),
+                    np.arange(1, lengths.shape[0] + 1))
+    return fd, cd, _extended_work(fixed, m)
+
+
+@njit(cache=True, inline="always")
+def _commit(k, w, tw, s3, l3, u, t, t_in, u_prev, out_pts, out_tan, out_sign, out_logdet):
+    """Commit the pass to ``w`` (tangent ``tw``, sign and ``log|det|`` ``s3``, ``l3``): its
+    row ``k`` of the output, and ``u``, ``t`` move on to ``u_prev``, ``t_in``."""
+    out_pts[k] = w
+    out_tan[k] = tw
+    out_sign[k] = s3
+    out_logdet[k] = l3
+    for c in range(u.shape[0]):
+        u_prev[c] = u[c]
+        t_in[c] = t[c]
+        u[c] = w[c]
+        t[c] = tw[c]
+
+
+@njit(cache=True)
 def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, cols, sign,
         axes, entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
         out_pts, out_tan, out_sign, out_logdet):
@@ -38,67 +87,32 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
     h_cross]``,
     ``ip = [sign, budget, tried, close, dense, band_max_work, deadline_every, checked,
     cross_ahead, has_prev]``; the state entries of ``u, t, t_in, u_prev, fp, ip`` are updated
-    in place. Returns (points committed, event)."""
-    h = fp[0]
-    arc = fp[1]
-    close_after = fp[2]
-    h_max = fp[3]
-    h_min = fp[4]
-    collapse = fp[5]
-    strain_tol = fp[6]
-    atol = fp[7]
-    cos_turn = fp[8]
-    h_cross = fp[9]
-    sgn = ip[0]
-    budget = ip[1]
-    tried = ip[2] != 0
-    close = ip[3] != 0
-    dense = ip[4] != 0
-    band_max_work = ip[5]
-    every = ip[6]
-    checked = ip[7]
-    cross_ahead = ip[8] != 0
-    has_prev = ip[9] != 0
+    in place. Returns (points committed, event).
+
+    A pass (engine.space.trace._attempt) is the steps of :mod:`.steps`: predict, strain test,
+    correct, factorise at the corrected point and polish, tangent, turn and sign tests; then
+    the step control and the closing test, and the commit."""
+    h, arc, close_after, h_max, h_min = fp[0], fp[1], fp[2], fp[3], fp[4]
+    collapse, strain_tol, cos_turn, h_cross = fp[5], fp[6], fp[8], fp[9]
+    sgn, budget, tried, close, dense = ip[0], ip[1], ip[2] != 0, ip[3] != 0, ip[4] != 0
+    every, checked, cross_ahead, has_prev = ip[6], ip[7], ip[8] != 0, ip[9] != 0
     m = u.shape[0]
-    ea = lengths.shape[0]
     cap = out_pts.shape[0]
-    vals = np.empty(rows.shape[0])
-    lay = np.full(4, -1, dtype=np.int64)
-    lay_pos = np.empty(rows.shape[0], dtype=np.int64)
-    lay_rp = np.zeros(0, dtype=np.int64)
-    sq = np.empty(ea)
+    fd, cd, ext_v = _work(m, dense, ip[5], fp[7], fixed, gi, gj, lengths, targets, rows, cols,
+                          sign, axes, entry_i, entry_j, col_pos, entry_rank, entry_col, keys,
+                          row_rank, sign_perm)
+    v = ext_v[:m]
     e1 = np.zeros(m)
     e1[0] = 1.0
+    ybuf = np.empty(m)
+    wpre = np.empty(m)
+    tw = np.zeros(m)
     count = 0
     event = _EV_FULL
-    tw = np.zeros(m)
-    s3 = 0
-    l3 = 0.0
     step = 0.0
-    # work arrays of every pass, allocated once: [v, fixed], [w, fixed] (the corrector's
-    # iterate), [u, fixed] of a factorisation, the corrector's right-hand side and the band
-    # rows of its entries on the dense path, the tangent's solve, and the empty arrays of the
-    # dense factorisation
-    nf = fixed.shape[0]
-    ext_v = np.empty(m + nf)
-    ext_w = np.empty(m + nf)
-    ext_f = np.empty(m + nf)
-    ext_v[m:] = fixed
-    ext_w[m:] = fixed
-    ext_f[m:] = fixed
-    v = ext_v[:m]
-    rhs = np.empty(m)
-    pos_dense = np.arange(1, ea + 1)
-    ybuf = np.empty(m)
-    wpre = np.empty(m)  # the corrected point before the polish
-    empty_i = np.zeros(0, dtype=np.int64)
-    empty_f = np.zeros(0)
-    st, ab, piv, kl, ku, _s, _l, rp, y0, dv, gam = _factor_into(
-        u, t_in, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i, entry_j,
-        col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay, lay_pos, lay_rp,
-        ext_f, empty_i, empty_f)
-    lay_rp = rp
-    ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3 = ab, piv, kl, ku, rp, y0, dv, gam
+    st, fac, s3, l3 = _factor_at(u, t_in, fd, np.zeros(0, dtype=np.int64))
+    lay_rp = fac.row_pos
+    fac3 = fac
     if st != _OK:
         event = _EV_PASS
     while st == _OK and count < cap:
@@ -109,132 +123,49 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
         if every > 0 and nb % every == 0 and nb != checked:
             event = _EV_DEADLINE
             break
-        # --- one attempt (engine.space.trace._attempt) ---
-        for c in range(m):
-            v[c] = u[c] + h * t[c]
-        if has_prev:  # engine.space.trace.predict: the cubic through u_prev and u
-            h0 = math.sqrt(_dist2(u, u_prev))
-            if h0 > 0.0:
-                r = h / h0
-                a3 = r * r * (3.0 + 2.0 * r)
-                b3 = h0 * r * r * (1.0 + r)
-                for c in range(m):
-                    v[c] = v[c] + a3 * (u_prev[c] - u[c] + h0 * t[c]) + b3 * (t_in[c] - t[c])
-        _squared_lengths_ext(ext_v, gi, gj, sq)
-        shrink = _strained(sq, lengths, strain_tol)
-        decline = False
+        _predict(v, u, t, u_prev, t_in, h, has_prev)
+        _squared_lengths_ext(ext_v, gi, gj, cd.sq)
+        shrink = _strained(cd.sq, lengths, strain_tol)
         w = v
-        ok = False
         iters = 0
         if not shrink:
-            w, ok, iters = _correct(v, ab, piv, kl, ku, rp, col_pos, y0, dv, gam, dense, atol,
-                                    False, fixed, gi, gj, lengths, targets, sq, True, ext_w,
-                                    rhs, pos_dense)
-            if not ok:
-                st2, ab2, piv2, kl2, ku2, _s2, _l2, rp2, y02, dv2, gam2 = _factor_into(
-                    v, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                    entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm,
-                    vals, lay, lay_pos, lay_rp, ext_f, empty_i, empty_f)
-                lay_rp = rp2
-                if st2 == _DECLINE:
-                    decline = True
-                elif st2 == _SINGULAR:
-                    w, ok, iters = v, False, 0
-                else:
-                    w, ok, iters = _correct(v, ab2, piv2, kl2, ku2, rp2, col_pos, y02, dv2,
-                                            gam2, dense, atol, False, fixed, gi, gj, lengths,
-                                            targets, sq, False, ext_w, rhs, pos_dense)
-            if not decline:
-                if not ok or math.sqrt(_dist2(w, v)) > 0.5 * h:
-                    shrink = True
-        if decline:
-            event = _EV_PASS
-            break
+            st2, w, ok, iters, lay_rp = _corrected(v, t, fac, fd, cd, lay_rp)
+            if st2 == _DECLINE:
+                event = _EV_PASS
+                break
+            shrink = not ok or math.sqrt(_dist2(w, v)) > 0.5 * h
         if not shrink:
-            st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor_into(
-                w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes, entry_i,
-                entry_j, col_pos, entry_rank, entry_col, keys, row_rank, sign_perm, vals, lay,
-                lay_pos, lay_rp, ext_f, empty_i, empty_f)
-            lay_rp = rp3
+            st3, fac3, s3, l3, w = _polished(w, t, h, fd, cd, lay_rp, wpre)
+            lay_rp = fac3.row_pos
             if st3 == _DECLINE:
                 event = _EV_PASS
                 break
-            if st3 == _SINGULAR:
-                shrink = True
-            else:
-                # the polish (engine.space.trace._attempt): Newton with the factorisation at w to
-                # CORRECT_TIGHT * atol (sq holds the squared lengths at w); the tangent
-                # factorised again at the polished point where it moved w by more than
-                # POLISH_TANGENT_MOVE of the step
-                for c in range(m):
-                    wpre[c] = w[c]
-                w, ok, _it = _correct(w, ab3, piv3, kl3, ku3, rp3, col_pos, y03, dv3, gam3,
-                                      dense, atol, True, fixed, gi, gj, lengths, targets, sq,
-                                      True, ext_w, rhs, pos_dense)
-                shrink = not ok
-                if ok and math.sqrt(_dist2(w, wpre)) > POLISH_TANGENT_MOVE * h:
-                    st3, ab3, piv3, kl3, ku3, s3, l3, rp3, y03, dv3, gam3 = _factor_into(
-                        w, t, dense, band_max_work, fixed, gi, gj, rows, cols, sign, axes,
-                        entry_i, entry_j, col_pos, entry_rank, entry_col, keys, row_rank,
-                        sign_perm, vals, lay, lay_pos, lay_rp, ext_f, empty_i, empty_f)
-                    lay_rp = rp3
-                    if st3 == _DECLINE:
-                        event = _EV_PASS
-                        break
-                    shrink = st3 == _SINGULAR
-            if not shrink:
-                y = ybuf
-                if dense:  # _solve's dense path, into ybuf
-                    for c in range(m):
-                        y[c] = e1[c]
-                    _band_solve(ab3, m, kl3, ku3, piv3, y)
-                else:  # BorderedFactor.solve_first: B0^{-1} e_1 / gamma, already known
-                    for c in range(m):
-                        y[c] = y03[c] / gam3
-                ny = math.sqrt(_dot(y, y))
-                if not np.isfinite(ny) or ny == 0.0:
-                    shrink = True
+            shrink = st3 != _OK or not _tangent(fac3, dense, e1, ybuf, tw) or \
+                _dot(tw, t) < cos_turn
+            if not shrink and not (s3 == sgn or sgn == 0):
+                if h > h_cross:
+                    shrink = True  # as engine.space.trace._attempt
                 else:
-                    for c in range(m):
-                        tw[c] = y[c] / ny
-                    if _dot(tw, t) < cos_turn:
-                        shrink = True
-                    elif not (s3 == sgn or sgn == 0):
-                        if h > h_cross:
-                            shrink = True  # as engine.space.trace._attempt
-                        else:
-                            event = _EV_PASS  # a crossing: the Python loop decides
-                            break
+                    event = _EV_PASS  # a crossing: the Python loop decides
+                    break
         if not shrink:
             step = math.sqrt(_dist2(w, u))
-            if step > h_max:
-                shrink = True
+            shrink = step > h_max
         if shrink:
             budget = nb
             h *= 0.5
             has_prev = False  # the tangent predicts from here on (engine.space.trace.trace_curve)
             continue
-        arc_new = arc + step
-        if close and arc_new > close_after:
-            # segment_distance(u, w, u0) <= 0.5 h_max: the Python loop tests the closing
-            if _segment_distance(u, w, u0) <= 0.5 * h_max:
-                event = _EV_PASS
-                break
-        # commit
+        # segment_distance(u, w, u0) <= 0.5 h_max: the Python loop tests the closing
+        if close and arc + step > close_after and _segment_distance(u, w, u0) <= 0.5 * h_max:
+            event = _EV_PASS
+            break
+        _commit(count, w, tw, s3, l3, u, t, t_in, u_prev, out_pts, out_tan, out_sign, out_logdet)
         budget = nb
-        out_pts[count] = w
-        out_tan[count] = tw
-        out_sign[count] = s3
-        out_logdet[count] = l3
         count += 1
-        arc = arc_new
-        for c in range(m):
-            u_prev[c] = u[c]
-            t_in[c] = t[c]
-            u[c] = w[c]
-            t[c] = tw[c]
+        arc = arc + step
         has_prev = True
-        ab, piv, kl, ku, rp, y0, dv, gam = ab3, piv3, kl3, ku3, rp3, y03, dv3, gam3
+        fac = fac3
         sgn = s3
         tried = False
         h = min(h_max, h * (1.5 if iters <= 3 else 1.0))
