@@ -82,7 +82,7 @@ def run(u, t, t_in, u_prev, u0, fp, ip, fixed, gi, gj, lengths, targets, rows, c
     """Committed passes of engine.space.trace.trace_curve (see engine.space.trace_kernel.advance).
 
     ``u_prev``: the point before ``u`` (tangent ``t_in``), for the predictor's cubic
-    (engine.space.trace.predict) when ``has_prev``;
+    (engine.space.curve.predict) when ``has_prev``;
     ``fp = [h, arc, close_after, h_max, h_min, collapse, strain_tol, residual_atol, cos_turn,
     h_cross]``,
     ``ip = [sign, budget, tried, close, dense, band_max_work, deadline_every, checked,

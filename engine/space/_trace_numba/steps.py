@@ -88,7 +88,7 @@ def _correct(v, ab, piv, kl, ku, row_pos, col_pos, y0, d, gamma, dense, atol, ti
 
 @njit(cache=True, inline="always")
 def _predict(v, u, t, u_prev, t_in, h, has_prev):
-    """engine.space.trace.predict into ``v``: ``u + h t``, and with the point before ``u``
+    """engine.space.curve.predict into ``v``: ``u + h t``, and with the point before ``u``
     (``has_prev``; its tangent ``t_in``) the cubic through both."""
     m = u.shape[0]
     for c in range(m):

@@ -127,7 +127,7 @@ def _dist2(a, b):
 
 @njit(cache=True, boundscheck=False, inline="always")
 def _segment_distance(a, b, target):
-    """engine.space.trace.segment_distance: from ``target`` to the segment ``[a, b]``."""
+    """engine.space.curve.segment_distance: from ``target`` to the segment ``[a, b]``."""
     m = a.shape[0]
     ab = _dist2(b, a)
     n0 = 0.0
