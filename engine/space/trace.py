@@ -225,48 +225,19 @@ def trace_curve(
         if compiled:
             # the regular passes in compiled code; it hands back the pass it cannot finish
             # as this loop would (then run below) or a due deadline check
-            checked = -1
-            while True:
-                room = options.max_points - len(curve.points)
-                if stop is not None:
-                    room, chunk = min(room, chunk), min(2 * chunk, STOP_CHUNK_MAX)
-                adv = trace_kernel.advance(
-                    cons, cons.n_free <= SPARSE_LU_MIN_FREE, u, t, t_in, sign, h, arc, budget,
-                    tried_at_u, room, u_prev=u_prev, u0=u0, close=close,
-                    close_after=close_after, h_max=lim.h_max, h_min=lim.h_min,
-                    collapse=STEP_COLLAPSE * lim.h_max, strain_tol=options.strain_tol,
-                    residual_atol=tol.residual_atol, cos_turn=float(np.cos(options.max_turn)),
-                    h_cross=lim.h_cross, band_max_work=BAND_MAX_WORK,
-                    deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
-                    cross_ahead=cons.n_free <= 600)
-                if stop is None:
-                    curve.extend(adv.points, adv.tangents, adv.signs, adv.logdets)
-                else:  # the stop check on every committed point, as below
-                    prev = u
-                    for k in range(len(adv.points)):
-                        w = adv.points[k]
-                        curve.append(w, adv.tangents[k], int(adv.signs[k]),
-                                     float(adv.logdets[k]))
-                        reason = stop(prev, w, adv.tangents[k])
-                        if reason is not None:
-                            curve.stop = reason
-                            return curve
-                        prev = w
-                u, t, t_in, sign, u_prev = adv.u, adv.t, adv.t_in, adv.sign, adv.u_prev
-                h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
-                if adv.event != trace_kernel.EV_DEADLINE:
-                    break
-                if deadline.expired():
-                    curve.stop = STOP_TIME
-                    return curve
-                checked = budget - 1
+            adv, chunk = _compiled_passes(
+                cons, curve, u, t, t_in, u_prev, sign, h, arc, budget, tried_at_u, u0=u0,
+                close=close, close_after=close_after, lim=lim, options=options, tol=tol,
+                stop=stop, deadline=deadline, watch=watch, chunk=chunk)
+            if adv is None:
+                return curve
+            u, t, t_in, sign, u_prev = adv.u, adv.t, adv.t_in, adv.sign, adv.u_prev
+            h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
             if adv.event == trace_kernel.EV_FULL:
                 continue
             fac = factor_augmented(cons, u, t_in)
         budget -= 1
-        ended = ("step budget" if budget < 0
-                 else STOP_TIME if budget % DEADLINE_EVERY == 0 and deadline.expired()
-                 else "step underflow" if h < lim.h_min else None)
+        ended = _ended(budget, h, lim, deadline)
         if ended is not None:
             curve.stop = ended
             return curve
@@ -299,8 +270,7 @@ def trace_curve(
         curve.append(w, nxt.tangent, nxt.sign, nxt.logdet)
         reason = stop(u, w, nxt.tangent) if stop is not None else None
         if reason is None and close and arc > close_after and \
-                segment_distance(u, w, u0) <= 0.5 * lim.h_max and \
-                _lands_on(cons, u, w, nxt.tangent, u0, tol, 1e-5 * lim.h_max):
+                _closes(cons, u, w, nxt.tangent, u0, tol, lim):
             reason = "closed"
         if reason is not None:
             curve.stop = reason
@@ -310,6 +280,72 @@ def trace_curve(
         h = min(lim.h_max, h * (1.5 if step.iters <= 3 else 1.0))
     curve.stop = "max points"
     return curve
+
+
+def _ended(budget: int, h: float, lim: _Limits, deadline: Deadline) -> str | None:
+    """Why :func:`trace_curve`'s loop stops before a pass (``budget``: the passes left after
+    it), or None: the pass budget spent, the deadline (looked at every
+    :data:`DEADLINE_EVERY` passes), the step ``h`` below the smallest."""
+    return ("step budget" if budget < 0
+            else STOP_TIME if budget % DEADLINE_EVERY == 0 and deadline.expired()
+            else "step underflow" if h < lim.h_min else None)
+
+
+def _closes(cons: Constraints, u: np.ndarray, w: np.ndarray, t: np.ndarray, u0: np.ndarray,
+            tol: Tolerances, lim: _Limits) -> bool:
+    """The step from ``u`` to ``w`` (tangent ``t`` at ``w``) passes by the start ``u0`` and
+    the curve really goes through it (:func:`_lands_on`): the curve has closed."""
+    return segment_distance(u, w, u0) <= 0.5 * lim.h_max and \
+        _lands_on(cons, u, w, t, u0, tol, 1e-5 * lim.h_max)
+
+
+def _compiled_passes(
+    cons: Constraints, curve: Curve, u: np.ndarray, t: np.ndarray, t_in: np.ndarray,
+    u_prev: np.ndarray | None, sign: int, h: float, arc: float, budget: int, tried_at_u: bool,
+    *, u0: np.ndarray, close: bool, close_after: float, lim: _Limits, options: TraceOptions,
+    tol: Tolerances, stop: StopCheck | None, deadline: Deadline, watch: bool, chunk: int,
+) -> tuple[trace_kernel.Advance | None, int]:
+    """:func:`trace_curve`'s regular passes from the state ``(u, t, t_in, u_prev, sign, h, arc,
+    budget, tried_at_u)`` in compiled code (:func:`engine.space.trace_kernel.advance`), its
+    points added to ``curve``, its deadline checks made, until it hands back a pass it cannot
+    finish as the Python loop would or its buffer is full: the kernel's last answer (the state
+    after it, and why it returned) and the next chunk of a stop check, or None when the trace
+    has ended (``curve.stop`` says why: the stop check or the deadline)."""
+    checked = -1
+    while True:
+        room = options.max_points - len(curve.points)
+        if stop is not None:
+            room, chunk = min(room, chunk), min(2 * chunk, STOP_CHUNK_MAX)
+        adv = trace_kernel.advance(
+            cons, cons.n_free <= SPARSE_LU_MIN_FREE, u, t, t_in, sign, h, arc, budget,
+            tried_at_u, room, u_prev=u_prev, u0=u0, close=close,
+            close_after=close_after, h_max=lim.h_max, h_min=lim.h_min,
+            collapse=STEP_COLLAPSE * lim.h_max, strain_tol=options.strain_tol,
+            residual_atol=tol.residual_atol, cos_turn=float(np.cos(options.max_turn)),
+            h_cross=lim.h_cross, band_max_work=BAND_MAX_WORK,
+            deadline_every=DEADLINE_EVERY if watch else 0, checked=checked,
+            cross_ahead=cons.n_free <= 600)
+        if stop is None:
+            curve.extend(adv.points, adv.tangents, adv.signs, adv.logdets)
+        else:  # the stop check on every committed point, as in trace_curve's loop
+            prev = u
+            for k in range(len(adv.points)):
+                w = adv.points[k]
+                curve.append(w, adv.tangents[k], int(adv.signs[k]),
+                             float(adv.logdets[k]))
+                reason = stop(prev, w, adv.tangents[k])
+                if reason is not None:
+                    curve.stop = reason
+                    return None, chunk
+                prev = w
+        u, t, t_in, sign, u_prev = adv.u, adv.t, adv.t_in, adv.sign, adv.u_prev
+        h, arc, budget, tried_at_u = adv.h, adv.arc, adv.budget, adv.tried
+        if adv.event != trace_kernel.EV_DEADLINE:
+            return adv, chunk
+        if deadline.expired():
+            curve.stop = STOP_TIME
+            return None, chunk
+        checked = budget - 1
 
 
 def _attempt(
