@@ -17,8 +17,9 @@ import scipy.sparse as sp
 from engine.local.sparse_null import SPARSE_MAX_NULLITY, _sparse_null_spaces
 from engine.model.constraints import Constraints
 from engine.model.errors import LimitExceeded, NumericalFailure
-from engine.model.linkage import RESULT_BYTES_PER_VALUE, Linkage, check_memory
+from engine.model.linkage import Linkage
 from engine.model.lu import Factor
+from engine.model.memory import RESULT_BYTES_PER_VALUE, check_memory
 from engine.model.tolerances import Tolerances
 from engine.model.vectors import normalise_sign
 
