@@ -1,5 +1,5 @@
 """The general tracer (issue 15): before (the Python loop) and after (its regular passes
-compiled, ``engine/space/_trace_numba.py``), side by side in one run (run on demand).
+compiled, ``engine/space/_trace_numba/``), side by side in one run (run on demand).
 
     .venv/bin/python bench/bench_tracer.py [--repeat 3] [--sizes 50 400]
         [--json bench/results/tracer.json]

@@ -22,7 +22,7 @@ from engine.model.errors import (
     NumericalFailure,
     UnknownPreset,
 )
-from engine.model.linkage import MemoryLimitExceeded
+from engine.model.memory import MemoryLimitExceeded
 from service.schemas.common import Problem
 from service.workers import ServiceFault
 

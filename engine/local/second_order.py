@@ -24,7 +24,8 @@ import numpy as np
 from engine.local.prestress import PrestressResult, prestress
 from engine.local.rigidity import RigidityResult, first_order, plan_first_order
 from engine.model.constraints import DENSE_MAX_FREE, Constraints, project
-from engine.model.linkage import Linkage, check_memory
+from engine.model.linkage import Linkage
+from engine.model.memory import check_memory
 from engine.model.tolerances import Tolerances
 from engine.model.vectors import normalise_sign
 

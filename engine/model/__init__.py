@@ -3,7 +3,8 @@
 Linkages (:mod:`.linkage`), the constraint map, its Jacobian and projection (:mod:`.constraints`,
 :mod:`.hessian`, :mod:`.batched` for many configurations at once), one LU with the determinant's
 sign (:mod:`.lu`), tolerances (:mod:`.tolerances`), errors (:mod:`.errors`), time budgets
-(:mod:`.budget`), a search's report (:mod:`.report`) and the vector convention (:mod:`.vectors`).
+(:mod:`.budget`), memory budgets (:mod:`.memory`), a search's report (:mod:`.report`) and the
+vector convention (:mod:`.vectors`).
 Imports nothing from the floors above.
 """
 

@@ -16,7 +16,7 @@ on, by kind of method,
   ("time",
   "budget", "unresolved", ...), whenever anything was left out; what it did find is as valid as
   in a complete answer.
-* **A traced curve** (:class:`engine.space.trace.Curve`) says why it ended in ``stop`` ("closed",
+* **A traced curve** (:class:`engine.space.curve.Curve`) says why it ended in ``stop`` ("closed",
   "time", "max points", "singular start", ...); the searches turn that into their report.
 * **No result can be formed** (the sparse null spaces of :mod:`engine.local.rigidity` are
   inconsistent, Lanczos does not converge and the dense fallback is not allowed): raise

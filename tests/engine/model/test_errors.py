@@ -201,15 +201,15 @@ def test_numerical_failure_is_not_an_input_error():
 
 
 def test_lanczos_that_does_not_converge_is_a_numerical_failure(monkeypatch):
-    from engine.local import rigidity
+    from engine.local import sparse_null
 
     def no_convergence(*args, **kwargs):
         raise spla.ArpackNoConvergence("no convergence", np.zeros(0), np.zeros((0, 0)))
 
-    monkeypatch.setattr(rigidity.spla, "eigsh", no_convergence)
+    monkeypatch.setattr(sparse_null.spla, "eigsh", no_convergence)
     jac = sp.random(40, 60, density=0.1, random_state=np.random.default_rng(0), format="csr")
     with pytest.raises(NumericalFailure, match="Lanczos did not converge"):
-        rigidity._sparse_null_spaces(jac, 1e-10)
+        sparse_null._sparse_null_spaces(jac, 1e-10)
 
 
 def test_an_unknown_refine_method_is_an_input_error():

@@ -23,14 +23,11 @@ from engine.local.rigidity import (
 )
 from engine.local.second_order import second_order, second_order_memory
 from engine.model.errors import LimitExceeded
-from engine.model.linkage import (
+from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
+from engine.model.memory import (
     MEMORY_CHECK_MIN_BYTES,
-    BarSpec,
-    Linkage,
     MemoryLimitExceeded,
-    VertexSpec,
     available_memory,
-    build_linkage,
     check_memory,
 )
 from tests.service.test_uvicorn_process import ROOT
@@ -122,7 +119,7 @@ def test_estimates_grow_with_the_null_space():
 # before anything is allocated (not a MemoryError half way).
 _RUN = textwrap.dedent("""
     import resource, sys
-    from engine.model.linkage import MemoryLimitExceeded, _status_bytes
+    from engine.model.memory import MemoryLimitExceeded, _status_bytes
     from engine.catalogue.presets import build_preset
     from engine.local.rigidity import first_order, plan_first_order
     from engine.local.second_order import second_order, second_order_memory

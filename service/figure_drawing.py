@@ -1,0 +1,432 @@
+"""How each figure of :mod:`service.figures` is drawn: the linkage, the configuration space,
+the critical values and the splitting on matplotlib ``Figure`` objects (the object-oriented API
+only), each element with the SVG id that :mod:`service.figures` documents.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, Rectangle
+from scipy import ndimage
+
+from service.schemas import common as c
+from service.schemas import critical_values as cv_schemas
+from service.schemas import space
+from service.schemas import splitting as splitting_schemas
+
+_KIND_MARKERS = {
+    "branch": ("X", "#d62728", "branch point"),
+    "rigid": ("o", "#111111", "rigid point"),
+    "degenerate": ("s", "#ff7f0e", "degenerate point"),
+}
+_TENSION, _COMPRESSION = "#d62728", "#1f77b4"
+
+
+# -- shared ------------------------------------------------------------------------------------
+
+
+
+def _figure(width: float, height: float) -> Figure:
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def _fixed_axes(vertex: c.Vertex, dim: int) -> list[bool]:
+    return [vertex.fixed] * dim if isinstance(vertex.fixed, bool) else list(vertex.fixed)
+
+
+def _rotors(linkage: c.Linkage) -> dict[str, tuple[str, str]]:
+    """Bars with exactly one fully pinned end: ``{bar_id: (pinned end, moving end)}``, in the
+    order of the request (the engine's ``angles`` use the same bars and direction)."""
+    pinned = {v.id for v in linkage.vertices if all(_fixed_axes(v, linkage.dimension))}
+    out = {}
+    for bar in linkage.bars:
+        a, b = bar.ends
+        if (a in pinned) != (b in pinned):
+            out[bar.id] = (a, b) if a in pinned else (b, a)
+    return out
+
+
+def _bar_length(linkage: c.Linkage, bar: c.Bar) -> float:
+    if bar.length is not None:
+        return float(bar.length)
+    pos = {v.id: np.asarray(v.position, dtype=float) for v in linkage.vertices}
+    return float(np.linalg.norm(pos[bar.ends[0]] - pos[bar.ends[1]]))
+
+
+def _pi_ticks(ax: Axes) -> None:
+    ticks = np.linspace(-np.pi, np.pi, 5)
+    names = ["−π", "−π/2", "0", "π/2", "π"]
+    ax.set_xticks(ticks, names)
+    ax.set_yticks(ticks, names)
+
+
+# -- linkage -----------------------------------------------------------------------------------
+
+
+def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figure:
+    conf: dict[str, list[float]] = ans.configuration  # type: ignore[attr-defined]
+    ids = [v.id for v in linkage.vertices]
+    xy = np.array([conf[i][:2] for i in ids])  # (V, 2): 3D linkages in their x-y projection
+    index = {vid: k for k, vid in enumerate(ids)}
+    lengths = [_bar_length(linkage, b) for b in linkage.bars]
+    scale = float(np.median(lengths)) if lengths else 1.0
+    fig = _figure(6.4, 5.0)
+    ax = fig.add_subplot()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    handles: list[object] = []
+    stress = getattr(ans, "self_stress", None) if "self_stress" in show else None
+    for k, bar in enumerate(linkage.bars):
+        p, q = xy[index[bar.ends[0]]], xy[index[bar.ends[1]]]
+        colour, width = "#555555", 2.5
+        if stress is not None:
+            s = stress[bar.id]
+            colour = _TENSION if s > 0 else _COMPRESSION if s < 0 else "#999999"
+            width = 1.0 + 5.0 * abs(s) / max(abs(v) for v in stress.values())
+        ax.plot(*zip(p, q, strict=True), color=colour, lw=width, solid_capstyle="round",
+                zorder=2, gid=f"bar-{k}")
+        mid = (p + q) / 2
+        ax.annotate(bar.id, mid, xytext=(3, 3), textcoords="offset points", color="#333333",
+                    fontsize=8)
+    if stress is not None:
+        # A self-stress is defined up to its overall sign: the colours tell the bars that
+        # pull from those that push, not which of the two is tension.
+        handles += [Line2D([], [], color=_TENSION, lw=3, label="self-stress σ > 0"),
+                    Line2D([], [], color=_COMPRESSION, lw=3, label="self-stress σ < 0 "
+                           "(opposite sign: one pulls, the other pushes)")]
+    kinds = {"pin": 0, "slider": 0, "vertex": 0}
+    for k, v in enumerate(linkage.vertices):
+        mask = _fixed_axes(v, linkage.dimension)
+        kind = "pin" if all(mask) else "slider" if any(mask) else "vertex"
+        kinds[kind] += 1
+        marker, face = {"pin": ("^", "#111111"), "slider": ("s", "#9467bd"),
+                        "vertex": ("o", "white")}[kind]
+        ax.plot(*xy[k], marker=marker, ms=10 if kind != "vertex" else 8, mfc=face,
+                mec="#111111", zorder=4, ls="none", gid=f"{kind}-{k}")
+        if kind == "slider":  # the line along which it slides (its free axes, in x-y)
+            free = np.array([0.0 if f else 1.0 for f in mask[:2]])
+            if free.any():
+                seg = np.array([xy[k] - free * scale, xy[k] + free * scale])
+                ax.plot(seg[:, 0], seg[:, 1], ls="--", color="#9467bd", lw=1, zorder=1,
+                        gid=f"slider-axis-{k}")
+        ax.annotate(v.id, xy[k], xytext=(-10, -12), textcoords="offset points", fontsize=8)
+    for kind, label in (("pin", "pin"), ("slider", "slider (dashed: its axis)"),
+                        ("vertex", "joint")):
+        if kinds[kind]:
+            marker, face = {"pin": ("^", "#111111"), "slider": ("s", "#9467bd"),
+                            "vertex": ("o", "white")}[kind]
+            handles.append(Line2D([], [], marker=marker, mfc=face, mec="#111111", ls="none",
+                                  ms=8, label=label))
+    arrows: list[tuple[str, str, list[dict[str, list[float]]]]] = []
+    if "zero_modes" in show:
+        arrows.append(("zero-mode", "zero mode", list(ans.zero_modes)))  # type: ignore[attr-defined]
+    if "tangents" in show:
+        arrows.append(("tangent", "branch tangent", list(getattr(ans, "tangents", []))))
+    tips = [xy]
+    palette = iter(["#2ca02c", "#17becf", "#e377c2", "#bcbd22", "#8c564b", "#7f7f7f"])
+    for prefix, label, vectors in arrows:
+        for j, vec in enumerate(vectors):
+            arr = np.array([vec[i][:2] for i in ids])  # (V, 2)
+            top = float(np.max(np.linalg.norm(arr, axis=1))) or 1.0
+            arr = arr * (0.4 * scale / top)
+            colour = next(palette, "#7f7f7f")
+            moving = np.linalg.norm(arr, axis=1) > 1e-12
+            tips.append(xy + arr)
+            ax.quiver(xy[moving, 0], xy[moving, 1], arr[moving, 0], arr[moving, 1],
+                      angles="xy", scale_units="xy", scale=1, color=colour, width=0.006,
+                      zorder=3, gid=f"{prefix}-{j}")
+            handles.append(Line2D([], [], color=colour, lw=2, label=f"{label} {j}"))
+    notes = []
+    if "self_stress" in show and stress is None:
+        notes.append("no self-stress: the configuration is not critical")
+    if "tangents" in show and not getattr(ans, "tangents", []):
+        notes.append("no branch tangents: not a branch point")
+    point_kind = getattr(ans, "kind", None)
+    title = "Linkage" + (f" ({point_kind} configuration)" if point_kind else "")
+    if linkage.dimension == 3:
+        title += ", x-y projection"
+    ax.set_title(title + ("\n" + "; ".join(notes) if notes else ""))
+    ax.margins(0.15)
+    ax.update_datalim(np.concatenate(tips))  # quiver's arrows do not widen the view
+    ax.autoscale_view()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    # as tall as the drawing needs at the figure's width (equal aspect), plus title and legend
+    fig.set_size_inches(6.4, float(np.clip(5.6 * (y1 - y0) / (x1 - x0), 1.8, 7.0)) + 1.6)
+    fig.legend(handles=handles, loc="outside lower center", ncols=3)
+    return fig
+
+
+# -- configuration space -----------------------------------------------------------------------
+
+
+def _angle(conf: dict[str, list[float]], ends: tuple[str, str]) -> float:
+    p, q = np.asarray(conf[ends[0]]), np.asarray(conf[ends[1]])
+    return float(math.atan2(q[1] - p[1], q[0] - p[0]))
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def _torus_pieces(x: np.ndarray, y: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Unwrapped angles -> pieces in the square [-pi, pi)^2 (cut where the walk wraps)."""
+    wx, wy = _wrap(x), _wrap(y)
+    cuts = np.flatnonzero((np.abs(np.diff(wx)) > np.pi) | (np.abs(np.diff(wy)) > np.pi)) + 1
+    for idx in np.split(np.arange(len(x)), cuts):
+        if len(idx):
+            yield wx[idx], wy[idx]
+
+
+def _passages(walk: np.ndarray, closed: bool, targets: list[tuple[int, np.ndarray]]
+              ) -> list[tuple[int, int]]:
+    """Where the walk (n, D) passes through each critical configuration: ``(point index,
+    critical index)`` sorted along the walk, one per contiguous close approach."""
+    steps = np.linalg.norm(np.diff(walk, axis=0), axis=1)
+    radius = 2.0 * float(steps.max()) if steps.size else 0.0
+    found = []
+    for k, target in targets:
+        near = np.linalg.norm(walk - target, axis=1) <= radius
+        runs = np.split(np.arange(len(walk)), np.flatnonzero(np.diff(near.astype(int))) + 1)
+        runs = [r for r in runs if near[r[0]]]
+        if closed and len(runs) > 1 and runs[0][0] == 0 and runs[-1][-1] == len(walk) - 1:
+            runs = [np.concatenate([runs[-1], runs[0]]), *runs[1:-1]]  # one run across the end
+        for r in runs:
+            found.append((int(r[np.argmin(np.linalg.norm(walk[r] - target, axis=1))]), k))
+    return sorted(set(found))
+
+
+def _draw_space(ans: space.SpaceResponse, axes: list[str],
+                rotors: dict[str, tuple[str, str]]) -> Figure:
+    fig = _figure(6.0, 6.6)
+    ax = fig.add_subplot()
+    ax.set_aspect("equal")
+    pad = 0.08  # markers on the edges of the square stay whole
+    ax.set_xlim(-np.pi - pad, np.pi + pad)
+    ax.set_ylim(-np.pi - pad, np.pi + pad)
+    ax.add_patch(Rectangle((-np.pi, -np.pi), 2 * np.pi, 2 * np.pi, fill=False, lw=0.8,
+                           ec="#888888", ls=":"))
+    _pi_ticks(ax)
+    ax.set_xlabel(f"angle of rotor {axes[0]} (rad)")
+    ax.set_ylabel(f"angle of rotor {axes[1]} (rad)")
+    ax.grid(color="#e5e5e5", lw=0.6)
+    colours = mpl.colormaps["tab10"].colors  # type: ignore[attr-defined]
+    handles: list[object] = []
+    crit_xy = {cp.index: (_wrap(np.array(_angle(cp.configuration, rotors[axes[0]]))),
+                          _wrap(np.array(_angle(cp.configuration, rotors[axes[1]]))))
+               for cp in ans.critical_points}
+    remaining = [(s.from_, s.to) for s in ans.segments]
+    labelled = 0
+    for k, comp in enumerate(ans.components):
+        colour = colours[k % len(colours)]
+        # the figure asks for the per-vertex lists (never options.points = "compact")
+        assert isinstance(comp.angles, dict) and isinstance(comp.positions, dict)
+        x, y = np.asarray(comp.angles[axes[0]]), np.asarray(comp.angles[axes[1]])
+        for p, (px, py) in enumerate(_torus_pieces(x, y)):
+            ax.plot(px, py, color=colour, lw=1.8, zorder=2, gid=f"component-{k}-{p}")
+        handles.append(Line2D([], [], color=colour, lw=2,
+                              label=f"component {k} ({'closed' if comp.closed else 'open'})"))
+        # The segments: the walk cut where it passes through critical points, each piece
+        # labelled with the critical points it joins (as in the answer's ``segments``).
+        ids = list(comp.positions)
+        walk = np.concatenate([np.asarray(comp.positions[v]) for v in ids], axis=1)
+        targets = [(cp.index, np.concatenate([np.asarray(cp.configuration[v]) for v in ids]))
+                   for cp in ans.critical_points if cp.index in comp.critical_points]
+        cuts = _passages(walk, comp.closed, targets)
+        pieces = list(zip(cuts, cuts[1:], strict=False))
+        if comp.closed and len(cuts) > 1:
+            pieces.append((cuts[-1], (cuts[0][0] + len(walk) - 1, cuts[0][1])))
+        for (i, a), (j, b) in pieces:
+            pair = next((p for p in remaining if p in ((a, b), (b, a))), None)
+            if pair is None:
+                continue
+            remaining.remove(pair)
+            mid = ((i + j) // 2) % len(walk)
+            ax.annotate(f"{pair[0]}–{pair[1]}", (_wrap(x[mid]), _wrap(y[mid])),
+                        xytext=(4, 4), textcoords="offset points", fontsize=7,
+                        color=colour, gid=f"segment-{labelled}")
+            labelled += 1
+    seen = set()
+    for cp in ans.critical_points:
+        marker, colour, label = _KIND_MARKERS.get(cp.kind, ("D", "#7f7f7f", cp.kind))
+        px, py = crit_xy[cp.index]
+        ax.plot(px, py, marker=marker, ms=10, mfc=colour, mec="white", ls="none", zorder=4,
+                gid=f"critical-{cp.kind}-{cp.index}")
+        ax.annotate(str(cp.index), (px, py), xytext=(6, -10), textcoords="offset points",
+                    fontsize=8, fontweight="bold")
+        if cp.kind not in seen:
+            seen.add(cp.kind)
+            handles.append(Line2D([], [], marker=marker, mfc=colour, mec="white", ms=9,
+                                  ls="none", label=label))
+    if labelled:
+        handles.append(Line2D([], [], ls="none", label="i–j: segment between critical points"))
+    n, m = len(ans.components), len(ans.critical_points)
+    ax.set_title(f"Configuration space: {n} component{'s' * (n != 1)}, "
+                 f"{m} critical point{'s' * (m != 1)}"
+                 + ("" if ans.search.complete else f" (search incomplete: {ans.search.reason})"))
+    if handles:
+        fig.legend(handles=handles, loc="outside lower center", ncols=2)
+    return fig
+
+
+# -- critical values ---------------------------------------------------------------------------
+
+
+def _region_raster(box: np.ndarray, curves: list[np.ndarray], n: int) -> np.ndarray:
+    """Label (n, n) of the cells of the box between the curves (cells on a curve take the
+    label of the nearest free cell), indexed [i along axis 0, j along axis 1]."""
+    span = box[:, 1] - box[:, 0]
+    blocked = np.zeros((n, n), dtype=bool)
+    for curve in curves:
+        seg = np.diff(curve, axis=0)
+        steps = np.maximum(1, np.ceil(3 * n * np.max(np.abs(seg) / span, axis=1))).astype(int)
+        for a, d, s in zip(curve[:-1], seg, steps, strict=True):
+            pts = a + np.linspace(0.0, 1.0, s + 1)[:, None] * d
+            ij = np.clip(((pts - box[:, 0]) / span * n).astype(int), 0, n - 1)
+            blocked[ij[:, 0], ij[:, 1]] = True
+    labels, _ = ndimage.label(~blocked)
+    if blocked.any() and not blocked.all():
+        _, (ii, jj) = ndimage.distance_transform_edt(blocked, return_indices=True)
+        labels = labels[ii, jj]
+    return labels
+
+
+def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
+                          ans: cv_schemas.CriticalValuesResponse) -> Figure:
+    box = np.array([[a.min, a.max] for a in body.axes])
+    fig = _figure(6.0, 6.0)
+    ax = fig.add_subplot()
+    ax.set_xlabel(f"length of bar {body.axes[0].bar}")
+    ax.set_ylabel(f"length of bar {body.axes[1].bar}")
+    curves = [np.asarray(cv, dtype=float).reshape(-1, 2) for cv in ans.curves]
+    n = 240
+    labels = _region_raster(box, [cv for cv in curves if len(cv) >= 2], n)
+    counts = sorted({r.components for r in ans.regions if r.components is not None})
+    shades = ["#f2f2f2", "#cfe3f5", "#f7d9b9", "#d5ecd0", "#e8d5f0", "#f6d0d8"]
+    colour_of = {m: shades[min(m, len(shades) - 1)] for m in counts}
+    cell = np.full((n, n), -1, dtype=int)  # index into counts, -1: no region sampled here
+    span = box[:, 1] - box[:, 0]
+    spots = []  # where each region's label goes: its drawn cell farthest from its edges
+    for r in ans.regions:
+        i, j = np.clip(((np.asarray(r.point) - box[:, 0]) / span * n).astype(int), 0, n - 1)
+        mine = labels == labels[i, j]
+        if r.components is not None:  # (None: not explored in time, left white)
+            cell[mine] = counts.index(r.components)
+        depth = ndimage.distance_transform_edt(np.pad(mine, 1))[1:-1, 1:-1]
+        ij = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        spots.append(box[:, 0] + span * (np.array(ij) + 0.5) / n)
+    if counts:
+        cmap = ListedColormap(["white"] + [colour_of[m] for m in counts])
+        ax.imshow((cell + 1).T, origin="lower", extent=(*box[0], *box[1]), cmap=cmap,
+                  vmin=-0.5, vmax=len(counts) + 0.5, interpolation="nearest", aspect="auto",
+                  gid="cv-regions")
+    for k, cv in enumerate(curves):
+        ax.plot(cv[:, 0], cv[:, 1], color="#111111", lw=1.6, gid=f"cv-curve-{k}")
+    for k, r in enumerate(ans.regions):
+        label = "?" if r.components is None else str(r.components)
+        ax.annotate(label, spots[k], ha="center", va="center", fontsize=10,
+                    fontweight="bold", gid=f"region-{k}-{r.components}",
+                    bbox={"boxstyle": "circle,pad=0.25", "fc": "white", "ec": "#888888",
+                          "lw": 0.6})
+    bars = {b.id: b for b in body.linkage.bars}
+    here = [_bar_length(body.linkage, bars[a.bar]) for a in body.axes if a.bar in bars]
+    handles: list[object] = [Line2D([], [], color="#111111", lw=1.6,
+                                    label="critical values")]
+    if len(here) == 2 and all(box[k, 0] <= here[k] <= box[k, 1] for k in range(2)):
+        ax.plot(*here, marker="*", ms=13, mfc="#ffd92f", mec="#111111", ls="none", zorder=5,
+                gid="current-lengths")
+        handles.append(Line2D([], [], marker="*", mfc="#ffd92f", mec="#111111", ms=11,
+                              ls="none", label="the linkage's lengths"))
+    handles += [Patch(fc=colour_of[m], ec="#888888",
+                      label=f"{m} component{'s' * (m != 1)}" + (" (empty)" if m == 0 else ""))
+                for m in counts]
+    ax.set_xlim(*box[0])
+    ax.set_ylim(*box[1])
+    ax.set_title(f"Critical values: {len(curves)} curve{'s' * (len(curves) != 1)}, "
+                 f"{len(ans.regions)} region{'s' * (len(ans.regions) != 1)}")
+    fig.legend(handles=handles, loc="outside lower center", ncols=3)
+    return fig
+
+
+# -- splitting ---------------------------------------------------------------------------------
+
+
+def _coefficients(vector: dict[str, list[float]], modes: list[dict[str, list[float]]]
+                  ) -> np.ndarray:
+    """A per-vertex vector on the zero modes (orthonormal, so by inner products)."""
+    ids = list(vector)
+    flat = np.concatenate([np.asarray(vector[i]) for i in ids])
+    return np.array([flat @ np.concatenate([np.asarray(m[i]) for i in ids]) for m in modes])
+
+
+def _draw_splitting(body: splitting_schemas.SplittingRequest,
+                    ans: splitting_schemas.SplittingResponse,
+                    points: list[space.CriticalPointOut]) -> Figure:
+    branches = ans.branch_points
+    cols = min(3, max(1, len(branches)))
+    rows = max(1, math.ceil(len(branches) / cols))
+    fig = _figure(3.2 * cols + 1.6, 3.2 * rows + 0.6)
+    change = ", ".join(f"d{bar} = {v:+.3g}" for bar, v in body.perturbation.items())
+    fig.suptitle(f"Splitting of the branch points under {change or 'no change'}")
+    if not branches:
+        ax = fig.add_subplot()
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, f"no branch point among the {ans.critical_points_found} critical "
+                "points found", ha="center", va="center")
+        return fig
+    by_index = {p.index: p for p in points}
+    ray_colours = ["#1f77b4", "#1f77b4", "#ff7f0e", "#ff7f0e"]
+    for n, b in enumerate(branches):
+        ax = fig.add_subplot(rows, cols, n + 1)
+        cp = by_index[b.index]
+        lam = np.asarray(cp.q_eigenvalues or [1.0, -1.0])  # (2,), lam[0] > 0 > lam[1]
+        t = np.array([_coefficients(v, cp.zero_modes) for v in cp.tangents])  # (2, 2)
+        rays = np.array([t[0], -t[0], t[1], -t[1]])  # numbered 0..3 as in the answer
+        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+        shift = np.asarray(b.shift)
+        gap = math.sqrt(abs(b.delta) / min(abs(lam[0]), abs(lam[1]))) if b.delta else 0.0
+        reach = 4.0 * max(gap, float(np.linalg.norm(shift)), 1e-12)
+        for r, d in enumerate(rays):
+            ax.plot([0, reach * d[0]], [0, reach * d[1]], ls="--", lw=1.2,
+                    color=ray_colours[r], gid=f"ray-{b.index}-{r}")
+            ax.annotate(f"ray {r}", 0.85 * reach * d, fontsize=8, color=ray_colours[r],
+                        ha="center", va="bottom")
+        s = np.linspace(-3.0, 3.0, 121)
+        if b.delta != 0 and lam[0] > 0 > lam[1]:
+            a0, a1 = math.sqrt(abs(b.delta) / lam[0]), math.sqrt(abs(b.delta) / -lam[1])
+            for side in (1.0, -1.0):
+                if b.delta > 0:  # opens along the first zero mode: c_1 = +-a0 cosh s
+                    pts = np.stack([side * a0 * np.cosh(s), a1 * np.sinh(s)], axis=1)
+                else:
+                    pts = np.stack([a0 * np.sinh(s), side * a1 * np.cosh(s)], axis=1)
+                pts = pts + shift
+                pts = pts[np.linalg.norm(pts, axis=1) <= reach]
+                end = pts[-1] - shift
+                joined = sorted(int(np.argmax(rays @ p)) for p in (pts[0] - shift, end))
+                ax.plot(pts[:, 0], pts[:, 1], color="#2ca02c", lw=2.2,
+                        gid=f"split-{b.index}-{joined[0]}-{joined[1]}")
+        ax.plot(0, 0, marker="X", ms=9, mfc="#d62728", mec="white", ls="none")
+        ax.set_aspect("equal")
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
+        ax.set_xlabel("c₁ (zero mode 0)")
+        ax.set_ylabel("c₂ (zero mode 1)")
+        pairs = " and ".join(f"{i}–{j}" for i, j in b.connects) or "none (Δ = 0)"
+        ax.set_title(f"branch point {b.index}: Δ = {b.delta:+.3g}\njoins rays {pairs}",
+                     fontsize=9)
+    fig.legend(handles=[
+        Line2D([], [], ls="--", color="#1f77b4", label="rays ±t0 (unperturbed)"),
+        Line2D([], [], ls="--", color="#ff7f0e", label="rays ±t1 (unperturbed)"),
+        Line2D([], [], color="#2ca02c", lw=2.2, label="perturbed: (c−dc)ᵀQ(c−dc) = Δ"),
+        Line2D([], [], marker="X", mfc="#d62728", mec="white", ls="none", ms=9,
+               label="branch point"),
+    ], loc="outside lower center", ncols=2)
+    return fig
