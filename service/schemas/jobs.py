@@ -4,9 +4,17 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from service.schemas.common import Finite, Ident, Linkage, Strict, Tolerances
+from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    Finite,
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    examples,
+)
 from service.schemas.space import SpaceOptions
 
 #: Points of one sweep (grid cells or samples): a bound on its cost and on its answer's size.
@@ -18,6 +26,9 @@ _PositiveFinite = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)
 
 
 class JobRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"operation": "analysis/critical-points", "body": {"linkage": EXAMPLE_LINKAGE}}))
+
     operation: str = Field(
         min_length=1, max_length=100,
         description="an analysis path, e.g. analysis/configuration-space (see /v1/jobs/operations)",
@@ -76,6 +87,10 @@ class SampleAxisIn(Strict):
 
 
 class SweepRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"preset": {"name": "four-bar"}, "grid": {"L2": {"min": 0.5, "max": 2.0, "steps": 4}},
+         "seed": 0, "compute": ["components", "critical"]}))
+
     linkage: Linkage | None = Field(
         None, description="a linkage whose bars (the grid's or samples' keys) change length"
     )
