@@ -34,7 +34,12 @@ from service.mappers.jobs import (
     sweep_in,
     sweep_out,
 )
-from service.mappers.presets import preset_overrides_in, presets_out
+from service.mappers.presets import (
+    parameter_description,
+    parameter_schema,
+    preset_overrides_in,
+    presets_out,
+)
 from service.mappers.space import (
     critical_list_out,
     critical_points_out,
@@ -61,6 +66,8 @@ __all__ = [
     "linkage_out",
     "packed_array",
     "positions_out",
+    "parameter_description",
+    "parameter_schema",
     "preset_overrides_in",
     "presets_out",
     "problem_in",
