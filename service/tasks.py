@@ -43,12 +43,13 @@ from engine.design.sweep import PointResult, run_points
 from engine.model.budget import Deadline, ProgressSink
 from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
-from service import jobs, mappers, serialise
+from service import figures, jobs, mappers, serialise
 from service.config import Settings
 from service.job_state import Job
 from service.schemas.common import AnalysisRequest
 from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.design import DesignRequest
+from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
 from service.schemas.jobs import SweepRequest
 from service.schemas.robustness import RobustnessRequest
 from service.schemas.space import SpaceRequest
@@ -75,10 +76,21 @@ CHUNKS_PER_WORKER = 4
 
 @dataclass(frozen=True)
 class Operation:
-    """An analysis endpoint's request schema and the work behind it."""
+    """An analysis endpoint's request schema and the work behind it (its answer: a model, or
+    for a figure the SVG's text, served with ``media_type`` by ``/v1/jobs/{id}/result``)."""
 
     request: type[BaseModel]
-    run: Callable[..., BaseModel]
+    run: Callable[..., BaseModel | str]
+    media_type: str = "application/json"
+
+
+def _svg_text(draw: Callable[[Any, Settings], bytes]) -> Callable[[Any, Settings], str]:
+    """A figure as a job's answer: the SVG as text (a JSON string in the job)."""
+
+    def figure(body: Any, settings: Settings) -> str:
+        return draw(body, settings).decode("utf-8")
+
+    return figure
 
 
 #: The operations a job may run: the analysis endpoints' paths (without ``/v1/``).
@@ -91,6 +103,14 @@ OPERATIONS: dict[str, Operation] = {
     "analysis/robustness": Operation(RobustnessRequest, jobs.robustness_margin),
     "analysis/critical-values": Operation(CriticalValuesRequest, jobs.critical_values),
     "design/splitting": Operation(DesignRequest, jobs.design_splitting),
+    "figures/linkage": Operation(LinkageFigureRequest, _svg_text(figures.linkage_figure),
+                                 figures.SVG),
+    "figures/configuration-space": Operation(
+        SpaceFigureRequest, _svg_text(figures.configuration_space_figure), figures.SVG),
+    "figures/critical-values": Operation(
+        CriticalValuesRequest, _svg_text(figures.critical_values_figure), figures.SVG),
+    "figures/splitting": Operation(SplittingRequest, _svg_text(figures.splitting_figure),
+                                   figures.SVG),
 }
 #: A sweep is a job too (``POST /v1/sweeps``, or ``POST /v1/jobs`` with this operation).
 SWEEPS = "sweeps"
@@ -345,9 +365,9 @@ class JobManager:
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
                     f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
                 return
-            result = mappers.sweep_out(job.names, rows).model_dump(mode="json")
-        else:
-            result = serialise.loads(job.parts[0])
+            result: Any = mappers.sweep_out(job.names, rows).model_dump(mode="json")
+        else:  # kept as the worker's JSON: parsing it here took seconds for large answers
+            result = serialise.RawJSON(job.parts[0])
         with self._lock:
             job.result, job.parts = result, {}
             job.status, job.message, job.finished = "done", "done", time.time()
@@ -394,6 +414,13 @@ class JobManager:
             raise UnknownJob(f"no job {job_id!r} (finished jobs are kept LINKAGE_JOB_TTL_S = "
                              f"{self.settings.job_ttl_s:g} s)")
         return job
+
+    def jobs(self) -> list[Job]:
+        """The jobs kept now (queued, running, and finished ones not yet forgotten), oldest
+        first."""
+        self._purge()
+        with self._lock:
+            return sorted(self._jobs.values(), key=lambda j: j.created)
 
     def expires(self, job: Job) -> float | None:
         return None if job.finished is None else job.finished + self.settings.job_ttl_s

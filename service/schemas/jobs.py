@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -47,22 +48,27 @@ class JobError(BaseModel):
     loc: list[str | int] = Field(default_factory=list)
 
 
-class JobOut(BaseModel):
+class JobSummary(BaseModel):
+    """A job without its result (``GET /v1/jobs``); times are RFC 3339, UTC."""
+
     id: str
     operation: str
     status: JobStatusName
     progress: Progress
-    created: float = Field(description="seconds since the epoch (UTC)")
-    started: float | None
-    finished: float | None
-    expires: float | None = Field(
+    created: datetime = Field(description="when it was submitted (RFC 3339, UTC)")
+    started: datetime | None = Field(description="when a worker first reported on it")
+    finished: datetime | None = Field(description="when it ended: done, failed or cancelled")
+    expires: datetime | None = Field(
         description="when a finished job and its result are forgotten (LINKAGE_JOB_TTL_S)"
     )
+    error: JobError | None = None
+
+
+class JobOut(JobSummary):
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary)"
+        "rows and summary; for figures: the SVG as a string)"
     )
-    error: JobError | None = None
 
 
 class OperationOut(BaseModel):
