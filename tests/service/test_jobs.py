@@ -6,8 +6,8 @@ from __future__ import annotations
 import csv
 import io
 import itertools
-import re
 import os
+import re
 import signal
 import socket
 import subprocess
