@@ -255,3 +255,24 @@ def test_viewer_gate_slider_offers_only_gates_the_service_takes(
                             params={"n": n_value, "gate": high + 1}, trust_env=False)
         assert refused.status_code == 422
     assert console_errors(browser) == []
+
+
+def test_docs_prefill_the_schemas_example(base_url: str, browser: Any) -> None:
+    """Swagger UI's "Try it out" body for an analysis is the schema's example (a valid request:
+    tests/service/test_examples.py posts it), not one built from the fields' bounds."""
+    from selenium.webdriver.common.by import By
+
+    browser.get(f"{base_url}/docs#/analysis/analyseRigidity")
+    block = wait_for(lambda: (browser.find_elements(
+        By.CSS_SELECTOR, "#operations-analysis-analyseRigidity") or [None])[0], 20,
+        "the rigidity operation")
+    if not block.find_elements(By.CSS_SELECTOR, ".opblock-body"):
+        block.find_element(By.CSS_SELECTOR, ".opblock-summary").click()
+    code = wait_for(lambda: [e.text for e in block.find_elements(
+        By.CSS_SELECTOR, ".body-param__example, .opblock-body pre") if "residual_atol" in e.text],
+        20, "the request body's example")
+    shown = json.loads(code[0])
+    spec = httpx.get(f"{base_url}/openapi.json", trust_env=False).json()
+    assert shown == spec["components"]["schemas"]["AnalysisRequest"]["examples"][0]
+    assert shown["tolerances"]["residual_atol"] == 1e-9
+    assert console_errors(browser) == []
