@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import json
 import os
 import re
 import signal
@@ -225,6 +226,25 @@ def test_external_cluster_gives_the_same_result(external_scheduler, embedded_gat
         workers = dask_client(ext).scheduler_info()["workers"]
     assert len(workers) == 2
     assert result == embedded_gated
+
+
+@pytest.mark.process
+def test_command_line_run_with_a_scheduler_answers_as_in_process(external_scheduler, tmp_path):
+    """``run --scheduler`` goes through Dask (the service's job path); without it, in-process:
+    the same answer but for the search's time budget (the job's own limit)."""
+    script = Path(sys.executable).with_name("linkage-topology")
+    args = [str(script), "run", "analysis/critical-points", "--preset", "four-bar", "--param",
+            "L2=1", "--no-progress"]
+    answers = []
+    for extra in (["--scheduler", external_scheduler], []):
+        proc = subprocess.run([*args, *extra], capture_output=True, text=True, timeout=WAIT_S,
+                              cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        answer = json.loads(proc.stdout)
+        answer["search"].pop("time_budget_s")
+        answers.append(answer)
+    assert answers[0] == answers[1]
+    assert sorted(p["kind"] for p in answers[0]["critical_points"]) == ["branch"] * 3
 
 
 def test_unreachable_scheduler_answers_503_and_the_service_keeps_answering(monkeypatch):
