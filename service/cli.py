@@ -255,6 +255,7 @@ def _on_dask(args: argparse.Namespace, operation: str | None) -> Any:
     """A sweep, or an operation with --scheduler, as a job on Dask (the service's path)."""
     from service import mappers, tasks
     from service.config import get_settings
+    from service.operations import OPERATIONS
     from service.schemas.jobs import SweepRequest
 
     changes: dict[str, Any] = {}
@@ -273,7 +274,7 @@ def _on_dask(args: argparse.Namespace, operation: str | None) -> Any:
             sweep_job = mappers.sweep_in(body, settings.limits)
             job = manager.submit_sweep(sweep_job, sweep_job.names)
         else:
-            job = manager.submit(operation, _request(args, tasks.OPERATIONS[operation].request))
+            job = manager.submit(operation, _request(args, OPERATIONS[operation].request))
         try:
             _wait(manager, job, show=not args.no_progress)
         except KeyboardInterrupt:

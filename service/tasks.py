@@ -45,8 +45,6 @@ from service import mappers, serialise
 from service.config import Settings
 from service.job_state import Job
 from service.operations import OPERATIONS, SWEEPS
-from service.operations import REQUESTS as REQUESTS  # re-exported: the router reads it here
-from service.operations import Operation as Operation
 from service.workers import Busy, ServiceFault
 
 log = logging.getLogger("service.tasks")

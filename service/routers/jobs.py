@@ -9,6 +9,7 @@ from service import mappers, serialise, tasks
 from service.bodies import JsonBodyRoute
 from service.config import SettingsDep
 from service.errors import problem_responses
+from service.operations import OPERATIONS, REQUESTS, SWEEPS
 from service.schemas.jobs import (
     JobOut,
     JobRequest,
@@ -53,9 +54,9 @@ def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> Resp
     """Run any analysis as a job: ``operation`` is its path (e.g.
     ``analysis/configuration-space``), ``body`` the request that path takes. Answers 202 with
     the job's ``Location``; the job's result is that endpoint's answer."""
-    model = tasks.REQUESTS.get(job.operation)
+    model = REQUESTS.get(job.operation)
     if model is None:
-        known = ", ".join(tasks.REQUESTS)
+        known = ", ".join(REQUESTS)
         raise RequestValidationError([{
             "loc": ("body", "operation"), "type": "value_error",
             "msg": f"unknown operation {job.operation!r}; known: {known}"}])
@@ -71,7 +72,8 @@ def create_job(job: JobRequest, manager: Manager, settings: SettingsDep) -> Resp
 )
 def operations() -> list[OperationOut]:
     """The operations a job can run, with the request schema of each one's body."""
-    return [OperationOut(operation=k, request=m.__name__) for k, m in tasks.REQUESTS.items()]
+    return [OperationOut(operation=k, request=m.__name__)
+            for k, m in REQUESTS.items()]
 
 
 @router.get(
@@ -109,10 +111,10 @@ def job_result(job_id: str, request: Request, manager: Manager) -> Response:
     if job.status != "done":
         raise tasks.JobNotDone(f"job {job_id} is {job.status}, not done")
     if _CSV in request.headers.get("accept", ""):
-        if job.operation != tasks.SWEEPS:
+        if job.operation != SWEEPS:
             raise tasks.NotAcceptable("CSV is offered for sweeps only; ask for application/json")
         return Response(mappers.sweep_csv(job.result), media_type=_CSV)
-    operation = tasks.OPERATIONS.get(job.operation)
+    operation = OPERATIONS.get(job.operation)
     if isinstance(job.result, serialise.RawJSON):
         if operation is not None and operation.media_type != "application/json":  # a figure
             return Response(job.result.value(), media_type=operation.media_type)
