@@ -105,3 +105,17 @@ def test_figure_writes_svg_in_process(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "SVG" in proc.stderr
     proc = cli("figure", "analysis/rigidity", "--preset", "four-bar")
     assert proc.returncode == 2 and "unknown operation" in proc.stderr
+
+
+def test_sweep_usage_errors_start_no_cluster(tmp_path: Path) -> None:
+    """A sweep's bad input is exit status 2, found before any Dask process starts (the sweeps
+    themselves: tests/service/test_jobs.py and the README's block in tests/test_doc_blocks.py)."""
+    for args, says in ((["sweep"], "give a request file or --preset"),
+                       (["sweep", "--preset", "four-bar", "--grid", "L2=1:x:3"], "not a number"),
+                       (["sweep", "--preset", "four-bar", "--grid", "L2=1:2"],
+                        "expected 3 numbers"),
+                       (["sweep", str(tmp_path / "missing.json")], "cannot read")):
+        _, report = probe(*args, cwd=tmp_path)
+        assert report == {"rc": 2, "dask": report["dask"], "children": 0}, args
+        proc = cli(*args, cwd=tmp_path)
+        assert proc.returncode == 2 and says in proc.stderr, (args, proc.stderr)
