@@ -8,10 +8,16 @@ Examples::
     linkage-topology sweep request.json -o rows.csv        # a POST /v1/sweeps body
     linkage-topology run analysis/configuration-space request.json -o space.json
     linkage-topology run analysis/critical-points --preset four-bar --param L2=1
+    linkage-topology presets                  # the names; ``presets four-bar``: one in full
+    linkage-topology figure figures/linkage --preset four-bar -o four-bar.svg   # or .png, .pdf
+    linkage-topology --version
 
-The work runs on Dask exactly as in the service: on ``--scheduler`` (default
-``LINKAGE_DASK_SCHEDULER``) or an embedded cluster of ``--workers`` processes. Progress comes
-from the engine (points done, ...) and is drawn with ``rich`` unless ``--no-progress``.
+``run`` and ``figure`` work in this process (no Dask), under ``--time-limit`` (default
+``LINKAGE_JOB_TIME_LIMIT_S``), unless ``--scheduler`` is given: then, like sweeps, they run on
+Dask exactly as in the service: on ``--scheduler`` (default ``LINKAGE_DASK_SCHEDULER``) or an
+embedded cluster of ``--workers`` processes, with progress from the engine drawn with ``rich``
+unless ``--no-progress``. Heavy modules are imported when a command needs them, so that
+``--help`` answers at once.
 """
 
 from __future__ import annotations
@@ -21,18 +27,12 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pydantic import BaseModel, ValidationError
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+if TYPE_CHECKING:  # imported where used: --help and presets need none of them
+    from pydantic import BaseModel
 
-from engine.catalogue.presets import build_preset
-from engine.model.errors import EngineError
-from service import mappers, tasks
-from service.config import get_settings
-from service.schemas.jobs import SweepRequest
-from service.workers import ServiceFault
+    from service import tasks
 
 #: How often the progress bar reads the job's state (the state itself is pushed by the tasks).
 REFRESH_S = 0.1
@@ -71,6 +71,12 @@ def _preset(args: argparse.Namespace) -> dict[str, Any]:
 
 def _request(args: argparse.Namespace, model: type[BaseModel]) -> BaseModel:
     """The request from a JSON file, or built from the flags."""
+    from pydantic import ValidationError
+
+    from engine.catalogue.presets import build_preset
+    from service import mappers
+    from service.schemas.jobs import SweepRequest
+
     if args.request is not None:
         if args.preset is not None:
             raise UsageError("give a request file or --preset, not both")
@@ -109,6 +115,15 @@ def _request(args: argparse.Namespace, model: type[BaseModel]) -> BaseModel:
 
 def _wait(manager: tasks.JobManager, job: tasks.Job, show: bool) -> None:
     """Until the job finishes, drawing its progress unless ``show`` is False."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
     if not show:
         while not job.finished_state:
             time.sleep(REFRESH_S)
@@ -124,6 +139,10 @@ def _wait(manager: tasks.JobManager, job: tasks.Job, show: bool) -> None:
 
 
 def _write(result: Any, out: str | None, fmt: str | None, sweep: bool) -> None:
+    from service import mappers, serialise
+
+    if isinstance(result, serialise.RawJSON):
+        result = result.value()
     fmt = fmt or ("csv" if out and out.endswith(".csv") else "json")
     if fmt == "csv":
         if not sweep:
@@ -163,15 +182,82 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--compute", default="components",
                     help="comma-separated: components,critical,margin,windings")
     run = sub.add_parser("run", parents=[common], help="one analysis, e.g. "
-                         "analysis/configuration-space")
-    run.add_argument("operation", choices=sorted(tasks.OPERATIONS))
+                         "analysis/configuration-space (in this process; on Dask with "
+                         "--scheduler)")
+    run.add_argument("operation", help="an analysis path (see GET /v1/jobs/operations)")
     run.add_argument("request", nargs="?", help="a JSON file with that endpoint's request body")
+    fig = sub.add_parser("figure", parents=[common], help="a figure as SVG, e.g. linkage")
+    fig.add_argument("operation", help="linkage, configuration-space, critical-values or "
+                     "splitting (or figures/<name>)")
+    fig.add_argument("request", nargs="?", help="a JSON file with that endpoint's request body")
+    pre = sub.add_parser("presets", help="the preset names, or one preset in full")
+    pre.add_argument("name", nargs="?", help="a preset: its description and parameters")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("linkage-topology")
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        return "unknown"
+
+
+def _presets(name: str | None) -> int:
+    from engine.catalogue.presets import PRESETS
+    from service import mappers
+
+    if name is None:
+        for preset in PRESETS.values():
+            sys.stdout.write(f"{preset.name}\n")
+        return 0
+    if name not in PRESETS:
+        raise UsageError(f"no preset named {name!r}; known: {', '.join(sorted(PRESETS))}")
+    info = next(p for p in mappers.presets_out() if p.name == name)
+    sys.stdout.write(info.model_dump_json(indent=2) + "\n")
+    return 0
+
+
+def _in_process(args: argparse.Namespace, operation: str) -> Any:
+    """One operation run here under the time limit: its answer as JSON data (a figure: SVG)."""
+    import inspect
+
+    from engine.model.budget import Deadline
+    from service.config import get_settings
+    from service.operations import OPERATIONS
+
+    op = OPERATIONS[operation]
     settings = get_settings()
+    limit = args.time_limit or settings.job_time_limit_s
+    body = _request(args, op.request)
+    kwargs = ({"deadline": Deadline.after(limit)}
+              if "deadline" in inspect.signature(op.run).parameters else {})
+    answer = op.run(body, settings, **kwargs)
+    return answer if isinstance(answer, str) else answer.model_dump(mode="json")
+
+
+def _operation(args: argparse.Namespace) -> str:
+    from service.operations import OPERATIONS
+
+    name = args.operation
+    if args.command == "figure" and not name.startswith("figures/"):
+        name = f"figures/{name}"
+    figure = name.startswith("figures/")
+    if name not in OPERATIONS or figure != (args.command == "figure"):
+        known = [k for k in OPERATIONS if k.startswith("figures/") == (args.command == "figure")]
+        raise UsageError(f"unknown operation {args.operation!r}; known: {', '.join(known)}")
+    return name
+
+
+def _on_dask(args: argparse.Namespace, operation: str | None) -> Any:
+    """A sweep, or an operation with --scheduler, as a job on Dask (the service's path)."""
+    from service import mappers, tasks
+    from service.config import get_settings
+    from service.operations import OPERATIONS
+    from service.schemas.jobs import SweepRequest
+
     changes: dict[str, Any] = {}
     if args.scheduler:
         changes["dask_scheduler"] = args.scheduler
@@ -179,38 +265,76 @@ def main(argv: list[str] | None = None) -> int:
         changes["dask_workers"] = args.workers
     if args.time_limit:
         changes["job_time_limit_s"] = args.time_limit
-    settings = settings.replace(**changes)
-    sweep = args.command == "sweep"
+    settings = get_settings().replace(**changes)
     manager = tasks.JobManager(settings)
     try:
-        if sweep:
+        if operation is None:
             body = _request(args, SweepRequest)
             assert isinstance(body, SweepRequest)
             sweep_job = mappers.sweep_in(body, settings.limits)
             job = manager.submit_sweep(sweep_job, sweep_job.names)
         else:
-            body = _request(args, tasks.OPERATIONS[args.operation].request)
-            job = manager.submit(args.operation, body)
+            job = manager.submit(operation, _request(args, OPERATIONS[operation].request))
         try:
             _wait(manager, job, show=not args.no_progress)
         except KeyboardInterrupt:
             manager.cancel(job.id)
-            print("cancelled", file=sys.stderr)
-            return 130
+            raise
         if job.status != "done":
             error = job.error or {"title": job.status, "detail": job.message}
-            print(f"{error['title']}: {error['detail']}", file=sys.stderr)
-            return 1
-        _write(job.result, args.output, args.format, sweep)
+            raise _Failed(f"{error['title']}: {error['detail']}")
+        return job.result
+    finally:
+        manager.close()
+
+
+class _Failed(Exception):
+    """The work ran and failed (exit status 1)."""
+
+
+def _figure_out(svg: Any, out: str | None) -> None:
+    from service import serialise
+
+    text = svg.value() if isinstance(svg, serialise.RawJSON) else svg
+    if out in (None, "-"):
+        sys.stdout.write(text)
+        return
+    if Path(out).suffix.lower() not in ("", ".svg"):
+        raise UsageError("figures are written as SVG (-o NAME.svg)")
+    Path(out).write_text(text, encoding="utf-8")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from engine.model.errors import EngineError
+    from service.workers import ServiceFault
+
+    try:
+        if args.command == "presets":
+            return _presets(args.name)
+        if args.command == "sweep":
+            _write(_on_dask(args, None), args.output, args.format, True)
+            return 0
+        operation = _operation(args)
+        result = (_on_dask(args, operation) if args.scheduler
+                  else _in_process(args, operation))
+        if args.command == "figure":
+            _figure_out(result, args.output)
+        else:
+            _write(result, args.output, args.format, False)
         return 0
+    except KeyboardInterrupt:
+        print("cancelled", file=sys.stderr)
+        return 130
     except (UsageError, EngineError) as err:
         print(f"linkage-topology: {err}", file=sys.stderr)
         return 2
+    except _Failed as err:
+        print(f"linkage-topology: {err}", file=sys.stderr)
+        return 1
     except ServiceFault as err:
         print(f"linkage-topology: {err.title}: {err.detail}", file=sys.stderr)
         return 1
-    finally:
-        manager.close()
 
 
 if __name__ == "__main__":

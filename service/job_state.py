@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from distributed import Future
+if TYPE_CHECKING:  # a type only: the command line's in-process runs never import Dask
+    from distributed import Future
 
 
 @dataclass

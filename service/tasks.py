@@ -31,8 +31,6 @@ import math
 import threading
 import time
 import uuid
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -43,16 +41,10 @@ from engine.design.sweep import PointResult, run_points
 from engine.model.budget import Deadline, ProgressSink
 from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
-from service import jobs, mappers, serialise
+from service import mappers, serialise
 from service.config import Settings
 from service.job_state import Job
-from service.schemas.common import AnalysisRequest
-from service.schemas.critical_values import CriticalValuesRequest
-from service.schemas.design import DesignRequest
-from service.schemas.jobs import SweepRequest
-from service.schemas.robustness import RobustnessRequest
-from service.schemas.space import SpaceRequest
-from service.schemas.splitting import SplittingRequest
+from service.operations import OPERATIONS, SWEEPS
 from service.workers import Busy, ServiceFault
 
 log = logging.getLogger("service.tasks")
@@ -71,32 +63,6 @@ KEPT_PER_ACTIVE = 10
 CONNECT_TIMEOUT_S = 10.0
 #: Sweep chunks per worker: enough to balance uneven points, few enough to keep tasks cheap.
 CHUNKS_PER_WORKER = 4
-
-
-@dataclass(frozen=True)
-class Operation:
-    """An analysis endpoint's request schema and the work behind it."""
-
-    request: type[BaseModel]
-    run: Callable[..., BaseModel]
-
-
-#: The operations a job may run: the analysis endpoints' paths (without ``/v1/``).
-OPERATIONS: dict[str, Operation] = {
-    "analysis/rigidity": Operation(AnalysisRequest, jobs.rigidity),
-    "analysis/second-order": Operation(AnalysisRequest, jobs.second_order_analysis),
-    "analysis/critical-points": Operation(SpaceRequest, jobs.critical_points),
-    "analysis/configuration-space": Operation(SpaceRequest, jobs.configuration_space),
-    "analysis/splitting": Operation(SplittingRequest, jobs.splitting),
-    "analysis/robustness": Operation(RobustnessRequest, jobs.robustness_margin),
-    "analysis/critical-values": Operation(CriticalValuesRequest, jobs.critical_values),
-    "design/splitting": Operation(DesignRequest, jobs.design_splitting),
-}
-#: A sweep is a job too (``POST /v1/sweeps``, or ``POST /v1/jobs`` with this operation).
-SWEEPS = "sweeps"
-REQUESTS: dict[str, type[BaseModel]] = {
-    **{name: op.request for name, op in OPERATIONS.items()}, SWEEPS: SweepRequest
-}
 
 
 class ClusterUnavailable(ServiceFault):
@@ -345,9 +311,9 @@ class JobManager:
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
                     f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
                 return
-            result = mappers.sweep_out(job.names, rows).model_dump(mode="json")
-        else:
-            result = serialise.loads(job.parts[0])
+            result: Any = mappers.sweep_out(job.names, rows).model_dump(mode="json")
+        else:  # kept as the worker's JSON: parsing it here took seconds for large answers
+            result = serialise.RawJSON(job.parts[0])
         with self._lock:
             job.result, job.parts = result, {}
             job.status, job.message, job.finished = "done", "done", time.time()
@@ -394,6 +360,13 @@ class JobManager:
             raise UnknownJob(f"no job {job_id!r} (finished jobs are kept LINKAGE_JOB_TTL_S = "
                              f"{self.settings.job_ttl_s:g} s)")
         return job
+
+    def jobs(self) -> list[Job]:
+        """The jobs kept now (queued, running, and finished ones not yet forgotten), oldest
+        first."""
+        self._purge()
+        with self._lock:
+            return sorted(self._jobs.values(), key=lambda j: j.created)
 
     def expires(self, job: Job) -> float | None:
         return None if job.finished is None else job.finished + self.settings.job_ttl_s

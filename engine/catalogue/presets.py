@@ -271,8 +271,83 @@ PRESETS.update(
 )
 
 
+@dataclass(frozen=True)
+class Bounds:
+    """The values one preset parameter may take, as :func:`resolve_parameters` enforces them
+    (the service publishes them as the parameter's schema).
+
+    ``minimum``/``maximum`` are inclusive, ``exclusive_minimum`` is not; ``multiple_of`` is 1
+    for an integer (2 for an even one); ``choices`` lists the only values allowed; ``below``
+    names another parameter this one must stay strictly under (``gate < n``)."""
+
+    minimum: float | None = None
+    exclusive_minimum: float | None = None
+    maximum: float | None = None
+    multiple_of: float | None = None
+    choices: tuple[float, ...] = ()
+    below: str | None = None
+
+
+#: Chain lengths ``n`` (inclusive) per preset; 20000 where not listed.
+_N_RANGE = {"rotor-chain-3d": (2.0, 2000.0), "cn-symmetric-four-regular": (8.0, 200.0)}
+_N_MAX = 20_000.0
+_EVEN = {"cn-symmetric-four-regular"}
+
+
+def parameter_bounds(name: str) -> dict[str, Bounds]:
+    """The bounds of every parameter of preset ``name`` (a parameter without any has an empty
+    :class:`Bounds`: any finite value is taken, and only the geometry may refuse it).
+
+    Examples
+    --------
+    >>> parameter_bounds("gated-kl-chain")["gate"]
+    Bounds(minimum=0.0, exclusive_minimum=None, maximum=19999.0, multiple_of=1.0, choices=(), \
+below='n')
+    """
+    preset = PRESETS[name]
+    out: dict[str, Bounds] = {}
+    for key in preset.parameters:
+        step = (2.0 if name in _EVEN else 1.0) if key == "n" else (
+            1.0 if key in preset.integers else None)
+        if key in _LENGTHS or (key == "h" and name == "rotor-chain-3d"):
+            out[key] = Bounds(exclusive_minimum=0.0)
+        elif key in _SIDES:
+            out[key] = Bounds(choices=(-1.0, 1.0))
+        elif key == "n":
+            low, high = _N_RANGE.get(name, (2.0, _N_MAX))
+            out[key] = Bounds(minimum=low, maximum=high, multiple_of=step)
+        elif key == "gate":
+            n_max = _N_RANGE.get(name, (2.0, _N_MAX))[1]
+            out[key] = Bounds(minimum=0.0, maximum=n_max - 1, multiple_of=step, below="n")
+        else:
+            out[key] = Bounds(multiple_of=step)
+    return out
+
+
+def _check_bounds(key: str, value: float, bounds: Bounds, params: Params) -> None:
+    """Raise :class:`InvalidParameter` at ``key`` when ``value`` is outside ``bounds``."""
+    if bounds.multiple_of is not None and value % bounds.multiple_of != 0:
+        what = "an integer" if bounds.multiple_of == 1 else f"a multiple of {bounds.multiple_of:g}"
+        raise InvalidParameter(f"must be {what}, got {value!r}", loc=(key,))
+    if bounds.exclusive_minimum is not None and not value > bounds.exclusive_minimum:
+        raise InvalidParameter(f"length must be positive, got {value!r}", loc=(key,))
+    if bounds.choices and value not in bounds.choices:
+        raise InvalidParameter(
+            f"must be one of {', '.join(f'{c:g}' for c in bounds.choices)}, got {value!r}",
+            loc=(key,))
+    low = -np.inf if bounds.minimum is None else bounds.minimum
+    high = np.inf if bounds.maximum is None else bounds.maximum
+    if bounds.below is not None:
+        high = min(high, params[bounds.below] - 1)
+    if not low <= value <= high:
+        raise InvalidParameter(f"{key} must lie in [{low:g}, {high:g}], got {value:g}"
+                               + (f" (below {bounds.below} = {params[bounds.below]:g})"
+                                  if bounds.below else ""), loc=(key,))
+
+
 def resolve_parameters(name: str, overrides: Mapping[str, float] | None = None) -> Params:
-    """Defaults of preset ``name`` updated with ``overrides``, validated."""
+    """Defaults of preset ``name`` updated with ``overrides``, validated against
+    :func:`parameter_bounds`."""
     if name not in PRESETS:
         raise UnknownPreset(
             f"no preset named {name!r}; known: {', '.join(sorted(PRESETS))}", loc=("name",)
@@ -288,18 +363,9 @@ def resolve_parameters(name: str, overrides: Mapping[str, float] | None = None) 
         value = float(value)
         if not np.isfinite(value):
             raise InvalidParameter("must be finite", loc=(key,))
-        if key in preset.integers and value != int(value):
-            raise InvalidParameter(f"must be an integer, got {value!r}", loc=(key,))
         params[key] = value
-    for key, value in params.items():
-        if key in _LENGTHS and value <= 0:
-            raise InvalidParameter(f"length must be positive, got {value!r}", loc=(key,))
-        if key in _SIDES and value not in (1.0, -1.0):
-            raise InvalidParameter(f"must be 1 or -1, got {value!r}", loc=(key,))
-    if "n" in params and not 2 <= params["n"] <= 20_000:
-        raise InvalidParameter("n must lie between 2 and 20000", loc=("n",))
-    if "gate" in params and not 0 <= params["gate"] < params["n"]:
-        raise InvalidParameter(f"gate must lie in [0, n) = [0, {int(params['n'])})", loc=("gate",))
+    for key, bounds in parameter_bounds(name).items():
+        _check_bounds(key, params[key], bounds, params)
     return params
 
 

@@ -30,11 +30,17 @@ from service.mappers.jobs import (
     SweepJob,
     job_body_in,
     job_out,
+    job_summary_out,
     sweep_csv,
     sweep_in,
     sweep_out,
 )
-from service.mappers.presets import preset_overrides_in, presets_out
+from service.mappers.presets import (
+    parameter_description,
+    parameter_schema,
+    preset_overrides_in,
+    presets_out,
+)
 from service.mappers.space import (
     critical_list_out,
     critical_points_out,
@@ -57,10 +63,13 @@ __all__ = [
     "design_out",
     "job_body_in",
     "job_out",
+    "job_summary_out",
     "linkage_in",
     "linkage_out",
     "packed_array",
     "positions_out",
+    "parameter_description",
+    "parameter_schema",
     "preset_overrides_in",
     "presets_out",
     "problem_in",

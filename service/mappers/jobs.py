@@ -6,6 +6,7 @@ import csv
 import io
 import json
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -130,19 +131,30 @@ def job_body_in(model: type[BaseModel], body: dict[str, Any]) -> BaseModel:
         ) from None
 
 
-def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
-    return job_schemas.JobOut(
+def _when(epoch: float | None) -> datetime | None:
+    """A job's time (seconds since the epoch) as an aware UTC datetime (RFC 3339 in JSON)."""
+    return None if epoch is None else datetime.fromtimestamp(epoch, UTC)
+
+
+def job_summary_out(job: Job, expires: float | None) -> job_schemas.JobSummary:
+    return job_schemas.JobSummary(
         id=job.id,
         operation=job.operation,
         status=job.status,  # type: ignore[arg-type]
         progress=job_schemas.Progress(fraction=job.fraction, message=job.message),
-        created=job.created,
-        started=job.started,
-        finished=job.finished,
-        expires=expires,
-        result=job.result,
+        created=datetime.fromtimestamp(job.created, UTC),
+        started=_when(job.started),
+        finished=_when(job.finished),
+        expires=_when(expires),
         error=None if job.error is None else job_schemas.JobError(**job.error),
     )
+
+
+def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
+    """A job with its result (a large one kept as its worker's JSON, ``serialise.RawJSON``:
+    the model is built without validation, so that the result is not walked)."""
+    summary = job_summary_out(job, expires)
+    return job_schemas.JobOut.model_construct(**dict(summary), result=job.result)
 
 
 #: Columns of a sweep's CSV after the swept names, in this order.

@@ -8,7 +8,7 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request
 
-from engine.catalogue.presets import PRESETS, Preset, build_preset
+from engine.catalogue.presets import PRESETS, Preset, build_preset, parameter_bounds
 from service import mappers
 from service.config import Settings, SettingsDep
 from service.errors import problem_responses
@@ -39,14 +39,17 @@ def _preset_route(preset: Preset) -> Callable[..., Linkage]:
     def get_this_preset(request: Request, settings: SettingsDep, **_: Any) -> Linkage:
         return _build(preset.name, request, settings)
 
-    kinds = {k: "an integer" if k in preset.integers else "a number" for k in preset.parameters}
+    bounds = parameter_bounds(preset.name)
     declared = [
         inspect.Parameter(
             f"p{i}", inspect.Parameter.KEYWORD_ONLY, annotation=float,
             # The handler reads the query string itself (_build), so this default documents
-            # the preset's default in the schema and is never used as a value.
+            # the preset's default in the schema and is never used as a value; the bounds are
+            # the engine's (it refuses what is outside them with a 422 naming the parameter).
             default=Query(preset.parameters[key], alias=key,
-                          description=f"{kinds[key]}, default {preset.parameters[key]:g}"),
+                          description=mappers.parameter_description(preset.parameters[key],
+                                                                    bounds[key]),
+                          json_schema_extra=mappers.parameter_schema(bounds[key])),
         )
         for i, key in enumerate(preset.parameters)
     ]

@@ -145,6 +145,34 @@ def _restore_linkage(
     return _restore(Linkage, state, fields_set)
 
 
+#: The equilateral four-bar (the paper's, with three branch points) at theta = 60 degrees: the
+#: linkage of every request example in the OpenAPI schema (tests/service/test_examples.py posts
+#: each one and expects 2xx).
+EXAMPLE_LINKAGE: dict[str, Any] = {
+    "dimension": 2,
+    "vertices": [
+        {"id": "P1", "position": [0.0, 0.0], "fixed": True},
+        {"id": "P2", "position": [1.0, 0.0], "fixed": True},
+        {"id": "A", "position": [0.5, 0.8660254037844386]},
+        {"id": "B", "position": [1.5, 0.8660254037844386]},
+    ],
+    "bars": [
+        {"id": "L1", "ends": ["P1", "A"], "length": 1.0},
+        {"id": "L2", "ends": ["A", "B"], "length": 1.0},
+        {"id": "L3", "ends": ["P2", "B"], "length": 1.0},
+    ],
+}
+#: The tolerances of the request examples: the engine's defaults for bars of length 1.
+EXAMPLE_TOLERANCES: dict[str, float] = {"rank_rtol": 1e-8, "residual_atol": 1e-9, "q_rtol": 1e-6}
+
+
+def examples(*bodies: dict[str, Any]) -> dict[str, Any]:
+    """``json_schema_extra`` of a request model: complete, valid requests that ``/docs``
+    pre-fills (without them Swagger UI builds one from the fields' bounds, e.g. a
+    ``residual_atol`` of 1, which is refused)."""
+    return {"examples": list(bodies)}
+
+
 class Linkage(Strict):
     dimension: Literal[2, 3] = 2
     vertices: list[Vertex] = Field(min_length=1, max_length=MAX_ITEMS)
@@ -180,25 +208,7 @@ class Linkage(Strict):
         state = {k: v for k, v in self.__dict__.items() if k not in ("vertices", "bars")}
         return (_restore_linkage, (state, set(self.__pydantic_fields_set__), vertices, bars))
 
-    model_config = ConfigDict(
-        extra="forbid",
-        json_schema_extra={
-            "example": {
-                "dimension": 2,
-                "vertices": [
-                    {"id": "P1", "position": [0.0, 0.0], "fixed": True},
-                    {"id": "P2", "position": [1.0, 0.0], "fixed": True},
-                    {"id": "A", "position": [0.5, 0.8660254037844386]},
-                    {"id": "B", "position": [1.5, 0.8660254037844386]},
-                ],
-                "bars": [
-                    {"id": "L1", "ends": ["P1", "A"], "length": 1.0},
-                    {"id": "L2", "ends": ["A", "B"], "length": 1.0},
-                    {"id": "L3", "ends": ["P2", "B"], "length": 1.0},
-                ],
-            }
-        },
-    )
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"example": EXAMPLE_LINKAGE})
 
 
 def default_of(value: float | str) -> dict[str, Any]:
@@ -215,6 +225,8 @@ _AbsTol = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)]
 
 
 class Tolerances(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(EXAMPLE_TOLERANCES))
+
     rank_rtol: _RelTol | None = Field(
         None, description="singular values <= rank_rtol * s_max count as zero (default 1e-8)",
         json_schema_extra=default_of(1e-8),
@@ -237,6 +249,10 @@ class TolerancesUsed(BaseModel):
 
 
 class AnalysisRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE,
+         "tolerances": EXAMPLE_TOLERANCES}))
+
     linkage: Linkage
     tolerances: Tolerances | None = None
 

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
     Ident,
     Linkage,
     SearchReport,
@@ -14,6 +16,7 @@ from service.schemas.common import (
     Tolerances,
     TolerancesUsed,
     default_of,
+    examples,
 )
 from service.schemas.space import TIME_BUDGET_DOC, TimeBudget
 
@@ -37,6 +40,12 @@ class CriticalValuesOptions(Strict):
 
 
 class CriticalValuesRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "axes": [{"bar": "L2", "min": 0.5, "max": 2.0},
+                                    {"bar": "L3", "min": 0.5, "max": 2.0}],
+         "options": {"resolution": 24, "seeds_per_axis": 5, "time_budget_s": 4.0},
+         "tolerances": EXAMPLE_TOLERANCES}))
+
     linkage: Linkage
     axes: list[AxisIn] = Field(min_length=2, max_length=2)
     options: CriticalValuesOptions | None = None

@@ -4,15 +4,18 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
     Ident,
     Linkage,
     SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
+    examples,
 )
 from service.schemas.space import SpaceOptions
 
@@ -23,6 +26,11 @@ class TargetIn(Strict):
 
 
 class DesignRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "targets": [{"branch_point": 0, "sign": 1}],
+         "adjustable": ["L2", "L3"], "max_change": 0.2, "margin": 1e-4,
+         "tolerances": EXAMPLE_TOLERANCES}))
+
     linkage: Linkage
     targets: list[TargetIn] = Field(min_length=1, max_length=1000)
     adjustable: list[Ident] = Field(min_length=1, max_length=10_000)

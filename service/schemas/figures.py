@@ -4,15 +4,27 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
-from service.schemas.common import Ident, Linkage, Strict, Tolerances
+from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    examples,
+)
 from service.schemas.space import SpaceOptions
 
 Show = Literal["zero_modes", "tangents", "self_stress"]
 
 
 class LinkageFigureRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "show": ["zero_modes"],
+         "tolerances": EXAMPLE_TOLERANCES}))
+
     linkage: Linkage
     show: list[Show] = Field(
         default_factory=list, max_length=3,
@@ -23,6 +35,9 @@ class LinkageFigureRequest(Strict):
 
 
 class SpaceFigureRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "tolerances": EXAMPLE_TOLERANCES, "axes": ["L1", "L3"]}))
+
     linkage: Linkage
     tolerances: Tolerances | None = None
     options: SpaceOptions | None = None

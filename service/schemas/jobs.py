@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from service.schemas.common import Finite, Ident, Linkage, Strict, Tolerances
+from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    Finite,
+    Ident,
+    Linkage,
+    Strict,
+    Tolerances,
+    examples,
+)
 from service.schemas.space import SpaceOptions
 
 #: Points of one sweep (grid cells or samples): a bound on its cost and on its answer's size.
@@ -18,6 +27,9 @@ _PositiveFinite = Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)
 
 
 class JobRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"operation": "analysis/critical-points", "body": {"linkage": EXAMPLE_LINKAGE}}))
+
     operation: str = Field(
         min_length=1, max_length=100,
         description="an analysis path, e.g. analysis/configuration-space (see /v1/jobs/operations)",
@@ -36,22 +48,27 @@ class JobError(BaseModel):
     loc: list[str | int] = Field(default_factory=list)
 
 
-class JobOut(BaseModel):
+class JobSummary(BaseModel):
+    """A job without its result (``GET /v1/jobs``); times are RFC 3339, UTC."""
+
     id: str
     operation: str
     status: JobStatusName
     progress: Progress
-    created: float = Field(description="seconds since the epoch (UTC)")
-    started: float | None
-    finished: float | None
-    expires: float | None = Field(
+    created: datetime = Field(description="when it was submitted (RFC 3339, UTC)")
+    started: datetime | None = Field(description="when a worker first reported on it")
+    finished: datetime | None = Field(description="when it ended: done, failed or cancelled")
+    expires: datetime | None = Field(
         description="when a finished job and its result are forgotten (LINKAGE_JOB_TTL_S)"
     )
+    error: JobError | None = None
+
+
+class JobOut(JobSummary):
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary)"
+        "rows and summary; for figures: the SVG as a string)"
     )
-    error: JobError | None = None
 
 
 class OperationOut(BaseModel):
@@ -76,6 +93,10 @@ class SampleAxisIn(Strict):
 
 
 class SweepRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"preset": {"name": "four-bar"}, "grid": {"L2": {"min": 0.5, "max": 2.0, "steps": 4}},
+         "seed": 0, "compute": ["components", "critical"]}))
+
     linkage: Linkage | None = Field(
         None, description="a linkage whose bars (the grid's or samples' keys) change length"
     )

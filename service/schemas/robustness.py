@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
     Ident,
     Linkage,
     Strict,
@@ -14,11 +16,16 @@ from service.schemas.common import (
     TolerancesUsed,
     VertexVectors,
     default_of,
+    examples,
 )
 from service.schemas.space import SpaceOptions
 
 
 class RobustnessRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "adjustable": ["L1", "L2", "L3"],
+         "tolerances": EXAMPLE_TOLERANCES, "method": "auto"}))
+
     linkage: Linkage
     adjustable: list[Ident] | None = Field(
         None, max_length=10_000, description="bars that may change (default: every bar with a "

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.analysis import Projection
 from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
     BarValues,
     Linkage,
     SearchReport,
@@ -17,6 +19,7 @@ from service.schemas.common import (
     TolerancesUsed,
     VertexVectors,
     default_of,
+    examples,
 )
 
 _StrainTol = Annotated[float, Field(strict=True, gt=0, le=0.2, allow_inf_nan=False)]
@@ -32,6 +35,11 @@ TIME_BUDGET_DOC = (
 
 
 class SpaceOptions(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"max_points": 20000, "strain_tol": 0.01, "step_max": 0.1, "angles": 60,
+         "random_starts": 12, "max_components": 32, "seed": 0, "time_budget_s": 4.0,
+         "points": "objects"}))
+
     max_points: Annotated[int, Field(strict=True, ge=10, le=200_000)] | None = Field(
         None, description="budget of points per traced curve (default 20000)",
         json_schema_extra=default_of(20000),
@@ -72,6 +80,10 @@ class SpaceOptions(Strict):
 
 
 class SpaceRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "tolerances": EXAMPLE_TOLERANCES,
+         "options": {"angles": 60, "seed": 0, "time_budget_s": 4.0}}))
+
     linkage: Linkage
     tolerances: Tolerances | None = None
     options: SpaceOptions | None = None

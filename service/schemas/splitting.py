@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.common import (
+    EXAMPLE_LINKAGE,
+    EXAMPLE_TOLERANCES,
     Finite,
     Ident,
     Linkage,
@@ -13,11 +15,16 @@ from service.schemas.common import (
     Tolerances,
     TolerancesUsed,
     VertexVectors,
+    examples,
 )
 from service.schemas.space import SpaceOptions
 
 
 class SplittingRequest(Strict):
+    model_config = ConfigDict(extra="forbid", json_schema_extra=examples(
+        {"linkage": EXAMPLE_LINKAGE, "perturbation": {"L2": 0.01},
+         "tolerances": EXAMPLE_TOLERANCES}))
+
     linkage: Linkage
     perturbation: dict[Ident, Finite] = Field(description="{bar_id: dL}")
     tolerances: Tolerances | None = None

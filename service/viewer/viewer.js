@@ -171,6 +171,22 @@ function showParams() {
   const box = $("params");
   if (!preset) { box.replaceChildren(); return; }
   box.replaceChildren(...Object.entries(preset.parameters).map(([k, v]) => paramControl(k, v)));
+  boundGate();
+}
+
+// The service takes 0 <= gate < n only (the presets' OpenAPI parameters say so): the gate
+// slider follows the n slider, so that it never offers a gate the service refuses.
+function boundGate() {
+  const n = $("param-n"), gate = $("param-gate");
+  if (!n || !gate) return;
+  const follow = () => {
+    gate.min = 0;
+    gate.max = Math.max(0, Number(n.value) - 1);
+    if (Number(gate.value) > Number(gate.max)) gate.value = gate.max;
+    gate.dispatchEvent(new Event("input")); // its shown value
+  };
+  n.addEventListener("input", follow);
+  follow();
 }
 
 /** The preset's sliders no longer describe the linkage (pasted, or edited on the drawing). */

@@ -218,3 +218,13 @@ def test_figures_run_under_the_time_limit() -> None:
     finally:
         c.close()
         app.state.engine_pool.close()
+
+
+def test_the_figure_media_type_of_jobs_is_the_routes() -> None:
+    """service.operations names the SVG media type itself (matplotlib is imported only to
+    draw): it is the one the figure routes answer with."""
+    from service import figures, operations
+
+    assert operations.SVG == figures.SVG
+    assert {op.media_type for name, op in operations.OPERATIONS.items()
+            if name.startswith("figures/")} == {figures.SVG}

@@ -6,7 +6,9 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -14,6 +16,7 @@ import sys
 import time
 from collections import Counter
 from collections.abc import Iterator
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -75,6 +78,17 @@ def wait(api: TestClient, location: str, until: tuple[str, ...] = ("done", "fail
             return job
         time.sleep(0.05)
     raise AssertionError(f"job {location} not {until} after {WAIT_S} s: {job}")
+
+
+RFC3339 = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:\d\d)$")
+
+
+def when(text: str) -> datetime:
+    """A job's time: RFC 3339 (the grammar written out above), in UTC."""
+    assert RFC3339.match(text), text
+    moment = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    assert moment.utcoffset() == timedelta(0)
+    return moment
 
 
 def four_bar(api: TestClient) -> dict[str, Any]:
@@ -150,7 +164,7 @@ def test_progress_is_monotone_and_reaches_one(grid_job):
     assert seen == sorted(seen) and seen[-1] == 1.0
     assert all(0.0 <= f <= 1.0 for f in seen)
     assert job["progress"] == {"fraction": 1.0, "message": "done"}
-    assert job["started"] <= job["finished"] < job["expires"]
+    assert when(job["started"]) <= when(job["finished"]) < when(job["expires"])
 
 
 @pytest.fixture(scope="module")
@@ -212,6 +226,25 @@ def test_external_cluster_gives_the_same_result(external_scheduler, embedded_gat
         workers = dask_client(ext).scheduler_info()["workers"]
     assert len(workers) == 2
     assert result == embedded_gated
+
+
+@pytest.mark.process
+def test_command_line_run_with_a_scheduler_answers_as_in_process(external_scheduler, tmp_path):
+    """``run --scheduler`` goes through Dask (the service's job path); without it, in-process:
+    the same answer but for the search's time budget (the job's own limit)."""
+    script = Path(sys.executable).with_name("linkage-topology")
+    args = [str(script), "run", "analysis/critical-points", "--preset", "four-bar", "--param",
+            "L2=1", "--no-progress"]
+    answers = []
+    for extra in (["--scheduler", external_scheduler], []):
+        proc = subprocess.run([*args, *extra], capture_output=True, text=True, timeout=WAIT_S,
+                              cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        answer = json.loads(proc.stdout)
+        answer["search"].pop("time_budget_s")
+        answers.append(answer)
+    assert answers[0] == answers[1]
+    assert sorted(p["kind"] for p in answers[0]["critical_points"]) == ["branch"] * 3
 
 
 def test_unreachable_scheduler_answers_503_and_the_service_keeps_answering(monkeypatch):
@@ -337,7 +370,8 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
         job = wait(api, r.headers["location"])
         assert job["status"] == "failed" and job["error"]["title"] == "Time limit exceeded"
         assert 0.0 < job["progress"]["fraction"] < 1.0
-        assert job["expires"] == pytest.approx(job["finished"] + 1.0)
+        assert (when(job["expires"]) - when(job["finished"])).total_seconds() \
+            == pytest.approx(1.0)
         time.sleep(1.2)
         r = api.get(r.headers["location"])
         assert r.status_code == 404 and "LINKAGE_JOB_TTL_S" in r.json()["detail"]
@@ -397,3 +431,38 @@ def test_command_line_preset_sweep_to_csv(tmp_path: Path):
     assert [float(r["L2"]) for r in table] == [0.35, 1.1, 1.85, 2.6, 3.35]
     for r in table:
         assert int(r["components"]) == grashof([1.0, 1.0, float(r["L2"]), 1.0])
+
+
+def test_jobs_are_listed_without_their_results(api):
+    before = time.time()
+    r = api.post("/v1/jobs", json={"operation": "analysis/rigidity",
+                                   "body": {"linkage": four_bar(api)}})
+    job = wait(api, r.headers["location"])
+    listed = api.get("/v1/jobs")
+    assert listed.status_code == 200
+    jobs = listed.json()
+    assert [j["id"] for j in jobs].count(job["id"]) == 1
+    mine = next(j for j in jobs if j["id"] == job["id"])
+    assert "result" not in mine and mine == {k: v for k, v in job.items() if k != "result"}
+    assert when(mine["created"]).timestamp() >= before - 1.0  # the clock the job was made with
+    created = [when(j["created"]) for j in jobs]
+    assert created == sorted(created)  # oldest first
+    done = api.get("/v1/jobs", params={"status": "done"}).json()
+    assert job["id"] in {j["id"] for j in done} and {j["status"] for j in done} == {"done"}
+    bad = api.get("/v1/jobs", params={"status": "finished"})
+    assert bad.status_code == 422 and bad.json()["errors"][0]["loc"] == ["query", "status"]
+
+
+def test_figure_runs_as_a_job_and_answers_the_endpoints_svg(api):
+    body = {"linkage": four_bar(api), "show": ["zero_modes"]}
+    r = api.post("/v1/jobs", json={"operation": "figures/linkage", "body": body})
+    assert r.status_code == 202, r.text
+    job = wait(api, r.headers["location"])
+    assert job["status"] == "done", job
+    direct = api.post("/v1/figures/linkage", json=body)
+    result = api.get(f"{r.headers['location']}/result")
+    assert result.headers["content-type"] == "image/svg+xml"
+    assert result.content == direct.content and job["result"] == direct.text
+    ops = {o["operation"] for o in api.get("/v1/jobs/operations").json()}
+    assert {"figures/linkage", "figures/configuration-space", "figures/critical-values",
+            "figures/splitting"} <= ops

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from engine.catalogue.presets import _LENGTHS, PRESETS, Preset, build_preset
+from engine.catalogue.presets import _LENGTHS, PRESETS, Preset, build_preset, resolve_parameters
 from engine.model.errors import InvalidParameter
 from tests.service.test_uvicorn_process import ROOT
 
@@ -124,3 +124,80 @@ def test_openapi_lists_each_presets_query_parameters():
             assert params[key]["schema"]["type"] == "number"
             assert f"default {default:g}" in params[key]["description"]
         assert {"200", "404", "422"} <= set(op["responses"])
+
+
+# -- the schema's bounds are the engine's (issue 31, item 6) ----------------------------------
+
+SPEC = json.loads((ROOT / "openapi" / "openapi.json").read_text())
+
+
+def schema_of(name: str, key: str) -> dict[str, Any]:
+    params = SPEC["paths"][f"/v1/presets/{name}"]["get"]["parameters"]
+    schema: dict[str, Any] = next(p["schema"] for p in params if p["name"] == key)
+    return schema
+
+
+def schema_valid(schema: dict[str, Any], value: float) -> bool:
+    """JSON Schema's meaning of the keywords a preset parameter may carry (written out here,
+    independent of the code that emits them)."""
+    return (("minimum" not in schema or value >= schema["minimum"])
+            and ("exclusiveMinimum" not in schema or value > schema["exclusiveMinimum"])
+            and ("maximum" not in schema or value <= schema["maximum"])
+            and ("multipleOf" not in schema or (value / schema["multipleOf"]).is_integer())
+            and ("enum" not in schema or value in schema["enum"]))
+
+
+def engine_takes(name: str, overrides: dict[str, float]) -> bool:
+    """The engine's bounds check alone (the geometry may refuse values it takes)."""
+    try:
+        resolve_parameters(name, overrides)
+    except InvalidParameter:
+        return False
+    return True
+
+
+def edges(schema: dict[str, Any], default: float) -> list[float]:
+    """Values at and just across each bound the schema states (and, without any, far out)."""
+    step = schema.get("multipleOf")
+    out = [default, 1e300, -1e300, 0.0, -1.0, 1.0]
+    for key in ("minimum", "exclusiveMinimum", "maximum"):
+        if key in schema:
+            edge = float(schema[key])
+            out += [edge, float(np.nextafter(edge, np.inf)), float(np.nextafter(edge, -np.inf))]
+            if step:
+                out += [edge + step, edge - step]
+    if step:
+        out += [default + step / 2]
+    out += [float(c) for c in schema.get("enum", [])]
+    return out
+
+
+@pytest.mark.parametrize(("name", "key"), ALL_PARAMETERS)
+def test_schema_bounds_are_the_engines_at_the_edges(name: str, key: str) -> None:
+    schema = schema_of(name, key)
+    default = float(PRESETS[name].parameters[key])
+    gated = "gate" in PRESETS[name].parameters  # gate < n: the one bound between two
+    for value in edges(schema, default):
+        overrides = {key: value}
+        if gated and key == "gate" and schema_valid(schema, value):  # n large enough
+            n = schema_of(name, "n")
+            overrides["n"] = max(float(n["minimum"]), min(float(n["maximum"]), value + 1))
+        elif gated and key == "n":  # a gate below every n
+            overrides["gate"] = 0.0
+        assert engine_takes(name, overrides) == schema_valid(schema, value), (name, key, value)
+
+
+def test_gate_below_n_is_stated_and_enforced(client: Any) -> None:
+    schema = schema_of("gated-kl-chain", "gate")
+    assert "less than n" in schema["description"]
+    assert schema["maximum"] == schema_of("gated-kl-chain", "n")["maximum"] - 1
+    for n in (2, 3, 10):
+        assert engine_takes("gated-kl-chain", {"n": n, "gate": n - 1})
+        assert not engine_takes("gated-kl-chain", {"n": n, "gate": n})
+    assert client.get("/v1/presets/gated-kl-chain?n=3&gate=2").status_code == 200
+    assert_named_problem(client.get("/v1/presets/gated-kl-chain?n=3&gate=3"), "gate")
+
+
+def test_a_zero_length_is_outside_the_schema_and_refused(client: Any) -> None:
+    assert not schema_valid(schema_of("four-bar", "a"), 0.0)
+    assert_named_problem(client.get("/v1/presets/four-bar?a=0.0"), "a")

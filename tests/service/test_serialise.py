@@ -184,3 +184,14 @@ def test_critical_points_ignore_the_compact_form(client):
     strip = ("search",)
     assert {k: v for k, v in a.json().items() if k not in strip} \
         == {k: v for k, v in b.json().items() if k not in strip}
+
+
+def test_raw_json_is_written_as_it_is_and_parsed_only_when_asked() -> None:
+    """A job's answer kept as its worker's JSON: inside a model it is spliced in byte for byte,
+    and its value is the parsed JSON."""
+    from service.serialise import RawJSON, dumps
+
+    data = b'{"a":[1.5,2,null],"b":"x\\u00e9"}'
+    raw = RawJSON(data)
+    assert raw.value() == {"a": [1.5, 2, None], "b": "x\u00e9"}
+    assert dumps({"result": raw, "id": "j"}) == b'{"result":' + data + b',"id":"j"}'

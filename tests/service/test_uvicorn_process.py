@@ -27,9 +27,10 @@ def free_port() -> int:
 
 
 def wait_until_ready(
-    client: httpx.Client, proc: subprocess.Popen[bytes], stderr_path: Path
+    client: httpx.Client, proc: subprocess.Popen[bytes], stderr_path: Path,
+    timeout: float = STARTUP_TIMEOUT,
 ) -> None:
-    deadline = time.monotonic() + STARTUP_TIMEOUT
+    deadline = time.monotonic() + timeout
     while True:
         if proc.poll() is not None:
             raise AssertionError(
@@ -43,7 +44,7 @@ def wait_until_ready(
             pass
         if time.monotonic() > deadline:
             raise AssertionError(
-                f"uvicorn did not answer /health within {STARTUP_TIMEOUT} s:\n"
+                f"uvicorn did not answer /health within {timeout} s:\n"
                 + stderr_path.read_text(errors="replace")
             )
         time.sleep(0.1)

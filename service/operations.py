@@ -1,0 +1,75 @@
+"""The operations a job (or the command line) may run: each analysis or figure endpoint's
+request schema and the work behind it. No Dask here: the command line runs them in-process."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import import_module
+from typing import Any
+
+from pydantic import BaseModel
+
+from service import jobs
+from service.config import Settings
+from service.schemas.common import AnalysisRequest
+from service.schemas.critical_values import CriticalValuesRequest
+from service.schemas.design import DesignRequest
+from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
+from service.schemas.jobs import SweepRequest
+from service.schemas.robustness import RobustnessRequest
+from service.schemas.space import SpaceRequest
+from service.schemas.splitting import SplittingRequest
+
+__all__ = ["OPERATIONS", "REQUESTS", "SWEEPS", "Operation"]
+
+
+@dataclass(frozen=True)
+class Operation:
+    """An analysis endpoint's request schema and the work behind it (its answer: a model, or
+    for a figure the SVG's text, served with ``media_type`` by ``/v1/jobs/{id}/result``)."""
+
+    request: type[BaseModel]
+    run: Callable[..., BaseModel | str]
+    media_type: str = "application/json"
+
+
+#: A figure's media type (``service.figures.SVG``, named here so that matplotlib is imported
+#: only when a figure is drawn: 1.5 s of the command line's start otherwise).
+SVG = "image/svg+xml"
+
+
+def _svg_text(draw: str) -> Callable[[Any, Settings], str]:
+    """A figure as a job's answer: the SVG of ``service.figures.<draw>`` as text (a JSON
+    string in the job)."""
+
+    def figure(body: Any, settings: Settings) -> str:
+        svg: bytes = getattr(import_module("service.figures"), draw)(body, settings)
+        return svg.decode("utf-8")
+
+    figure.__name__ = draw
+    return figure
+
+
+#: The operations a job may run: the analysis endpoints' paths (without ``/v1/``).
+OPERATIONS: dict[str, Operation] = {
+    "analysis/rigidity": Operation(AnalysisRequest, jobs.rigidity),
+    "analysis/second-order": Operation(AnalysisRequest, jobs.second_order_analysis),
+    "analysis/critical-points": Operation(SpaceRequest, jobs.critical_points),
+    "analysis/configuration-space": Operation(SpaceRequest, jobs.configuration_space),
+    "analysis/splitting": Operation(SplittingRequest, jobs.splitting),
+    "analysis/robustness": Operation(RobustnessRequest, jobs.robustness_margin),
+    "analysis/critical-values": Operation(CriticalValuesRequest, jobs.critical_values),
+    "design/splitting": Operation(DesignRequest, jobs.design_splitting),
+    "figures/linkage": Operation(LinkageFigureRequest, _svg_text("linkage_figure"), SVG),
+    "figures/configuration-space": Operation(
+        SpaceFigureRequest, _svg_text("configuration_space_figure"), SVG),
+    "figures/critical-values": Operation(
+        CriticalValuesRequest, _svg_text("critical_values_figure"), SVG),
+    "figures/splitting": Operation(SplittingRequest, _svg_text("splitting_figure"), SVG),
+}
+#: A sweep is a job too (``POST /v1/sweeps``, or ``POST /v1/jobs`` with this operation).
+SWEEPS = "sweeps"
+REQUESTS: dict[str, type[BaseModel]] = {
+    **{name: op.request for name, op in OPERATIONS.items()}, SWEEPS: SweepRequest
+}
