@@ -35,7 +35,7 @@ from engine.space.configuration_space import (
 from service.job_state import Job
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
-from service.mappers.common import problem_in
+from service.mappers.common import json_int, problem_in
 from service.mappers.space import space_options_in
 from service.schemas import jobs as job_schemas
 
@@ -93,7 +93,7 @@ def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.Sw
         rows=[
             job_schemas.SweepRow(
                 lengths=dict(zip(names, r.values, strict=True)),
-                components=r.components,
+                components=None if r.components is None else json_int(r.components),
                 complete=r.complete,
                 critical_points=r.critical_points,
                 margin=r.margin,

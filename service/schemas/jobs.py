@@ -116,7 +116,9 @@ class SweepRequest(Strict):
 
 class SweepRow(BaseModel):
     lengths: dict[str, float] = Field(description="the swept values of this point")
-    components: int | None = None
+    components: int | str | None = Field(
+        None, description="components of the configuration space; beyond 2^53 - 1 (the "
+        "largest integer a JSON number holds exactly) a decimal string")
     complete: bool | None = Field(None, description="false: a search budget cut the count short")
     critical_points: int | None = None
     margin: float | None = None
