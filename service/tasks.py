@@ -1,10 +1,11 @@
 """Jobs: long work on ``dask.distributed``, with progress from the engine and cancellation.
 
 A job is one operation (any analysis endpoint's work from :mod:`service.jobs`, or a sweep) run
-as Dask tasks. By default the tasks run on an embedded ``LocalCluster`` (worker processes, one
-thread each, ``LINKAGE_DASK_WORKERS`` of them), started on first use and closed at shutdown;
-with ``LINKAGE_DASK_SCHEDULER=tcp://host:port`` on an existing cluster instead. The job table
-lives in the service process (a restart forgets it).
+as Dask tasks. By default the tasks run on an embedded cluster (worker processes, one thread
+each, ``LINKAGE_DASK_WORKERS`` of them, on loopback over TLS with a certificate made at start,
+without HTTP: :mod:`service.cluster`), started on first use and closed at shutdown; with
+``LINKAGE_DASK_SCHEDULER=tls://host:port`` on an existing cluster instead (reconnected when
+its scheduler comes back). The job table lives in the service process (a restart forgets it).
 
 Progress and cancellation cross the process boundary with Dask's own primitives, not timers:
 
@@ -36,14 +37,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from distributed import Client, Event, Future, LocalCluster, get_worker
+from distributed import Client, Event, Future, get_worker
 from pydantic import BaseModel
 
 from engine.design.sweep import PointResult, run_points
 from engine.model.budget import Deadline, ProgressSink
 from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
-from service import jobs, mappers, serialise
+from service import cluster, jobs, mappers, serialise
+from service.cluster import TOPIC, ClusterUnavailable
 from service.config import Settings
 from service.job_state import Job
 from service.schemas.common import AnalysisRequest
@@ -57,8 +59,6 @@ from service.workers import Busy, ServiceFault
 
 log = logging.getLogger("service.tasks")
 
-#: Dask event topic of progress reports (``{"job", "chunk", "fraction", "message"}``).
-TOPIC = "linkage-jobs"
 #: Shortest interval between two progress reports of one task (the last one always goes).
 PROGRESS_INTERVAL_S = 0.1
 #: Shortest interval between two reads of a job's cancel flag by one task.
@@ -67,8 +67,6 @@ STOP_CHECK_S = 0.2
 GRACE_S = 10.0
 #: Finished jobs kept at most, per job that may be active (``LINKAGE_MAX_JOBS``).
 KEPT_PER_ACTIVE = 10
-#: How long connecting to an external scheduler may take.
-CONNECT_TIMEOUT_S = 10.0
 #: Sweep chunks per worker: enough to balance uneven points, few enough to keep tasks cheap.
 CHUNKS_PER_WORKER = 4
 
@@ -97,12 +95,6 @@ SWEEPS = "sweeps"
 REQUESTS: dict[str, type[BaseModel]] = {
     **{name: op.request for name, op in OPERATIONS.items()}, SWEEPS: SweepRequest
 }
-
-
-class ClusterUnavailable(ServiceFault):
-    status = 503
-    kind = "cluster-unavailable"
-    title = "Dask cluster unavailable"
 
 
 class UnknownJob(ServiceFault):
@@ -202,52 +194,29 @@ class JobManager:
         self.settings = settings
         self._lock = threading.RLock()
         self._jobs: dict[str, Job] = {}
-        self._client: Client | None = None
-        self._cluster: LocalCluster | None = None
+        # a task whose worker dies fails its job at once on the embedded cluster
+        self.connection = cluster.Connection(settings.dask_scheduler, settings.dask_workers,
+                                             self._on_event, allowed_failures=0)
 
     # -- cluster ------------------------------------------------------------------------
 
     def client(self) -> Client:
-        """The Dask client: to ``LINKAGE_DASK_SCHEDULER``, else to an embedded cluster."""
-        with self._lock:
-            if self._client is None:
-                self._client = self._connect()
-                self._client.subscribe_topic(TOPIC, self._on_event)
-            return self._client
-
-    def _connect(self) -> Client:
-        address = self.settings.dask_scheduler
-        try:
-            if address:
-                return Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-            self._cluster = LocalCluster(
-                n_workers=self.settings.dask_workers, threads_per_worker=1, processes=True,
-                host="127.0.0.1", dashboard_address=None,
-                # a task whose worker dies fails its job at once (no silent rerun)
-                scheduler_kwargs={"allowed_failures": 0},
-            )
-            return Client(self._cluster, set_as_default=False)
-        except Exception as err:  # unreachable, refused, or a cluster that cannot start
-            where = address or "the embedded cluster"
-            raise ClusterUnavailable(f"cannot reach the Dask scheduler at {where}: {err}",
-                                     retry_after=5) from None
+        """The Dask client (connected on first use; see :class:`service.cluster.Connection`)."""
+        return self.connection.client()
 
     def workers(self) -> int:
         """Workers of the cluster now (at least one, for sizing chunks)."""
-        return max(1, len(self.client().nthreads()))
+        return self.connection.workers()
 
     def close(self) -> None:
         """Cancel unfinished jobs, then close the client and the embedded cluster."""
+        client = self.connection.current()
         with self._lock:
-            client, cluster = self._client, self._cluster
-            self._client = self._cluster = None
             unfinished = [j for j in self._jobs.values() if not j.finished_state]
         if client is not None:
             for job in unfinished:
                 self._stop(client, job, "cancelled", "the service shut down")
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        self.connection.close()
 
     # -- jobs ---------------------------------------------------------------------------
 
@@ -262,18 +231,18 @@ class JobManager:
 
     def submit(self, operation: str, body: BaseModel) -> Job:
         """Start one analysis (``operation`` a key of :data:`OPERATIONS`)."""
-        client = self.client()
+        self.client()  # 503 before admitting when there is no cluster
         job = Job(uuid.uuid4().hex, operation, time.time() + self.settings.job_time_limit_s,
                   sizes=[1], done=[0.0])
         self._admit(job)
-        future = client.submit(run_operation, job.id, operation, body, self.settings,
-                               job.end_wall, key=f"linkage-job-{job.id}", pure=False)
-        self._watch(job, [future])
+        future = self._submit(job, lambda client: [client.submit(
+            run_operation, job.id, operation, body, self.settings, job.end_wall,
+            key=f"linkage-job-{job.id}", pure=False)])
+        self._watch(job, future)
         return job
 
     def submit_sweep(self, sweep: mappers.SweepJob, names: tuple[str, ...]) -> Job:
         """Start a sweep, in chunks of its points spread over the workers."""
-        client = self.client()
         n = len(sweep.points)
         chunks = np.array_split(np.arange(n), min(n, CHUNKS_PER_WORKER * self.workers()))
         job = Job(uuid.uuid4().hex, SWEEPS, time.time() + self.settings.job_time_limit_s,
@@ -281,13 +250,22 @@ class JobManager:
         self._admit(job)
         # each task gets its own points only (not every point of the sweep)
         shared = dataclasses.replace(sweep, points=sweep.points[:0])
-        futures = [
+        futures = self._submit(job, lambda client: [
             client.submit(run_sweep_chunk, job.id, k, shared, sweep.points[idx], job.end_wall,
                           key=f"linkage-job-{job.id}-{k}", pure=False)
             for k, idx in enumerate(chunks)
-        ]
+        ])
         self._watch(job, futures)
         return job
+
+    def _submit(self, job: Job, call: Callable[[Client], list[Future]]) -> list[Future]:
+        """The admitted ``job``'s tasks; a job that could not be submitted is forgotten."""
+        try:
+            return self.connection.call(call)
+        except ClusterUnavailable:
+            with self._lock:
+                self._jobs.pop(job.id, None)
+            raise
 
     def _watch(self, job: Job, futures: list[Future]) -> None:
         with self._lock:
@@ -315,7 +293,7 @@ class JobManager:
     def _on_done(self, job: Job, k: int, future: Future) -> None:
         """A task ended: keep its part; the job is done when every part is in."""
         if future.cancelled():  # by us (the job has ended already), or by a lost cluster
-            self._stop(self._client, job, "failed", error={
+            self._stop(self.connection.current(), job, "failed", error={
                 "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
                 "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
             return
@@ -326,7 +304,7 @@ class JobManager:
                 if job.finished_state:
                     return
             log.warning("job %s failed: %s: %s", job.id, type(err).__name__, err)
-            self._stop(self._client, job, "failed", error=_failure(err))
+            self._stop(self.connection.current(), job, "failed", error=_failure(err))
             return
         with self._lock:
             if job.finished_state:
@@ -340,7 +318,7 @@ class JobManager:
         if job.operation == SWEEPS:
             rows = [row for k in range(len(job.sizes)) for row in job.parts[k]]
             if len(rows) < sum(job.sizes):  # a task stopped early: the time limit
-                self._stop(self._client, job, "failed", error={
+                self._stop(self.connection.current(), job, "failed", error={
                     "title": "Time limit exceeded", "loc": [],
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
                     f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
@@ -374,7 +352,7 @@ class JobManager:
             log.warning("could not stop the tasks of job %s: %s", job.id, err)
 
     def _forget_flag(self, job: Job) -> None:
-        client = self._client
+        client = self.connection.current()
         if client is not None:
             try:
                 Event(_cancel_flag(job.id), client=client).clear()
@@ -383,7 +361,7 @@ class JobManager:
 
     def cancel(self, job_id: str) -> Job:
         job = self.get(job_id)
-        self._stop(self._client, job, "cancelled", "cancelled on request")
+        self._stop(self.connection.current(), job, "cancelled", "cancelled on request")
         return job
 
     def get(self, job_id: str) -> Job:
@@ -416,7 +394,7 @@ class JobManager:
             if job.status != "done":
                 self._forget_flag(job)
         for job in overdue:
-            self._stop(self._client, job, "failed", error={
+            self._stop(self.connection.current(), job, "failed", error={
                 "title": "Time limit exceeded", "loc": [],
                 "detail": f"the job ran longer than LINKAGE_JOB_TIME_LIMIT_S = "
                 f"{self.settings.job_time_limit_s:g} s and was stopped"})

@@ -215,7 +215,7 @@ def test_external_cluster_gives_the_same_result(external_scheduler, embedded_gat
 
 
 def test_unreachable_scheduler_answers_503_and_the_service_keeps_answering(monkeypatch):
-    monkeypatch.setattr("service.tasks.CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr("service.cluster.CONNECT_TIMEOUT_S", 1.0)
     nobody = f"tcp://127.0.0.1:{free_port()}"
     with TestClient(create_app(settings(dask_scheduler=nobody))) as c:
         body = {"preset": {"name": "four-bar"}, "grid": {"L2": {"min": 1, "max": 2, "steps": 2}}}
