@@ -16,11 +16,15 @@ Progress and cancellation cross the process boundary with Dask's own primitives,
   (at most every :data:`STOP_CHECK_S`), so running tasks end at their next check, and
   cancels the tasks not yet started.
 
-A task whose worker dies fails the job with ``KilledWorker`` (the embedded scheduler allows no
-retry; an external scheduler retries as its ``distributed.scheduler.allowed-failures`` says).
-Each job has its own time limit (``LINKAGE_JOB_TIME_LIMIT_S``): tasks see it as their
-deadline, and a job still running :data:`GRACE_S` after it is failed and its tasks cancelled.
-Finished jobs and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
+A task whose worker dies runs again once on another worker (the embedded scheduler's
+``allowed_failures``; an external scheduler retries as its
+``distributed.scheduler.allowed-failures`` says); a second death fails the job with
+``KilledWorker``. Each job has its own time limit (``LINKAGE_JOB_TIME_LIMIT_S``): tasks see it
+as their deadline, and a job still running :data:`GRACE_S` after it is failed and its tasks
+cancelled. A job that stops early (time limit, cancel, a failed task) keeps what was finished:
+the rows of the sweep's points done (the running tasks stop at their next check and return
+theirs), or the incomplete answer of an analysis, as a result marked ``partial``. Finished jobs
+and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
 """
 
 from __future__ import annotations
@@ -194,9 +198,9 @@ class JobManager:
         self.settings = settings
         self._lock = threading.RLock()
         self._jobs: dict[str, Job] = {}
-        # a task whose worker dies fails its job at once on the embedded cluster
+        # a task whose worker dies is run again once on another worker (embedded cluster)
         self.connection = cluster.Connection(settings.dask_scheduler, settings.dask_workers,
-                                             self._on_event, allowed_failures=0)
+                                             self._on_event, allowed_failures=1)
 
     # -- cluster ------------------------------------------------------------------------
 
@@ -278,11 +282,14 @@ class JobManager:
         msg = event[1]
         with self._lock:
             job = self._jobs.get(str(msg.get("job")))
-            if job is None or job.finished_state:
+            if job is None:
+                return
+            k = int(msg["chunk"])
+            job.started_chunks.add(k)  # even after the job ended: its rows are still wanted
+            if job.finished_state:
                 return
             if job.status == "queued":
                 job.status, job.started = "running", time.time()
-            k = int(msg["chunk"])
             job.done[k] = max(job.done[k], float(msg["fraction"]))  # tasks report in order
             if job.operation == SWEEPS:
                 total = sum(job.sizes)
@@ -291,15 +298,17 @@ class JobManager:
                 job.message = str(msg["message"])
 
     def _on_done(self, job: Job, k: int, future: Future) -> None:
-        """A task ended: keep its part; the job is done when every part is in."""
-        if future.cancelled():  # by us (the job has ended already), or by a lost cluster
+        """A task ended: keep its part; the job is done when every part is in. A part that
+        arrives after the job ended (a task stopped by the cancel flag, or still running when
+        another failed) joins its partial result."""
+        if future.cancelled():  # by us (a task not started when the job ended), or a lost cluster
             self._stop(self.connection.current(), job, "failed", error={
                 "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
                 "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
             return
         try:
             part = future.result()
-        except BaseException as err:  # the task's exception, or the worker's death
+        except BaseException as err:  # the task's exception, or its worker died twice
             with self._lock:
                 if job.finished_state:
                     return
@@ -307,12 +316,24 @@ class JobManager:
             self._stop(self.connection.current(), job, "failed", error=_failure(err))
             return
         with self._lock:
-            if job.finished_state:
-                return
             job.parts[k] = part
+            if job.finished_state:
+                if job.status != "done":
+                    job.result, job.partial = self._partial_result(job), True
+                return
             if len(job.parts) < len(job.sizes):
                 return
         self._finish(job)
+
+    def _partial_result(self, job: Job) -> Any:
+        """The result of the parts that are in (the lock is held): a sweep's rows finished so
+        far, or an analysis's answer (incomplete when its task was stopped), else None."""
+        if not job.parts:
+            return None
+        if job.operation != SWEEPS:
+            return serialise.loads(job.parts[0])
+        rows = [row for k in sorted(job.parts) for row in job.parts[k]]
+        return mappers.sweep_out(job.names, rows, partial=True).model_dump(mode="json")
 
     def _finish(self, job: Job) -> None:
         if job.operation == SWEEPS:
@@ -321,7 +342,8 @@ class JobManager:
                 self._stop(self.connection.current(), job, "failed", error={
                     "title": "Time limit exceeded", "loc": [],
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
-                    f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
+                    f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s (the "
+                    "result holds them, marked partial)"})
                 return
             result = mappers.sweep_out(job.names, rows).model_dump(mode="json")
         else:
@@ -335,19 +357,24 @@ class JobManager:
 
     def _stop(self, client: Client | None, job: Job, status: str, reason: str = "",
               error: dict[str, Any] | None = None) -> None:
-        """End a job: stop its running tasks (cancel flag) and drop the others."""
+        """End a job: its running tasks stop at their next check (cancel flag) and what they
+        finished joins the partial result; the tasks not started are dropped."""
         with self._lock:
             if job.finished_state:
                 return
             job.status, job.finished = status, time.time()
             job.message = reason or status
-            job.error, job.parts = error, {}
-            futures, job.futures = job.futures, []
+            job.error = error
+            job.result = self._partial_result(job)
+            job.partial = job.result is not None
+            unstarted = [f for k, f in enumerate(job.futures)
+                         if k not in job.started_chunks and k not in job.parts]
+            job.futures = []
         if client is None:
             return
         try:
             Event(_cancel_flag(job.id), client=client).set()
-            client.cancel(futures)
+            client.cancel(unstarted)
         except Exception as err:  # e.g. the cluster went away: nothing left to stop
             log.warning("could not stop the tasks of job %s: %s", job.id, err)
 

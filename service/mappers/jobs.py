@@ -87,9 +87,11 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
     return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
 
 
-def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.SweepResult:
+def sweep_out(names: tuple[str, ...], rows: list[PointResult],
+              partial: bool = False) -> job_schemas.SweepResult:
     s = summarize(rows)
     return job_schemas.SweepResult(
+        partial=partial,
         rows=[
             job_schemas.SweepRow(
                 lengths=dict(zip(names, r.values, strict=True)),
@@ -140,6 +142,7 @@ def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
         finished=job.finished,
         expires=expires,
         result=job.result,
+        partial=job.partial,
         error=None if job.error is None else job_schemas.JobError(**job.error),
     )
 

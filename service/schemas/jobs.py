@@ -49,8 +49,13 @@ class JobOut(BaseModel):
     )
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary)"
+        "rows and summary); when failed or cancelled: what was finished, if anything "
+        "(partial)"
     )
+    partial: bool = Field(
+        False, description="the result holds only the work finished before the job stopped "
+        "(time limit, cancel, a lost worker): a sweep's finished rows, an analysis's "
+        "incomplete answer")
     error: JobError | None = None
 
 
@@ -140,5 +145,8 @@ class SweepSummary(BaseModel):
 
 
 class SweepResult(BaseModel):
+    partial: bool = Field(
+        False, description="the rows of the points finished before the sweep stopped (time "
+        "limit, cancel, a failed task); the other points have no row")
     rows: list[SweepRow]
     summary: SweepSummary
