@@ -142,7 +142,8 @@ class Settings:
 
     ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
-    bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
+    bodies, 5 MB), ``LINKAGE_MAX_ANSWER_MB`` (a first-order answer estimated larger is refused
+    before any work, 256), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_SEARCH_TIME_S`` (default time a search may take before it answers with what it
     found, marked incomplete: 4 s; a request may ask for more with ``options.time_budget_s``, up
     to three quarters of the time limit),
@@ -167,6 +168,7 @@ class Settings:
     max_bars: int = 200_000
     max_points: int = 200_000
     max_body_bytes: int = 5 * 1024 * 1024
+    max_answer_mb: int = 256
     time_limit_s: float = 30.0
     search_time_s: float = 4.0
     workers: int = field(default_factory=default_workers)
@@ -188,6 +190,7 @@ class Settings:
             max_bars=_env_int("LINKAGE_MAX_BARS", cls.max_bars),
             max_points=_env_int("LINKAGE_MAX_POINTS", cls.max_points),
             max_body_bytes=_env_int("LINKAGE_MAX_BODY_BYTES", cls.max_body_bytes),
+            max_answer_mb=_env_int("LINKAGE_MAX_ANSWER_MB", cls.max_answer_mb),
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             search_time_s=_env_float("LINKAGE_SEARCH_TIME_S", cls.search_time_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),

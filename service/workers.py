@@ -7,8 +7,9 @@ Workers come from a ``forkserver`` that has imported the engine once, so a repla
 ready in well under a second, and each worker's BLAS runs on one thread (one worker per core).
 
 Small first- and second-order requests are bounded by their size (dense SVD of at most
-``LIGHT_MAX_VERTICES`` vertices) and run in the service's thread pool instead, so they stay
-fast while every worker is busy.
+``LIGHT_MAX_VERTICES`` vertices and ``LIGHT_MAX_BARS`` bars, some milliseconds) and run in the
+service's thread pool instead, so they stay fast while every worker is busy; they are admitted
+under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it).
 
 Each worker may allocate at most ``LINKAGE_WORKER_MEMORY_MB`` (its ``RLIMIT_DATA``, set when
 it starts), so one request can never take the machine's memory: the engine estimates the cost
@@ -44,11 +45,11 @@ import logging
 import multiprocessing
 import os
 import resource
-import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 import pebble
@@ -61,20 +62,19 @@ from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
 from service import serialise
 from service.config import Settings
+from service.spill import SPILL_MIN_BYTES, SpillFiles, write_spill
 
 T = TypeVar("T")
 B = TypeVar("B")
 log = logging.getLogger("service.workers")
 
-#: Linkages up to this many vertices are analysed to first and second order in-process.
+#: Linkages up to this many vertices and bars are analysed to first and second order
+#: in-process.
 LIGHT_MAX_VERTICES = 64
+LIGHT_MAX_BARS = 512
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-#: Answers from this size on come back from a worker through a file, not pebble's pipe.
-SPILL_MIN_BYTES = 1 << 20
 #: Seconds between two looks of the watchdog for a broken pool.
 WATCH_INTERVAL_S = 0.5
-#: Files that held more than this are removed after their answer, not kept for the next one.
-SPILL_KEEP_MAX_BYTES = 64 << 20
 
 
 class ServiceFault(Exception):
@@ -176,6 +176,7 @@ class EnginePool:
         self.memory_mb = memory_mb
         self.watch_interval_s = watch_interval_s
         self.admitted = 0
+        self.light_admitted = 0
         self.replacements = 0
         self.spill_files = SpillFiles(keep=workers)
         self._pool: pebble.ProcessPool | None = None
@@ -282,6 +283,21 @@ class EnginePool:
                 _dispose(pool)
         self.spill_files.close()
 
+    @contextmanager
+    def light_lane(self, time_limit: float) -> Iterator[None]:
+        """Admission of a small request answered in the service's thread pool: at most
+        ``max_queue`` at once (503 ``busy`` beyond), counted apart from the workers' queue so
+        that heavy requests never crowd out cheap ones."""
+        if self.light_admitted >= self.max_queue:
+            self._on_event("busy")
+            raise Busy(f"{self.light_admitted} small requests are being answered (LINKAGE_MAX_"
+                       f"QUEUE = {self.max_queue}); retry shortly", retry_after=1)
+        self.light_admitted += 1
+        try:
+            yield
+        finally:
+            self.light_admitted -= 1
+
     def _schedule(self, fn: Callable[..., T], args: tuple[Any, ...],
                   time_limit: float) -> pebble.ProcessFuture:
         """Schedule on the pool; a pool found broken at this moment is replaced once."""
@@ -375,84 +391,9 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     parts = serialise.dumps_parts(fn(body, settings))
     if spill is not None:
         size = sum(len(part) for part in parts)
-        if size >= SPILL_MIN_BYTES and _write_spill(spill, parts):
+        if size >= SPILL_MIN_BYTES and write_spill(spill, parts):
             return size
     return b"".join(parts)
-
-
-def _write_spill(path: str, parts: list[bytes]) -> bool:
-    """Write ``parts`` to the existing file ``path``; False where that cannot be done."""
-    try:
-        # no O_CREAT: the service removes the file when it stops waiting (time limit), and a
-        # worker finishing later must not leave a new one behind
-        fd = os.open(path, os.O_WRONLY)
-    except OSError:
-        return False
-    try:
-        for part in parts:
-            view = memoryview(part)
-            while view:
-                view = view[os.write(fd, view):]
-        return True
-    except OSError:  # e.g. ENOSPC: a small /dev/shm (Docker's default is 64 MB)
-        return False
-    finally:
-        os.close(fd)
-
-
-def _spill_dir() -> str:
-    """A directory in memory for answers in transit: ``/dev/shm`` where it is usable, else the
-    temporary directory (on disk, the page cache holds a file that lives milliseconds)."""
-    shm = "/dev/shm"
-    if os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK):
-        return shm
-    return tempfile.gettempdir()
-
-
-class SpillFiles:
-    """Files for answers in transit from the workers (mode 0600, in :func:`_spill_dir`): one
-    per request in flight, and up to ``keep`` of them kept between requests (each at most
-    ``SPILL_KEEP_MAX_BYTES``) so that a request writes over pages the file already has."""
-
-    def __init__(self, keep: int) -> None:
-        self.keep = keep
-        self._free: list[str] = []
-        self._lock = threading.Lock()
-
-    def take(self) -> str:
-        with self._lock:
-            if self._free:
-                return self._free.pop()
-        fd, path = tempfile.mkstemp(prefix="linkage-answer-", suffix=".json", dir=_spill_dir())
-        os.close(fd)
-        return path
-
-    def give_back(self, path: str, reuse: bool) -> None:
-        """Keep ``path`` for another request when ``reuse`` (its worker has finished with it)
-        and there is room, else remove it."""
-        if reuse:
-            try:
-                small = os.path.getsize(path) <= SPILL_KEEP_MAX_BYTES
-            except OSError:
-                small = False
-            with self._lock:
-                if small and len(self._free) < self.keep:
-                    self._free.append(path)
-                    return
-        _unlink(path)
-
-    def close(self) -> None:
-        with self._lock:
-            free, self._free = self._free, []
-        for path in free:
-            _unlink(path)
-
-
-def _unlink(path: str) -> None:
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        pass
 
 
 def _read_spill(path: str, size: int) -> bytes:
@@ -471,7 +412,9 @@ async def engine_call(request: Request, settings: Settings,
     ``response_model`` documents it): in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
     if light:
-        answer = await run_in_threadpool(_as_json, fn, body, settings)
+        pool = engine_pool(request)
+        with pool.light_lane(settings.time_limit_s):
+            answer = await run_in_threadpool(_as_json, fn, body, settings)
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:

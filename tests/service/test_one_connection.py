@@ -161,3 +161,53 @@ def test_an_unhandled_error_is_a_500_and_the_connection_is_kept():
             still_serving(c)
         finally:
             c.close()
+
+
+def parallel_bars(n_bars: int) -> dict[str, Any]:
+    """3 vertices (one pinned) and ``n_bars`` bars spread over their three pairs: M = 4 free
+    coordinates, so at least n_bars - 4 self-stresses of n_bars entries each."""
+    pairs = (["a", "b"], ["b", "c"], ["a", "c"])
+    return {"dimension": 2,
+            "vertices": [{"id": "a", "position": [0.0, 0.0], "fixed": True},
+                         {"id": "b", "position": [1.0, 0.0]},
+                         {"id": "c", "position": [0.3, 0.8]}],
+            "bars": [{"id": f"e{i}", "ends": pairs[i % 3]} for i in range(n_bars)]}
+
+
+def complete_graph_3d(n: int) -> dict[str, Any]:
+    """K_n in 3D on generic points: n(n-1)/2 bars against 3n coordinates."""
+    points = [[float(i), float(i * i % 7), float(i * i * i % 11)] for i in range(n)]
+    return {"dimension": 3,
+            "vertices": [{"id": f"v{i}", "position": p} for i, p in enumerate(points)],
+            "bars": [{"id": f"e{i}_{j}", "ends": [f"v{i}", f"v{j}"]}
+                     for i in range(n) for j in range(i + 1, n)]}
+
+
+@pytest.mark.parametrize("linkage, numbers", [
+    (parallel_bars(4500), (4500 - 4) * 4500),  # 582 MB of JSON before (12.6 s, 2.74 GB)
+    (complete_graph_3d(100), (4950 - 300) * 4950),  # 693 MB before
+])
+def test_an_answer_beyond_the_answer_limit_is_refused_before_any_work(conn, linkage, numbers):
+    body = json.dumps({"linkage": linkage}).encode()
+    t0 = time.perf_counter()
+    problem = problem_of(*conn.request("POST", "/v1/analysis/rigidity", body), 422)
+    took = time.perf_counter() - t0
+    assert problem["type"] == "/problems/limit-exceeded"
+    assert "LINKAGE_MAX_ANSWER_MB = 256" in problem["detail"]
+    # rank-nullity: at least E - M self-stresses of E entries, whatever the rank
+    assert f"at least {numbers:,} numbers" in problem["detail"]
+    assert problem["errors"][0]["loc"] == ["body", "linkage"]
+    assert took < 10  # refused from the sizes, not after the SVD
+    still_serving(conn)
+
+
+def test_an_answer_within_the_limit_is_served(conn):
+    """900 bars on the three sides of a triangle pinned at one vertex: rank 3 (three bar
+    directions), so 897 self-stresses and one zero mode (the turn about the pin); some 24 MB
+    of JSON, answered in full."""
+    body = json.dumps({"linkage": parallel_bars(900)}).encode()
+    status, _, data = conn.request("POST", "/v1/analysis/rigidity", body)
+    assert status == 200
+    answer = json.loads(data)
+    assert len(answer["self_stresses"]) == 900 - 3 and len(answer["zero_modes"]) == 1
+    still_serving(conn)

@@ -356,3 +356,22 @@ def test_a_busy_worker_killed_fails_its_request_and_the_next_is_served(four_bar)
     assert failed.headers["retry-after"] == "1"
     answered(small)
     assert ready.status_code == 200, ready.text
+
+
+def test_small_requests_have_a_lane_of_their_own():
+    """Small requests (answered in the service's thread pool) are admitted apart from the
+    workers' queue: a full engine queue does not refuse them, and beyond LINKAGE_MAX_QUEUE of
+    their own they are a 503 busy with Retry-After (no workers are started here)."""
+    from service.workers import Busy
+
+    pool = EnginePool(1, 2)
+    pool.admitted = pool.max_queue  # every engine slot taken
+    with pool.light_lane(30), pool.light_lane(30):
+        assert pool.light_admitted == 2
+        with pytest.raises(Busy) as err, pool.light_lane(30):
+            pass
+    assert err.value.status == 503 and err.value.retry_after == 1
+    assert "LINKAGE_MAX_QUEUE = 2" in err.value.detail
+    assert pool.light_admitted == 0
+    with pool.light_lane(30):  # free again
+        assert pool.light_admitted == 1
