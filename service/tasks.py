@@ -367,9 +367,11 @@ class JobManager:
             job.error = error
             job.result = self._partial_result(job)
             job.partial = job.result is not None
-            unstarted = [f for k, f in enumerate(job.futures)
-                         if k not in job.started_chunks and k not in job.parts]
-            job.futures = []
+            pending = [(k, f) for k, f in enumerate(job.futures) if k not in job.parts]
+            unstarted = [f for k, f in pending if k not in job.started_chunks]
+            # the running ones stay referenced (a future let go is released by the scheduler,
+            # and its rows with it) until they hand their rows in
+            job.futures = [f for k, f in pending if k in job.started_chunks]
         if client is None:
             return
         try:
