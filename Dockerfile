@@ -37,8 +37,11 @@ RUN python -c "from engine import trace_kernel; assert trace_kernel.load(), trac
 
 USER app
 EXPOSE 8000
-HEALTHCHECK --interval=30s --timeout=5s --start-period=10s --retries=3 \
-    CMD ["python", "-c", "import sys, urllib.request; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/health', timeout=4).status == 200 else 1)"]
+# Healthy = ready (/health/ready): the kernels are loaded and the engine workers answer; a
+# worker pool that breaks is replaced within a second, and one that cannot be replaced makes
+# the container unhealthy. The start period covers a cold start on a loaded machine.
+HEALTHCHECK --interval=15s --timeout=5s --start-period=120s --retries=3 \
+    CMD ["python", "-c", "import sys, urllib.request; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/health/ready', timeout=4).status == 200 else 1)"]
 # LINKAGE_WORKERS defaults to the container's CPU quota (docker run --cpus) when it is smaller
 # than the host's cores. --proxy-headers trusts X-Forwarded-For/-Proto only from the addresses
 # in FORWARDED_ALLOW_IPS (default 127.0.0.1): set it to the reverse proxy's address. The JSON

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import email.message
 import json
+import sys
 from collections.abc import Callable, Coroutine
 from typing import Any
 
@@ -43,7 +44,8 @@ def parse_request(model: type[BaseModel], body: bytes,
                   limits: Limits) -> tuple[str, Any]:
     """Parse and validate ``body`` as ``model`` (in a worker process). Returns ``("ok",
     instance)``, ``("json", (position, message))``, ``("undecodable", message)``,
-    ``("limit", (loc, message))`` or ``("invalid", errors)``: plain values that pickle."""
+    ``("limit", (loc, message))``, ``("deep", message)`` (nested deeper than the parser's
+    recursion limit) or ``("invalid", errors)``: plain values that pickle."""
     try:
         with gc_paused():  # some 10^5 objects at once: see service.gcpause
             data = json.loads(body)
@@ -51,6 +53,9 @@ def parse_request(model: type[BaseModel], body: bytes,
         return "json", (err.pos, err.msg)
     except ValueError as err:  # not UTF-8/16/32
         return "undecodable", str(err)
+    except RecursionError:  # e.g. 300,000 opening brackets: refused, not a 500
+        return "deep", (f"the JSON body is nested deeper than the parser allows (Python's "
+                        f"recursion limit, {sys.getrecursionlimit()} levels)")
     linkage = data.get("linkage") if isinstance(data, dict) else None
     if isinstance(linkage, dict):
         for key, limit in (("vertices", limits.max_vertices), ("bars", limits.max_bars)):
@@ -93,6 +98,8 @@ async def _parsed(request: Request, model: type[BaseModel], body: bytes) -> Requ
                                        "msg": "JSON decode error", "ctx": {"error": message}}])
     if kind == "undecodable":
         raise HTTPException(400, "There was an error parsing the body")
+    if kind == "deep":
+        raise HTTPException(400, value)
     if kind == "limit":
         loc, message = value
         raise LimitExceeded(message, loc=loc)

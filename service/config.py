@@ -59,6 +59,23 @@ def cgroup_cpu_limit(root: str = "/sys/fs/cgroup") -> float | None:
             return None
         return float(quota) / float(period)
     return None
+def _dask_scheduler_from_env() -> str | None:
+    """``LINKAGE_DASK_SCHEDULER``; plain ``tcp://`` to another machine is refused: a Dask
+    scheduler runs the pickled code of anyone who reaches it, so one beyond loopback must
+    require TLS with client certificates (``tls://``, see the README)."""
+    raw = os.environ.get("LINKAGE_DASK_SCHEDULER") or None
+    if raw is None:
+        return None
+    scheme, rest = raw.split("://", 1) if "://" in raw else ("tcp", raw)  # Dask's default
+    host = rest.rsplit(":", 1)[0].strip("[]")
+    loopback = host in ("localhost", "::1") or host.startswith("127.")
+    if scheme != "tls" and not (scheme == "tcp" and loopback):
+        raise ValueError(
+            f"LINKAGE_DASK_SCHEDULER={raw!r}: a scheduler beyond loopback must be reached "
+            "over TLS (tls://host:port, with the certificates in DASK_DISTRIBUTED__COMM__TLS__*)")
+    return raw
+
+
 def _env_list(name: str) -> tuple[str, ...]:
     """A comma-separated setting; empty items dropped."""
     return tuple(item.strip() for item in os.environ.get(name, "").split(",") if item.strip())
@@ -125,7 +142,8 @@ class Settings:
 
     ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
-    bodies, 5 MB), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
+    bodies, 5 MB), ``LINKAGE_MAX_ANSWER_MB`` (a first-order answer estimated larger is refused
+    before any work, 256), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
     ``LINKAGE_SEARCH_TIME_S`` (default time a search may take before it answers with what it
     found, marked incomplete: 4 s; a request may ask for more with ``options.time_budget_s``, up
     to three quarters of the time limit),
@@ -139,8 +157,9 @@ class Settings:
     (comma-separated origins allowed to call the service from a browser, e.g.
     ``https://design.example.org``; default none: no CORS headers, ``*`` allows any origin).
     Jobs (``service.tasks``):
-    ``LINKAGE_DASK_SCHEDULER`` (``tcp://host:port`` of an existing Dask cluster; unset: an
-    embedded one with ``LINKAGE_DASK_WORKERS`` worker processes, one per core),
+    ``LINKAGE_DASK_SCHEDULER`` (``tls://host:port`` of an existing Dask cluster, or
+    ``tcp://`` on loopback only; unset: an embedded one with ``LINKAGE_DASK_WORKERS`` worker
+    processes, one per core),
     ``LINKAGE_JOB_TIME_LIMIT_S`` (per job, 3600 s), ``LINKAGE_JOB_TTL_S`` (how long finished
     jobs and their results are kept, 3600 s) and ``LINKAGE_MAX_JOBS`` (queued or running, 64).
     """
@@ -149,6 +168,7 @@ class Settings:
     max_bars: int = 200_000
     max_points: int = 200_000
     max_body_bytes: int = 5 * 1024 * 1024
+    max_answer_mb: int = 256
     time_limit_s: float = 30.0
     search_time_s: float = 4.0
     workers: int = field(default_factory=default_workers)
@@ -170,6 +190,7 @@ class Settings:
             max_bars=_env_int("LINKAGE_MAX_BARS", cls.max_bars),
             max_points=_env_int("LINKAGE_MAX_POINTS", cls.max_points),
             max_body_bytes=_env_int("LINKAGE_MAX_BODY_BYTES", cls.max_body_bytes),
+            max_answer_mb=_env_int("LINKAGE_MAX_ANSWER_MB", cls.max_answer_mb),
             time_limit_s=_env_float("LINKAGE_TIME_LIMIT_S", cls.time_limit_s),
             search_time_s=_env_float("LINKAGE_SEARCH_TIME_S", cls.search_time_s),
             workers=_env_int("LINKAGE_WORKERS", default_workers()),
@@ -178,7 +199,7 @@ class Settings:
             header_timeout_s=_env_float("LINKAGE_HEADER_TIMEOUT_S", cls.header_timeout_s),
             body_timeout_s=_env_float("LINKAGE_BODY_TIMEOUT_S", cls.body_timeout_s),
             cors_origins=_env_list("LINKAGE_CORS_ORIGINS"),
-            dask_scheduler=os.environ.get("LINKAGE_DASK_SCHEDULER") or None,
+            dask_scheduler=_dask_scheduler_from_env(),
             dask_workers=_env_int("LINKAGE_DASK_WORKERS", default_workers()),
             job_time_limit_s=_env_float("LINKAGE_JOB_TIME_LIMIT_S", cls.job_time_limit_s),
             job_ttl_s=_env_float("LINKAGE_JOB_TTL_S", cls.job_ttl_s),

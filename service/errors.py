@@ -129,9 +129,10 @@ async def _fault(request: Request, exc: Exception) -> JSONResponse:
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
-    return problem(
-        exc.status_code, f"http-{exc.status_code}", title, str(exc.detail), headers=exc.headers
-    )
+    # a 400 is a body the JSON parser refused (undecodable, nested too deep)
+    errors = [{"loc": ["body"], "msg": str(exc.detail)}] if exc.status_code == 400 else []
+    return problem(exc.status_code, f"http-{exc.status_code}", title, str(exc.detail), errors,
+                   headers=exc.headers)
 
 
 async def _unhandled(request: Request, exc: Exception) -> JSONResponse:

@@ -30,6 +30,10 @@ class Job:
     error: dict[str, Any] | None = None
     futures: list[Future] = field(default_factory=list)
     parts: dict[int, Any] = field(default_factory=dict)
+    #: chunks whose task has reported from a worker (started): a stopped job keeps their rows
+    started_chunks: set[int] = field(default_factory=set)
+    #: the result holds only the work finished before the job stopped
+    partial: bool = False
 
     @property
     def fraction(self) -> float:

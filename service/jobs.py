@@ -12,11 +12,12 @@ from engine.design.critical_values import critical_value_slice
 from engine.design.design import check_request, design, verify
 from engine.design.robustness import robustness
 from engine.design.splitting import length_change, split
-from engine.local.rigidity import first_order
+from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
 from engine.model.budget import Deadline
 from engine.model.constraints import on_constraints
-from engine.model.errors import InvalidRequest
+from engine.model.errors import InvalidRequest, LimitExceeded
+from engine.model.linkage import Linkage as EngineLinkage
 from engine.space.configuration_space import explore, find_critical_points
 from service import mappers
 from service.config import Settings
@@ -37,16 +38,51 @@ from service.schemas.space import (
     SpaceResponse,
 )
 from service.schemas.splitting import SplittingRequest, SplittingResponse
-from service.workers import LIGHT_MAX_VERTICES
+from service.workers import LIGHT_MAX_BARS, LIGHT_MAX_VERTICES
 
 
 def is_light(body: AnalysisRequest) -> bool:
-    """First/second order of a small linkage: bounded cost, answered in-process."""
-    return len(body.linkage.vertices) <= LIGHT_MAX_VERTICES
+    """First/second order of a small linkage (at most ``LIGHT_MAX_VERTICES`` vertices and
+    ``LIGHT_MAX_BARS`` bars: a dense SVD of at most 512 x 192): bounded cost, answered
+    in-process."""
+    return (len(body.linkage.vertices) <= LIGHT_MAX_VERTICES
+            and len(body.linkage.bars) <= LIGHT_MAX_BARS)
+
+
+#: Bytes a number of a first-order answer takes as JSON, at least as estimated: a float64's
+#: shortest form and its separator, and the bar id or brackets around it (measured: 29-30 bytes
+#: per number on answers of 3 vertices with 300 and 900 bars and of K20, K30 in 3D).
+ANSWER_BYTES_PER_NUMBER = 16
+
+
+def answer_numbers(linkage: EngineLinkage) -> int:
+    """Numbers a first-order answer holds at least, from the sizes alone: ``k M + s E_a`` with
+    ``k >= M - E_a - d(d+1)/2`` nontrivial zero modes of ``M`` coordinates and ``s >= E_a - M``
+    self-stresses of ``E_a`` bars (rank-nullity, whatever the rank)."""
+    m, ea, d = linkage.n_free, int(linkage.active.sum()), linkage.dimension
+    return max(0, m - ea - d * (d + 1) // 2) * m + max(0, ea - m) * ea
+
+
+def check_answer_size(linkage: EngineLinkage, settings: Settings) -> None:
+    """Refuse (422, before any work) a first-order answer estimated beyond
+    ``LINKAGE_MAX_ANSWER_MB``."""
+    numbers = answer_numbers(linkage)
+    size = numbers * ANSWER_BYTES_PER_NUMBER
+    if size > settings.max_answer_mb * 2**20:
+        raise LimitExceeded(
+            f"the answer would hold at least {numbers:,} numbers (M = {linkage.n_free} free "
+            f"coordinates, E = {int(linkage.active.sum())} bars: its zero modes and "
+            f"self-stresses), at least {size / 2**20:,.0f} MB of JSON, more than "
+            f"LINKAGE_MAX_ANSWER_MB = {settings.max_answer_mb}; brace or split the linkage, or "
+            "ask for /v1/analysis/second-order (no self-stress basis)",
+            loc=(),
+        )
 
 
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    plan_first_order(linkage)  # the engine's own limits first: they name the method's bounds
+    check_answer_size(linkage, settings)
     at, proj = on_constraints(linkage, tol)
     return mappers.rigidity_out(at, first_order(at, tol), proj)
 

@@ -1,5 +1,8 @@
 """ASGI app: ``service.main:app``."""
 
+import asyncio
+import logging
+import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -21,15 +24,40 @@ from service.tasks import JobManager
 from service.workers import EnginePool, tune_malloc
 
 VIEWER = Path(__file__).parent / "viewer"
+#: uvicorn's own logger (configured by uvicorn at INFO): start-up steps appear beside its lines.
+log = logging.getLogger("uvicorn.error")
+
+
+async def _start(pool: EnginePool) -> None:
+    """Load the compiled kernels and start the engine workers, saying so in the log.
+
+    The tracer's compiled kernel is compiled here once where numba's cache is cold (20-30 s on
+    an idle machine after an install, 78 s on a loaded 2-core one; the Docker image compiles
+    it at build time), so that the workers load it from the cache (about a second)."""
+    t0 = time.perf_counter()
+    try:
+        log.info("start-up: loading the compiled kernels (compiled now if numba's cache is "
+                 "cold); /health/live answers, /health/ready will when this is done")
+        await run_in_threadpool(trace_kernel.prepare)
+        await run_in_threadpool(dyads_kernel.prepare)  # the closed form's loops, likewise
+        log.info("start-up: kernels loaded in %.1f s; starting %d engine workers",
+                 time.perf_counter() - t0, pool.workers)
+        # the service process reads and sends the workers' answers: megabytes per request
+        tune_malloc()
+        await run_in_threadpool(pool.start)
+        log.info("start-up: ready in %.1f s (%d engine workers)", time.perf_counter() - t0,
+                 pool.workers)
+    except Exception:  # /health/ready stays 503: the orchestrator restarts the container
+        log.exception("start-up failed after %.1f s", time.perf_counter() - t0)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the application (one per process; tests may build their own with ``settings``,
     which then replace the environment's everywhere in this app).
 
-    Heavy engine work runs in a pool of worker processes owned by the app: started at
-    start-up under a server (or on first use without one) and, at shutdown, closed after the
-    requests in flight have been answered."""
+    Heavy engine work runs in a pool of worker processes owned by the app: started in the
+    background at start-up under a server (or on first use without one) and, at shutdown,
+    closed after the requests in flight have been answered."""
     resolved = settings or get_settings()
     metrics = Metrics()
     pool = EnginePool(resolved.workers, resolved.max_queue, on_event=metrics.engine_event,
@@ -38,16 +66,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        # The tracer's compiled kernel: compiled here once where numba's cache is cold (20-30 s
-        # on the first start after an install), so that the workers load it from the cache.
-        await run_in_threadpool(trace_kernel.prepare)
-        await run_in_threadpool(dyads_kernel.prepare)  # the closed form's loops, likewise
-        # the service process reads and sends the workers' answers: megabytes per request
-        tune_malloc()
-        await run_in_threadpool(pool.start)
+        # The port opens at once (/health/live answers); the kernels and the workers load in
+        # the background and /health/ready answers 200 when they have.
+        startup = asyncio.create_task(_start(pool))
+        app.state.startup = startup
         try:
             yield
         finally:
+            if not startup.done():
+                log.info("start-up interrupted: waiting for the current step to end")
+            await asyncio.gather(startup, return_exceptions=True)
             await run_in_threadpool(job_manager.close)
             await run_in_threadpool(pool.close)
 

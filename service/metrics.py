@@ -25,9 +25,10 @@ class Metrics:
         self.engine_events = Counter(
             "linkage_engine_events",
             "Engine requests not answered by the engine: time_limit (stopped at "
-            "LINKAGE_TIME_LIMIT_S), worker_failed (the worker died), busy (queue full)",
+            "LINKAGE_TIME_LIMIT_S), worker_failed (the worker died), busy (queue full), "
+            "pool_replaced (a worker died while idle and the pool was replaced)",
             ["event"], registry=self.registry)
-        for event in ("time_limit", "worker_failed", "busy"):
+        for event in ("time_limit", "worker_failed", "busy", "pool_replaced"):
             self.engine_events.labels(event=event)
 
     def observe(self, method: str, route: str, status: int, seconds: float) -> None:

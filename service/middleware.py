@@ -19,6 +19,7 @@ from service.config import app_settings
 from service.metrics import Metrics
 
 log = logging.getLogger("service.access")
+error_log = logging.getLogger("service")
 _SAFE_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
 #: Methods counted under their own name in metrics; any other is ``other`` (the method is
 #: copied from the request line, so unknown ones would make a series each).
@@ -104,10 +105,12 @@ class RequestContext:
         original: dict[str, Any] = dict(scope)  # the router adds to scope; labels match on this
         start = time.perf_counter()
         status = {"code": 500}
+        started = {"yes": False}
 
         async def send_with_id(message: Message) -> None:
             if message["type"] == "http.response.start":
                 status["code"] = message["status"]
+                started["yes"] = True
                 message.setdefault("headers", [])
                 message["headers"] = [*message["headers"],
                                       (b"x-request-id", request_id.encode())]
@@ -120,6 +123,24 @@ class RequestContext:
                 "headers": [(b"content-type", b"application/problem+json"),
                             (b"content-length", str(len(body)).encode()),
                             (b"connection", b"close")],
+            })
+            await send_with_id({"type": "http.response.body", "body": body})
+
+        async def internal_error(scope: Scope, responded: bool) -> None:
+            # Starlette's outermost middleware would answer the 500 and then re-raise, and
+            # uvicorn closes a connection whose application raised: the client's next request
+            # on it would fail. Answered here instead, the connection is kept.
+            error_log.exception("unhandled error on %s %s", scope.get("method"),
+                                scope.get("path"))
+            if responded:
+                return
+            body = json.dumps({"type": "/problems/internal-error", "title": "Internal error",
+                               "status": 500, "detail": "the service failed unexpectedly",
+                               "errors": []}).encode()
+            await send_with_id({
+                "type": "http.response.start", "status": 500,
+                "headers": [(b"content-type", b"application/problem+json"),
+                            (b"content-length", str(len(body)).encode())],
             })
             await send_with_id({"type": "http.response.body", "body": body})
 
@@ -171,7 +192,10 @@ class RequestContext:
                             return {"type": "http.request", "body": body, "more_body": False}
                         return await receive()  # e.g. http.disconnect
 
-                    await self.app(scope, replay, send_with_id)
+                    try:
+                        await self.app(scope, replay, send_with_id)
+                    except Exception:  # answered here, so that the connection stays usable
+                        await internal_error(scope, started["yes"])
         finally:
             seconds = time.perf_counter() - start
             route = route_label({**original, "route": scope.get("route")})

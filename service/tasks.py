@@ -1,10 +1,11 @@
 """Jobs: long work on ``dask.distributed``, with progress from the engine and cancellation.
 
 A job is one operation (any analysis endpoint's work from :mod:`service.jobs`, or a sweep) run
-as Dask tasks. By default the tasks run on an embedded ``LocalCluster`` (worker processes, one
-thread each, ``LINKAGE_DASK_WORKERS`` of them), started on first use and closed at shutdown;
-with ``LINKAGE_DASK_SCHEDULER=tcp://host:port`` on an existing cluster instead. The job table
-lives in the service process (a restart forgets it).
+as Dask tasks. By default the tasks run on an embedded cluster (worker processes, one thread
+each, ``LINKAGE_DASK_WORKERS`` of them, on loopback over TLS with a certificate made at start,
+without HTTP: :mod:`service.cluster`), started on first use and closed at shutdown; with
+``LINKAGE_DASK_SCHEDULER=tls://host:port`` on an existing cluster instead (reconnected when
+its scheduler comes back). The job table lives in the service process (a restart forgets it).
 
 Progress and cancellation cross the process boundary with Dask's own primitives, not timers:
 
@@ -15,11 +16,15 @@ Progress and cancellation cross the process boundary with Dask's own primitives,
   (at most every :data:`STOP_CHECK_S`), so running tasks end at their next check, and
   cancels the tasks not yet started.
 
-A task whose worker dies fails the job with ``KilledWorker`` (the embedded scheduler allows no
-retry; an external scheduler retries as its ``distributed.scheduler.allowed-failures`` says).
-Each job has its own time limit (``LINKAGE_JOB_TIME_LIMIT_S``): tasks see it as their
-deadline, and a job still running :data:`GRACE_S` after it is failed and its tasks cancelled.
-Finished jobs and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
+A task whose worker dies runs again once on another worker (the embedded scheduler's
+``allowed_failures``; an external scheduler retries as its
+``distributed.scheduler.allowed-failures`` says); a second death fails the job with
+``KilledWorker``. Each job has its own time limit (``LINKAGE_JOB_TIME_LIMIT_S``): tasks see it
+as their deadline, and a job still running :data:`GRACE_S` after it is failed and its tasks
+cancelled. A job that stops early (time limit, cancel, a failed task) keeps what was finished:
+the rows of the sweep's points done (the running tasks stop at their next check and return
+theirs), or the incomplete answer of an analysis, as a result marked ``partial``. Finished jobs
+and their results are kept ``LINKAGE_JOB_TTL_S`` seconds.
 """
 
 from __future__ import annotations
@@ -31,17 +36,19 @@ import math
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from distributed import Client, Event, Future, LocalCluster, get_worker
+from distributed import Client, Event, Future, get_worker
 from pydantic import BaseModel
 
 from engine.design.sweep import PointResult, run_points
 from engine.model.budget import Deadline, ProgressSink
 from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
-from service import mappers, serialise
+from service import cluster, mappers, serialise
+from service.cluster import TOPIC, ClusterUnavailable
 from service.config import Settings
 from service.job_state import Job
 from service.operations import OPERATIONS, SWEEPS
@@ -49,8 +56,6 @@ from service.workers import Busy, ServiceFault
 
 log = logging.getLogger("service.tasks")
 
-#: Dask event topic of progress reports (``{"job", "chunk", "fraction", "message"}``).
-TOPIC = "linkage-jobs"
 #: Shortest interval between two progress reports of one task (the last one always goes).
 PROGRESS_INTERVAL_S = 0.1
 #: Shortest interval between two reads of a job's cancel flag by one task.
@@ -59,16 +64,10 @@ STOP_CHECK_S = 0.2
 GRACE_S = 10.0
 #: Finished jobs kept at most, per job that may be active (``LINKAGE_MAX_JOBS``).
 KEPT_PER_ACTIVE = 10
-#: How long connecting to an external scheduler may take.
-CONNECT_TIMEOUT_S = 10.0
 #: Sweep chunks per worker: enough to balance uneven points, few enough to keep tasks cheap.
 CHUNKS_PER_WORKER = 4
 
 
-class ClusterUnavailable(ServiceFault):
-    status = 503
-    kind = "cluster-unavailable"
-    title = "Dask cluster unavailable"
 
 
 class UnknownJob(ServiceFault):
@@ -168,52 +167,29 @@ class JobManager:
         self.settings = settings
         self._lock = threading.RLock()
         self._jobs: dict[str, Job] = {}
-        self._client: Client | None = None
-        self._cluster: LocalCluster | None = None
+        # a task whose worker dies is run again once on another worker (embedded cluster)
+        self.connection = cluster.Connection(settings.dask_scheduler, settings.dask_workers,
+                                             self._on_event, allowed_failures=1)
 
     # -- cluster ------------------------------------------------------------------------
 
     def client(self) -> Client:
-        """The Dask client: to ``LINKAGE_DASK_SCHEDULER``, else to an embedded cluster."""
-        with self._lock:
-            if self._client is None:
-                self._client = self._connect()
-                self._client.subscribe_topic(TOPIC, self._on_event)
-            return self._client
-
-    def _connect(self) -> Client:
-        address = self.settings.dask_scheduler
-        try:
-            if address:
-                return Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-            self._cluster = LocalCluster(
-                n_workers=self.settings.dask_workers, threads_per_worker=1, processes=True,
-                host="127.0.0.1", dashboard_address=None,
-                # a task whose worker dies fails its job at once (no silent rerun)
-                scheduler_kwargs={"allowed_failures": 0},
-            )
-            return Client(self._cluster, set_as_default=False)
-        except Exception as err:  # unreachable, refused, or a cluster that cannot start
-            where = address or "the embedded cluster"
-            raise ClusterUnavailable(f"cannot reach the Dask scheduler at {where}: {err}",
-                                     retry_after=5) from None
+        """The Dask client (connected on first use; see :class:`service.cluster.Connection`)."""
+        return self.connection.client()
 
     def workers(self) -> int:
         """Workers of the cluster now (at least one, for sizing chunks)."""
-        return max(1, len(self.client().nthreads()))
+        return self.connection.workers()
 
     def close(self) -> None:
         """Cancel unfinished jobs, then close the client and the embedded cluster."""
+        client = self.connection.current()
         with self._lock:
-            client, cluster = self._client, self._cluster
-            self._client = self._cluster = None
             unfinished = [j for j in self._jobs.values() if not j.finished_state]
         if client is not None:
             for job in unfinished:
                 self._stop(client, job, "cancelled", "the service shut down")
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        self.connection.close()
 
     # -- jobs ---------------------------------------------------------------------------
 
@@ -228,18 +204,18 @@ class JobManager:
 
     def submit(self, operation: str, body: BaseModel) -> Job:
         """Start one analysis (``operation`` a key of :data:`OPERATIONS`)."""
-        client = self.client()
+        self.client()  # 503 before admitting when there is no cluster
         job = Job(uuid.uuid4().hex, operation, time.time() + self.settings.job_time_limit_s,
                   sizes=[1], done=[0.0])
         self._admit(job)
-        future = client.submit(run_operation, job.id, operation, body, self.settings,
-                               job.end_wall, key=f"linkage-job-{job.id}", pure=False)
-        self._watch(job, [future])
+        future = self._submit(job, lambda client: [client.submit(
+            run_operation, job.id, operation, body, self.settings, job.end_wall,
+            key=f"linkage-job-{job.id}", pure=False)])
+        self._watch(job, future)
         return job
 
     def submit_sweep(self, sweep: mappers.SweepJob, names: tuple[str, ...]) -> Job:
         """Start a sweep, in chunks of its points spread over the workers."""
-        client = self.client()
         n = len(sweep.points)
         chunks = np.array_split(np.arange(n), min(n, CHUNKS_PER_WORKER * self.workers()))
         job = Job(uuid.uuid4().hex, SWEEPS, time.time() + self.settings.job_time_limit_s,
@@ -247,13 +223,22 @@ class JobManager:
         self._admit(job)
         # each task gets its own points only (not every point of the sweep)
         shared = dataclasses.replace(sweep, points=sweep.points[:0])
-        futures = [
+        futures = self._submit(job, lambda client: [
             client.submit(run_sweep_chunk, job.id, k, shared, sweep.points[idx], job.end_wall,
                           key=f"linkage-job-{job.id}-{k}", pure=False)
             for k, idx in enumerate(chunks)
-        ]
+        ])
         self._watch(job, futures)
         return job
+
+    def _submit(self, job: Job, call: Callable[[Client], list[Future]]) -> list[Future]:
+        """The admitted ``job``'s tasks; a job that could not be submitted is forgotten."""
+        try:
+            return self.connection.call(call)
+        except ClusterUnavailable:
+            with self._lock:
+                self._jobs.pop(job.id, None)
+            raise
 
     def _watch(self, job: Job, futures: list[Future]) -> None:
         with self._lock:
@@ -266,11 +251,14 @@ class JobManager:
         msg = event[1]
         with self._lock:
             job = self._jobs.get(str(msg.get("job")))
-            if job is None or job.finished_state:
+            if job is None:
+                return
+            k = int(msg["chunk"])
+            job.started_chunks.add(k)  # even after the job ended: its rows are still wanted
+            if job.finished_state:
                 return
             if job.status == "queued":
                 job.status, job.started = "running", time.time()
-            k = int(msg["chunk"])
             job.done[k] = max(job.done[k], float(msg["fraction"]))  # tasks report in order
             if job.operation == SWEEPS:
                 total = sum(job.sizes)
@@ -279,37 +267,52 @@ class JobManager:
                 job.message = str(msg["message"])
 
     def _on_done(self, job: Job, k: int, future: Future) -> None:
-        """A task ended: keep its part; the job is done when every part is in."""
-        if future.cancelled():  # by us (the job has ended already), or by a lost cluster
-            self._stop(self._client, job, "failed", error={
+        """A task ended: keep its part; the job is done when every part is in. A part that
+        arrives after the job ended (a task stopped by the cancel flag, or still running when
+        another failed) joins its partial result."""
+        if future.cancelled():  # by us (a task not started when the job ended), or a lost cluster
+            self._stop(self.connection.current(), job, "failed", error={
                 "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
                 "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
             return
         try:
             part = future.result()
-        except BaseException as err:  # the task's exception, or the worker's death
+        except BaseException as err:  # the task's exception, or its worker died twice
             with self._lock:
                 if job.finished_state:
                     return
             log.warning("job %s failed: %s: %s", job.id, type(err).__name__, err)
-            self._stop(self._client, job, "failed", error=_failure(err))
+            self._stop(self.connection.current(), job, "failed", error=_failure(err))
             return
         with self._lock:
-            if job.finished_state:
-                return
             job.parts[k] = part
+            if job.finished_state:
+                if job.status != "done":
+                    job.result, job.partial = self._partial_result(job), True
+                return
             if len(job.parts) < len(job.sizes):
                 return
         self._finish(job)
+
+    def _partial_result(self, job: Job) -> Any:
+        """The result of the parts that are in (the lock is held): a sweep's rows finished so
+        far, or an analysis's answer (incomplete when its task was stopped), else None."""
+        if not job.parts:
+            return None
+        if job.operation != SWEEPS:
+            return serialise.loads(job.parts[0])
+        rows = [row for k in sorted(job.parts) for row in job.parts[k]]
+        return mappers.sweep_out(job.names, rows, partial=True).model_dump(mode="json")
 
     def _finish(self, job: Job) -> None:
         if job.operation == SWEEPS:
             rows = [row for k in range(len(job.sizes)) for row in job.parts[k]]
             if len(rows) < sum(job.sizes):  # a task stopped early: the time limit
-                self._stop(self._client, job, "failed", error={
+                self._stop(self.connection.current(), job, "failed", error={
                     "title": "Time limit exceeded", "loc": [],
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
-                    f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s"})
+                    f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s (the "
+                    "result holds them, marked partial)"})
                 return
             result: Any = mappers.sweep_out(job.names, rows).model_dump(mode="json")
         else:  # kept as the worker's JSON: parsing it here took seconds for large answers
@@ -323,24 +326,31 @@ class JobManager:
 
     def _stop(self, client: Client | None, job: Job, status: str, reason: str = "",
               error: dict[str, Any] | None = None) -> None:
-        """End a job: stop its running tasks (cancel flag) and drop the others."""
+        """End a job: its running tasks stop at their next check (cancel flag) and what they
+        finished joins the partial result; the tasks not started are dropped."""
         with self._lock:
             if job.finished_state:
                 return
             job.status, job.finished = status, time.time()
             job.message = reason or status
-            job.error, job.parts = error, {}
-            futures, job.futures = job.futures, []
+            job.error = error
+            job.result = self._partial_result(job)
+            job.partial = job.result is not None
+            pending = [(k, f) for k, f in enumerate(job.futures) if k not in job.parts]
+            unstarted = [f for k, f in pending if k not in job.started_chunks]
+            # the running ones stay referenced (a future let go is released by the scheduler,
+            # and its rows with it) until they hand their rows in
+            job.futures = [f for k, f in pending if k in job.started_chunks]
         if client is None:
             return
         try:
             Event(_cancel_flag(job.id), client=client).set()
-            client.cancel(futures)
+            client.cancel(unstarted)
         except Exception as err:  # e.g. the cluster went away: nothing left to stop
             log.warning("could not stop the tasks of job %s: %s", job.id, err)
 
     def _forget_flag(self, job: Job) -> None:
-        client = self._client
+        client = self.connection.current()
         if client is not None:
             try:
                 Event(_cancel_flag(job.id), client=client).clear()
@@ -349,7 +359,7 @@ class JobManager:
 
     def cancel(self, job_id: str) -> Job:
         job = self.get(job_id)
-        self._stop(self._client, job, "cancelled", "cancelled on request")
+        self._stop(self.connection.current(), job, "cancelled", "cancelled on request")
         return job
 
     def get(self, job_id: str) -> Job:
@@ -389,7 +399,7 @@ class JobManager:
             if job.status != "done":
                 self._forget_flag(job)
         for job in overdue:
-            self._stop(self._client, job, "failed", error={
+            self._stop(self.connection.current(), job, "failed", error={
                 "title": "Time limit exceeded", "loc": [],
                 "detail": f"the job ran longer than LINKAGE_JOB_TIME_LIMIT_S = "
                 f"{self.settings.job_time_limit_s:g} s and was stopped"})

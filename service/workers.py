@@ -7,8 +7,9 @@ Workers come from a ``forkserver`` that has imported the engine once, so a repla
 ready in well under a second, and each worker's BLAS runs on one thread (one worker per core).
 
 Small first- and second-order requests are bounded by their size (dense SVD of at most
-``LIGHT_MAX_VERTICES`` vertices) and run in the service's thread pool instead, so they stay
-fast while every worker is busy.
+``LIGHT_MAX_VERTICES`` vertices and ``LIGHT_MAX_BARS`` bars, some milliseconds) and run in the
+service's thread pool instead, so they stay fast while every worker is busy; they are admitted
+under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it).
 
 Each worker may allocate at most ``LINKAGE_WORKER_MEMORY_MB`` (its ``RLIMIT_DATA``, set when
 it starts), so one request can never take the machine's memory: the engine estimates the cost
@@ -44,10 +45,11 @@ import logging
 import multiprocessing
 import os
 import resource
-import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from typing import Any, TypeVar
 
 import pebble
@@ -60,18 +62,19 @@ from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
 from service import serialise
 from service.config import Settings
+from service.spill import SPILL_MIN_BYTES, SpillFiles, write_spill
 
 T = TypeVar("T")
 B = TypeVar("B")
 log = logging.getLogger("service.workers")
 
-#: Linkages up to this many vertices are analysed to first and second order in-process.
+#: Linkages up to this many vertices and bars are analysed to first and second order
+#: in-process.
 LIGHT_MAX_VERTICES = 64
+LIGHT_MAX_BARS = 512
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-#: Answers from this size on come back from a worker through a file, not pebble's pipe.
-SPILL_MIN_BYTES = 1 << 20
-#: Files that held more than this are removed after their answer, not kept for the next one.
-SPILL_KEEP_MAX_BYTES = 64 << 20
+#: Seconds between two looks of the watchdog for a broken pool.
+WATCH_INTERVAL_S = 0.5
 
 
 class ServiceFault(Exception):
@@ -155,37 +158,100 @@ def _limit_memory(limit_bytes: int | None) -> None:
 
 
 class EnginePool:
-    """Worker processes for one application, started on first use (or by :meth:`start`)."""
+    """Worker processes for one application, started on first use (or by :meth:`start`).
+
+    A pebble pool whose worker dies while no task is running (an idle worker killed, as the
+    out-of-memory killer would) declares itself broken for good: every later ``schedule``
+    raises ``RuntimeError("Unexpected error within the Pool")``. The pool is therefore
+    replaced when it is found broken: by a watchdog thread every ``watch_interval_s``
+    (started by :meth:`start`; None for none) and by the next request, whichever comes
+    first. :attr:`ready` is False while the pool is broken."""
 
     def __init__(self, workers: int, max_queue: int,
                  on_event: Callable[[str], None] | None = None,
-                 memory_mb: int | None = None) -> None:
+                 memory_mb: int | None = None,
+                 watch_interval_s: float | None = WATCH_INTERVAL_S) -> None:
         self.workers = workers
         self.max_queue = max_queue
         self.memory_mb = memory_mb
+        self.watch_interval_s = watch_interval_s
         self.admitted = 0
+        self.light_admitted = 0
+        self.replacements = 0
         self.spill_files = SpillFiles(keep=workers)
         self._pool: pebble.ProcessPool | None = None
+        self._started = False
         self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._watchdog: threading.Thread | None = None
         self._on_event = on_event or (lambda event: None)
 
+    def _new_pool(self) -> pebble.ProcessPool:
+        for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
+            os.environ.setdefault(name, "1")
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["service.jobs"])
+        limit = None if self.memory_mb is None else self.memory_mb * 2**20
+        return pebble.ProcessPool(max_workers=self.workers, context=ctx,
+                                  initializer=_limit_memory, initargs=(limit,))
+
     def _ensure(self) -> pebble.ProcessPool:
+        """The pool, made (or remade where it is broken) under the lock."""
         with self._lock:
+            if self._pool is not None and not self._pool.active:
+                self._replace_locked()
             if self._pool is None:
-                for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
-                    os.environ.setdefault(name, "1")
-                ctx = multiprocessing.get_context("forkserver")
-                ctx.set_forkserver_preload(["service.jobs"])
-                limit = None if self.memory_mb is None else self.memory_mb * 2**20
-                self._pool = pebble.ProcessPool(max_workers=self.workers, context=ctx,
-                                                initializer=_limit_memory, initargs=(limit,))
+                self._pool = self._new_pool()
             return self._pool
 
+    def _replace_locked(self) -> None:
+        """Drop the broken pool (its threads are stopped and its workers killed in the
+        background) and count the replacement; the caller holds the lock."""
+        broken, self._pool = self._pool, None
+        self.replacements += 1
+        self._on_event("pool_replaced")
+        log.warning("engine pool broken (a worker died while no task was running): replacing "
+                    "it (replacement %d)", self.replacements)
+        if broken is not None:
+            threading.Thread(target=_dispose, args=(broken,), daemon=True,
+                             name="engine-pool-dispose").start()
+
+    @property
+    def broken(self) -> bool:
+        """True when the current pool can take no task (it will be replaced)."""
+        with self._lock:
+            pool = self._pool
+        return pool is not None and not pool.active
+
+    @property
+    def ready(self) -> bool:
+        """Started (every worker answered once) and not broken."""
+        return self._started and not self.broken
+
     def start(self) -> None:
-        """Start the workers and wait until each has answered once."""
+        """Start the workers, wait until each has answered once, and start the watchdog."""
+        self._warm_all()
+        self._started = True
+        if self.watch_interval_s is not None and self._watchdog is None:
+            self._watchdog = threading.Thread(target=self._watch, daemon=True,
+                                              name="engine-pool-watchdog")
+            self._watchdog.start()
+
+    def _warm_all(self) -> None:
         pool = self._ensure()
         for future in [pool.schedule(_warm) for _ in range(self.workers)]:
             future.result(timeout=120)
+
+    def _watch(self) -> None:
+        """Replace a broken pool without waiting for a request, and warm its workers."""
+        assert self.watch_interval_s is not None
+        while not self._stop.wait(self.watch_interval_s):
+            if not self.broken:
+                continue
+            try:
+                self._warm_all()  # _ensure replaces it
+            except Exception:  # the next round tries again
+                log.exception("engine pool: the replacement workers did not start")
 
     def worker_pids(self) -> list[int]:
         """Process ids of the live workers (diagnostics and fault tests; reads pebble's
@@ -202,12 +268,43 @@ class EnginePool:
 
     def close(self) -> None:
         """Let running tasks finish, then stop the workers (graceful shutdown)."""
+        self._stop.set()
+        if self._watchdog is not None:  # it may be warming a replacement: let it finish
+            self._watchdog.join(timeout=130)
+            self._watchdog = None
         with self._lock:
             pool, self._pool = self._pool, None
+            self._started = False
         if pool is not None:
-            pool.close()
-            pool.join()
+            if pool.active:
+                pool.close()
+                pool.join()
+            else:
+                _dispose(pool)
         self.spill_files.close()
+
+    @contextmanager
+    def light_lane(self, time_limit: float) -> Iterator[None]:
+        """Admission of a small request answered in the service's thread pool: at most
+        ``max_queue`` at once (503 ``busy`` beyond), counted apart from the workers' queue so
+        that heavy requests never crowd out cheap ones."""
+        if self.light_admitted >= self.max_queue:
+            self._on_event("busy")
+            raise Busy(f"{self.light_admitted} small requests are being answered (LINKAGE_MAX_"
+                       f"QUEUE = {self.max_queue}); retry shortly", retry_after=1)
+        self.light_admitted += 1
+        try:
+            yield
+        finally:
+            self.light_admitted -= 1
+
+    def _schedule(self, fn: Callable[..., T], args: tuple[Any, ...],
+                  time_limit: float) -> pebble.ProcessFuture:
+        """Schedule on the pool; a pool found broken at this moment is replaced once."""
+        try:
+            return self._ensure().schedule(fn, args, timeout=time_limit)
+        except RuntimeError:  # broken between the check in _ensure and schedule
+            return self._ensure().schedule(fn, args, timeout=time_limit)
 
     async def run(self, time_limit: float, fn: Callable[..., T], *args: Any) -> T:
         """``fn(*args)`` in a worker, stopped after ``time_limit`` seconds of running."""
@@ -220,7 +317,7 @@ class EnginePool:
             )
         self.admitted += 1
         try:
-            future = self._ensure().schedule(fn, args, timeout=time_limit)
+            future = self._schedule(fn, args, time_limit)
             try:
                 return await asyncio.wrap_future(future)
             except FutureTimeout:
@@ -249,8 +346,27 @@ class EnginePool:
                     "the request may be retried",
                     retry_after=1,
                 ) from None
+            except BrokenProcessPool:  # another worker died while this task waited
+                self._on_event("worker_failed")
+                log.warning("engine pool broke while %s waited; it is being replaced",
+                            getattr(fn, "__name__", fn))
+                raise WorkerFailed(
+                    "an engine worker stopped unexpectedly while this analysis waited for one "
+                    "(killed, e.g. out of memory); the workers are being replaced, and the "
+                    "request may be retried",
+                    retry_after=1,
+                ) from None
         finally:
             self.admitted -= 1
+
+
+def _dispose(pool: pebble.ProcessPool) -> None:
+    """Stop a broken pool's threads and kill its workers."""
+    try:
+        pool.stop()
+        pool.join(timeout=10)
+    except Exception:  # a broken pool may fail to stop cleanly: it is dropped anyway
+        log.exception("engine pool: stopping a broken pool failed")
 
 
 def engine_pool(request: Request) -> EnginePool:
@@ -275,84 +391,9 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     parts = serialise.dumps_parts(fn(body, settings))
     if spill is not None:
         size = sum(len(part) for part in parts)
-        if size >= SPILL_MIN_BYTES and _write_spill(spill, parts):
+        if size >= SPILL_MIN_BYTES and write_spill(spill, parts):
             return size
     return b"".join(parts)
-
-
-def _write_spill(path: str, parts: list[bytes]) -> bool:
-    """Write ``parts`` to the existing file ``path``; False where that cannot be done."""
-    try:
-        # no O_CREAT: the service removes the file when it stops waiting (time limit), and a
-        # worker finishing later must not leave a new one behind
-        fd = os.open(path, os.O_WRONLY)
-    except OSError:
-        return False
-    try:
-        for part in parts:
-            view = memoryview(part)
-            while view:
-                view = view[os.write(fd, view):]
-        return True
-    except OSError:  # e.g. ENOSPC: a small /dev/shm (Docker's default is 64 MB)
-        return False
-    finally:
-        os.close(fd)
-
-
-def _spill_dir() -> str:
-    """A directory in memory for answers in transit: ``/dev/shm`` where it is usable, else the
-    temporary directory (on disk, the page cache holds a file that lives milliseconds)."""
-    shm = "/dev/shm"
-    if os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK):
-        return shm
-    return tempfile.gettempdir()
-
-
-class SpillFiles:
-    """Files for answers in transit from the workers (mode 0600, in :func:`_spill_dir`): one
-    per request in flight, and up to ``keep`` of them kept between requests (each at most
-    ``SPILL_KEEP_MAX_BYTES``) so that a request writes over pages the file already has."""
-
-    def __init__(self, keep: int) -> None:
-        self.keep = keep
-        self._free: list[str] = []
-        self._lock = threading.Lock()
-
-    def take(self) -> str:
-        with self._lock:
-            if self._free:
-                return self._free.pop()
-        fd, path = tempfile.mkstemp(prefix="linkage-answer-", suffix=".json", dir=_spill_dir())
-        os.close(fd)
-        return path
-
-    def give_back(self, path: str, reuse: bool) -> None:
-        """Keep ``path`` for another request when ``reuse`` (its worker has finished with it)
-        and there is room, else remove it."""
-        if reuse:
-            try:
-                small = os.path.getsize(path) <= SPILL_KEEP_MAX_BYTES
-            except OSError:
-                small = False
-            with self._lock:
-                if small and len(self._free) < self.keep:
-                    self._free.append(path)
-                    return
-        _unlink(path)
-
-    def close(self) -> None:
-        with self._lock:
-            free, self._free = self._free, []
-        for path in free:
-            _unlink(path)
-
-
-def _unlink(path: str) -> None:
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        pass
 
 
 def _read_spill(path: str, size: int) -> bytes:
@@ -371,7 +412,9 @@ async def engine_call(request: Request, settings: Settings,
     ``response_model`` documents it): in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
     if light:
-        answer = await run_in_threadpool(_as_json, fn, body, settings)
+        pool = engine_pool(request)
+        with pool.light_lane(settings.time_limit_s):
+            answer = await run_in_threadpool(_as_json, fn, body, settings)
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:

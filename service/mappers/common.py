@@ -14,6 +14,18 @@ from service.gcpause import gc_paused
 from service.schemas import common as c
 from service.schemas import space
 
+#: The largest integer a JSON number holds exactly everywhere (a double's 53-bit significand,
+#: JavaScript's ``Number.MAX_SAFE_INTEGER``): counts beyond it (a Kane-Lubensky chain of n
+#: spinners has 2^(n-1) components) are answered as decimal strings.
+MAX_JSON_INT = 2**53 - 1
+
+
+def json_int(value: int) -> int | str:
+    """``value`` as a JSON number when it is exact in a double, else as its decimal string
+    (which no JSON encoder refuses and no client rounds)."""
+    return value if -MAX_JSON_INT <= value <= MAX_JSON_INT else str(value)
+
+
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
 
 

@@ -36,7 +36,7 @@ from engine.space.configuration_space import (
 from service.job_state import Job
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
-from service.mappers.common import problem_in
+from service.mappers.common import json_int, problem_in
 from service.mappers.space import space_options_in
 from service.schemas import jobs as job_schemas
 
@@ -88,13 +88,15 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
     return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
 
 
-def sweep_out(names: tuple[str, ...], rows: list[PointResult]) -> job_schemas.SweepResult:
+def sweep_out(names: tuple[str, ...], rows: list[PointResult],
+              partial: bool = False) -> job_schemas.SweepResult:
     s = summarize(rows)
     return job_schemas.SweepResult(
+        partial=partial,
         rows=[
             job_schemas.SweepRow(
                 lengths=dict(zip(names, r.values, strict=True)),
-                components=r.components,
+                components=None if r.components is None else json_int(r.components),
                 complete=r.complete,
                 argument=r.argument,
                 critical_points=r.critical_points,
@@ -146,6 +148,7 @@ def job_summary_out(job: Job, expires: float | None) -> job_schemas.JobSummary:
         started=_when(job.started),
         finished=_when(job.finished),
         expires=_when(expires),
+        partial=job.partial,
         error=None if job.error is None else job_schemas.JobError(**job.error),
     )
 

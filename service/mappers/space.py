@@ -26,6 +26,7 @@ from service.gcpause import gc_paused
 from service.mappers.analysis import projection_fields
 from service.mappers.common import (
     bar_values,
+    json_int,
     packed_array,
     positions_out,
     tolerances_out,
@@ -61,7 +62,14 @@ def _critical_out(linkage: EngineLinkage, k: int, cp: CriticalPoint) -> space.Cr
 
 
 def search_out(search: Mapping[str, object]) -> dict[str, object]:
-    return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in search.items()}
+    """A search report as JSON data: numpy scalars as Python's, integers beyond
+    ``MAX_JSON_INT`` (e.g. ``components_total``) as decimal strings."""
+    out: dict[str, object] = {}
+    for k, v in search.items():
+        value = v.item() if isinstance(v, np.generic) else v
+        out[k] = json_int(value) if isinstance(value, int) and not isinstance(value, bool) \
+            else value
+    return out
 
 
 def critical_list_out(

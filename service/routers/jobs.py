@@ -105,11 +105,13 @@ def cancel_job(job_id: str, manager: Manager) -> Response:
                      "a figure's SVG"}},
 )
 def job_result(job_id: str, request: Request, manager: Manager) -> Response:
-    """The result of a finished job alone; ``Accept: text/csv`` gives a sweep's rows as CSV; a
-    figure's job answers its SVG (``image/svg+xml``)."""
+    """The result of a finished job alone (of a failed or cancelled one: what it finished,
+    marked ``partial``); ``Accept: text/csv`` gives a sweep's rows as CSV; a figure's job
+    answers its SVG (``image/svg+xml``)."""
     job = manager.get(job_id)
-    if job.status != "done":
-        raise tasks.JobNotDone(f"job {job_id} is {job.status}, not done")
+    if job.result is None:
+        raise tasks.JobNotDone(f"job {job_id} is {job.status}, not done, and has no partial "
+                               "result")
     if _CSV in request.headers.get("accept", ""):
         if job.operation != SWEEPS:
             raise tasks.NotAcceptable("CSV is offered for sweeps only; ask for application/json")

@@ -280,7 +280,9 @@ class SearchReport(BaseModel):
     """What a search did and whether its answer is complete (``engine.model.report.SearchReport``).
     ``complete`` and ``reason`` are always there; the method's own counts (``method``,
     ``seeds``, ``curves_traced``, ``open_curves``, ``critical_candidates``,
-    ``components_total``, ``closed_form_*``, ...) are further properties."""
+    ``components_total``, ``closed_form_*``, ...) are further properties; a count beyond
+    2^53 - 1 (the largest integer a JSON number holds exactly; a Kane-Lubensky chain of n >= 55
+    spinners has 2^(n-1) components) is a decimal string."""
 
     model_config = ConfigDict(extra="allow")
 

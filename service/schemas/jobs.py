@@ -62,12 +62,17 @@ class JobSummary(BaseModel):
         description="when a finished job and its result are forgotten (LINKAGE_JOB_TTL_S)"
     )
     error: JobError | None = None
+    partial: bool = Field(
+        False, description="the result holds only the work finished before the job stopped "
+        "(time limit, cancel, a lost worker): a sweep's finished rows, an analysis's "
+        "incomplete answer")
 
 
 class JobOut(JobSummary):
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary; for figures: the SVG as a string)"
+        "rows and summary; for figures: the SVG as a string); when failed or cancelled: what "
+        "was finished, if anything (partial)"
     )
 
 
@@ -137,13 +142,15 @@ class SweepRequest(Strict):
 
 class SweepRow(BaseModel):
     lengths: dict[str, float] = Field(description="the swept values of this point")
-    components: int | None = None
+    components: int | str | None = Field(
+        None, description="components of the configuration space; beyond 2^53 - 1 (the "
+        "largest integer a JSON number holds exactly) a decimal string")
     complete: bool | None = Field(
         None, description="false: the count is a lower bound (a search budget cut it short, or "
         "no argument proves it)")
     argument: Literal["derived", "proved"] | None = Field(
         None, description="what proves the count exact (as search.argument): derived (a "
-        "closed form, the chain rules, the lengths admit no configuration) or proved")
+        "closed form, the chain rules) or proved")
     critical_points: int | None = None
     margin: float | None = None
     windings: list[str] | None = Field(None, description="distinct rotor-turn patterns")
@@ -164,5 +171,8 @@ class SweepSummary(BaseModel):
 
 
 class SweepResult(BaseModel):
+    partial: bool = Field(
+        False, description="the rows of the points finished before the sweep stopped (time "
+        "limit, cancel, a failed task); the other points have no row")
     rows: list[SweepRow]
     summary: SweepSummary

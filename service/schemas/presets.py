@@ -15,3 +15,11 @@ class PresetInfo(BaseModel):
 class Health(BaseModel):
     status: str
     version: str
+
+
+class Readiness(BaseModel):
+    """Ready to analyse: the compiled kernels are loaded and every engine worker answered."""
+
+    status: str
+    version: str
+    workers: int

@@ -18,6 +18,7 @@ import pytest
 
 from engine.catalogue.presets import build_preset
 from service import jobs, serialise, workers
+from service import spill as spill_files
 from service.config import Settings, get_settings
 from service.main import create_app
 from service.mappers import linkage_out
@@ -45,7 +46,7 @@ def test_a_large_answer_is_written_to_the_spill_file(tmp_path, crank_rocker, poi
     body = SpaceRequest.model_validate(
         {"linkage": crank_rocker, "options": {**DENSE, "points": points}})
     expected = serialise.dumps(jobs.configuration_space(body, settings))
-    assert len(expected) >= workers.SPILL_MIN_BYTES, "too small to test the spill"
+    assert len(expected) >= spill_files.SPILL_MIN_BYTES, "too small to test the spill"
     spill = tmp_path / "answer.json"
     spill.touch()
     size = workers._as_json(jobs.configuration_space, body, settings, str(spill))
@@ -86,7 +87,7 @@ def test_a_cut_answer_is_a_worker_failure(tmp_path):
 def test_answers_through_a_worker_reuse_one_file(tmp_path, monkeypatch, crank_rocker):
     """Default and compact answers of a real worker are the in-process ones; one after the
     other they cross in one file, which is gone when the pool closes."""
-    monkeypatch.setattr(workers, "_spill_dir", lambda: str(tmp_path))
+    monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
     app = create_app(Settings(workers=1, time_limit_s=120))
     settings = get_settings()
     files = []
@@ -107,7 +108,7 @@ def test_answers_through_a_worker_reuse_one_file(tmp_path, monkeypatch, crank_ro
     for r, points in zip(answers, (None, "compact"), strict=True):
         assert r.status_code == 200, r.text
         assert r.headers["content-type"].startswith("application/json")
-        assert int(r.headers["content-length"]) == len(r.content) >= workers.SPILL_MIN_BYTES
+        assert int(r.headers["content-length"]) == len(r.content) >= spill_files.SPILL_MIN_BYTES
         body = SpaceRequest.model_validate(
             {"linkage": crank_rocker, "options": {**DENSE, "points": points}})
         expected = json.loads(serialise.dumps(jobs.configuration_space(body, settings)))
@@ -119,8 +120,8 @@ def test_answers_through_a_worker_reuse_one_file(tmp_path, monkeypatch, crank_ro
 
 
 def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
-    monkeypatch.setattr(workers, "_spill_dir", lambda: str(tmp_path))
-    files = workers.SpillFiles(keep=1)
+    monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
+    files = spill_files.SpillFiles(keep=1)
     a, b = files.take(), files.take()
     assert a != b and Path(a).parent == Path(b).parent == tmp_path
     assert oct(Path(a).stat().st_mode & 0o777) == oct(0o600)
@@ -129,7 +130,7 @@ def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
     assert sorted(tmp_path.iterdir()) == [Path(a)]
     assert files.take() == a
     with open(a, "wb") as f:  # too large to keep
-        f.truncate(workers.SPILL_KEEP_MAX_BYTES + 1)
+        f.truncate(spill_files.SPILL_KEEP_MAX_BYTES + 1)
     files.give_back(a, reuse=True)
     c = files.take()
     files.give_back(c, reuse=False)  # its worker may still write: removed
@@ -142,7 +143,7 @@ def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_a_request_stopped_at_the_time_limit_leaves_no_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(workers, "_spill_dir", lambda: str(tmp_path))
+    monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
     app = create_app(Settings(workers=1, time_limit_s=1.5))
     chain = _linkage("kl-chain", n=SLOW_CHAIN)
 

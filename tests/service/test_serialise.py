@@ -195,3 +195,23 @@ def test_raw_json_is_written_as_it_is_and_parsed_only_when_asked() -> None:
     raw = RawJSON(data)
     assert raw.value() == {"a": [1.5, 2, None], "b": "x\u00e9"}
     assert dumps({"result": raw, "id": "j"}) == b'{"result":' + data + b',"id":"j"}'
+
+
+def test_counts_beyond_a_json_number_are_decimal_strings():
+    """A sweep row of a chain with 2^69 components and a search report with 2^64 of them:
+    JSON numbers up to 2^53 - 1 (exact in a double), decimal strings beyond (orjson refused
+    integers beyond 64 bits: a 500)."""
+    from engine.design.sweep import PointResult
+    from service.mappers.jobs import sweep_out
+    from service.mappers.space import search_out
+
+    rows = [PointResult((1.0,), components=2**69, complete=True),
+            PointResult((2.0,), components=2**53 - 1, complete=True)]
+    data = json.loads(serialise.dumps(sweep_out(("r",), rows)))
+    assert [r["components"] for r in data["rows"]] == [str(2**69), 2**53 - 1]
+    report = SearchReport.model_validate(search_out(
+        {"complete": False, "reason": "budget", "components_total": np.int64(2**53),
+         "big": 2**64, "small": -5, "flag": True}))
+    data = json.loads(serialise.dumps(report))
+    assert data["components_total"] == str(2**53) and data["big"] == str(2**64)
+    assert data["small"] == -5 and data["flag"] is True

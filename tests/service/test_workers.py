@@ -9,6 +9,9 @@ tests/service/test_hardening.py does) and talks to it in-process over the ASGI t
 from __future__ import annotations
 
 import asyncio
+import os
+import signal
+import time
 from pathlib import Path
 from typing import Any
 
@@ -183,3 +186,192 @@ def test_worker_memory_setting(monkeypatch):
         monkeypatch.setenv("LINKAGE_WORKER_MEMORY_MB", bad)
         with pytest.raises(ValueError, match="LINKAGE_WORKER_MEMORY_MB|invalid literal"):
             Settings.from_env()
+
+
+# --- worker deaths in every state (issue 28, item 1) -------------------------------------------
+# pebble 5 declares a pool broken for good when a worker dies while no task runs: every later
+# request answered 500 ("Unexpected error within the Pool") until the service was restarted.
+
+
+def cpu_ticks(pid: int) -> int:
+    """User plus system CPU time of a process so far, in clock ticks (``/proc/<pid>/stat``)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return int(fields[11]) + int(fields[12])
+
+
+def busy_and_idle(pids: list[int]) -> tuple[int, int]:
+    """Of two workers, the one using the CPU and the one that is not."""
+    before = {pid: cpu_ticks(pid) for pid in pids}
+    time.sleep(0.5)
+    used = sorted(pids, key=lambda pid: cpu_ticks(pid) - before[pid])
+    return used[1], used[0]
+
+
+def answered(responses: list[httpx.Response]) -> None:
+    """Each a 200, or a 503 with ``Retry-After`` while the pool is replaced (then 200s)."""
+    codes = [r.status_code for r in responses]
+    assert codes[-1] == 200, responses[-1].text
+    for r in responses:
+        if r.status_code == 503:
+            assert r.headers["retry-after"], r.text
+            assert r.headers["content-type"].startswith("application/problem+json")
+        else:
+            assert r.status_code == 200, r.text
+
+
+async def critical_points(c: httpx.AsyncClient, four_bar: dict[str, Any],
+                          times: int = 3) -> list[httpx.Response]:
+    out = []
+    for _ in range(times):
+        out.append(await c.post("/v1/analysis/critical-points", json={"linkage": four_bar}))
+        if out[-1].status_code == 503:
+            await asyncio.sleep(float(out[-1].headers["retry-after"]))
+    return out
+
+
+def kill(pids: list[int]) -> None:
+    for pid in pids:
+        os.kill(pid, signal.SIGKILL)  # as the out-of-memory killer would
+
+
+@pytest.mark.parametrize("watchdog", [True, False])
+def test_an_idle_worker_killed_before_any_request_is_replaced(four_bar, watchdog):
+    app = create_app(Settings(workers=1, time_limit_s=30))
+    pool = app.state.engine_pool = EnginePool(
+        1, 8, watch_interval_s=0.5 if watchdog else None)
+
+    async def scenario() -> tuple[list[httpx.Response], httpx.Response, httpx.Response]:
+        async with client_for(app) as c:
+            pool.start()
+            victims = pool.worker_pids()
+            kill(victims)
+            await asyncio.sleep(0.3)  # pebble notices the death within its 0.1 s loop
+            if watchdog:
+                await asyncio.sleep(1.0)
+                not_ready = None
+            else:  # nothing replaces it before a request: the pool is reported broken
+                not_ready = await c.get("/health/ready")
+            answers = await critical_points(c, four_bar)
+            return answers, not_ready, await c.get("/health/ready")
+
+    try:
+        answers, not_ready, ready = asyncio.run(scenario())
+        after = pool.worker_pids()
+    finally:
+        pool.close()
+    answered(answers)
+    assert len(answers[-1].json()["critical_points"]) == 3
+    if not_ready is not None:
+        body = assert_problem(not_ready, 503, "not-ready")
+        assert "being replaced" in body["detail"] and not_ready.headers["retry-after"] == "1"
+    assert ready.status_code == 200, ready.text
+    assert ready.json()["workers"] == 1
+    assert len(after) == 1 and pool.replacements == 1
+
+
+def test_a_worker_killed_between_requests_is_replaced(four_bar):
+    app = create_app(Settings(workers=2, time_limit_s=30))
+    pool = app.state.engine_pool
+
+    async def scenario() -> tuple[list[httpx.Response], list[httpx.Response]]:
+        async with client_for(app) as c:
+            first = await critical_points(c, four_bar, times=2)
+            pool.start()  # the watchdog, as the lifespan starts it
+            kill(pool.worker_pids())  # both idle, between requests
+            await asyncio.sleep(0.3)
+            return first, await critical_points(c, four_bar, times=4)
+
+    try:
+        first, then = asyncio.run(scenario())
+        after = pool.worker_pids()
+    finally:
+        pool.close()
+    assert [r.status_code for r in first] == [200, 200]
+    answered(then)
+    assert len(after) == 2 and pool.replacements >= 1
+
+
+def test_an_idle_worker_killed_beside_a_busy_one(four_bar):
+    """The busy worker's request finishes (at its time limit); the idle one is replaced by
+    pebble itself (a task was running) and later requests are served."""
+    from engine.catalogue.presets import build_preset
+    from service.mappers import linkage_out
+
+    chain = linkage_out(build_preset("kl-chain", {"n": 300})).model_dump(mode="json")
+    app = create_app(Settings(workers=2, time_limit_s=4))
+    pool = app.state.engine_pool
+
+    async def scenario() -> tuple[httpx.Response, list[httpx.Response], int]:
+        async with client_for(app) as c:
+            pool.start()
+            slow = asyncio.create_task(c.post(
+                "/v1/analysis/configuration-space",
+                json={"linkage": chain, "options": {"max_components": 1000}}))
+            await asyncio.sleep(1.0)
+            busy, idle = busy_and_idle(pool.worker_pids())
+            kill([idle])
+            small = await critical_points(c, four_bar)
+            done = await slow
+            for _ in range(50):  # the time limit's replacement starting
+                if len(pool.worker_pids()) == 2:
+                    break
+                await asyncio.sleep(0.1)
+            return done, small, busy
+
+    try:
+        slow, small, busy = asyncio.run(scenario())
+        after = pool.worker_pids()
+    finally:
+        pool.close()
+    # its own worker was never touched: stopped at the time limit, not failed
+    assert_problem(slow, 504, "time-limit")
+    answered(small)
+    assert len(after) == 2 and busy not in after
+
+
+def test_a_busy_worker_killed_fails_its_request_and_the_next_is_served(four_bar):
+    from engine.catalogue.presets import build_preset
+    from service.mappers import linkage_out
+
+    chain = linkage_out(build_preset("kl-chain", {"n": 300})).model_dump(mode="json")
+    app = create_app(Settings(workers=1, time_limit_s=30))
+    pool = app.state.engine_pool
+
+    async def scenario() -> tuple[httpx.Response, list[httpx.Response], httpx.Response]:
+        async with client_for(app) as c:
+            pool.start()
+            slow = asyncio.create_task(c.post(
+                "/v1/analysis/configuration-space",
+                json={"linkage": chain, "options": {"max_components": 1000}}))
+            await asyncio.sleep(1.0)
+            kill(pool.worker_pids())
+            failed = await slow
+            return failed, await critical_points(c, four_bar), await c.get("/health/ready")
+
+    try:
+        failed, small, ready = asyncio.run(scenario())
+    finally:
+        pool.close()
+    assert_problem(failed, 503, "worker-failed")
+    assert failed.headers["retry-after"] == "1"
+    answered(small)
+    assert ready.status_code == 200, ready.text
+
+
+def test_small_requests_have_a_lane_of_their_own():
+    """Small requests (answered in the service's thread pool) are admitted apart from the
+    workers' queue: a full engine queue does not refuse them, and beyond LINKAGE_MAX_QUEUE of
+    their own they are a 503 busy with Retry-After (no workers are started here)."""
+    from service.workers import Busy
+
+    pool = EnginePool(1, 2)
+    pool.admitted = pool.max_queue  # every engine slot taken
+    with pool.light_lane(30), pool.light_lane(30):
+        assert pool.light_admitted == 2
+        with pytest.raises(Busy) as err, pool.light_lane(30):
+            pass
+    assert err.value.status == 503 and err.value.retry_after == 1
+    assert "LINKAGE_MAX_QUEUE = 2" in err.value.detail
+    assert pool.light_admitted == 0
+    with pool.light_lane(30):  # free again
+        assert pool.light_admitted == 1

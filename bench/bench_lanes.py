@@ -1,0 +1,103 @@
+"""Cheap requests while heavy ones saturate the engine workers (issue 28): latency of
+``/health`` and of a four-bar rigidity request (the in-process lane) beside clients that keep
+every worker busy with configuration spaces that run to the time limit (run on demand,
+bounded in time and requests, loopback only).
+
+    .venv/bin/python bench/bench_lanes.py [--seconds 20] [--heavy 4] [--cheap 8]
+                                          [--json bench/results/lanes.json]
+
+A real ``uvicorn service.main:app`` process (``LINKAGE_WORKERS`` 2, ``LINKAGE_TIME_LIMIT_S``
+5) on a free loopback port, asked once ``/health/ready`` answers. ``--heavy`` clients post a
+300-rotor chain's configuration space (it always meets the time limit: 504) in a loop,
+``--cheap`` clients alternate ``/health`` and the four-bar's rigidity; every request must get
+an HTTP answer (a transport error is a lost request and fails the run). The load generator
+shares the machine with the server.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import statistics
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import httpx
+from harness import Table, served_process  # bench/ is on sys.path when run as a script
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+async def run(url: str, seconds: float, heavy: int, cheap: int) -> dict[str, Any]:
+    latencies: dict[str, list[float]] = {"health": [], "rigidity": [], "heavy": []}
+    statuses: Counter[tuple[str, int]] = Counter()
+    lost: list[str] = []
+    async with httpx.AsyncClient(base_url=url, timeout=120, trust_env=False) as c:
+        deadline = time.monotonic() + 120
+        while (await c.get("/health/ready")).status_code != 200:
+            assert time.monotonic() < deadline, "not ready after 120 s"
+            await asyncio.sleep(0.2)
+        chain = (await c.get("/v1/presets/kl-chain?n=300")).json()
+        four_bar = (await c.get("/v1/presets/four-bar")).json()
+        heavy_body = {"linkage": chain, "options": {"max_components": 1000}}
+        stop = time.monotonic() + seconds
+
+        async def client(kind: str, k: int) -> None:
+            n = 0
+            while time.monotonic() < stop:
+                if kind == "heavy":
+                    name, call = "heavy", c.post("/v1/analysis/configuration-space",
+                                                 json=heavy_body)
+                elif (n + k) % 2:
+                    name, call = "health", c.get("/health")
+                else:
+                    name, call = "rigidity", c.post("/v1/analysis/rigidity",
+                                                    json={"linkage": four_bar})
+                n += 1
+                t0 = time.perf_counter()
+                try:
+                    r = await call
+                except httpx.TransportError as err:
+                    lost.append(f"{name}: {type(err).__name__}")
+                    continue
+                latencies[name].append(time.perf_counter() - t0)
+                statuses[(name, r.status_code)] += 1
+                if kind == "cheap":
+                    await asyncio.sleep(0.02)
+
+        await asyncio.gather(*[client("heavy", k) for k in range(heavy)],
+                             *[client("cheap", k) for k in range(cheap)])
+    return {"latencies": latencies, "statuses": statuses, "lost": lost}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--heavy", type=int, default=4)
+    parser.add_argument("--cheap", type=int, default=8)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    env = {"LINKAGE_WORKERS": "2", "LINKAGE_TIME_LIMIT_S": "5"}
+    with served_process(env=env, timeout=120) as url:
+        out = asyncio.run(run(url, args.seconds, args.heavy, args.cheap))
+    table = Table(f"cheap requests beside {args.heavy} heavy clients on 2 engine workers, "
+                  f"{args.seconds:g} s, load average {os.getloadavg()[0]:.1f}")
+    for name, values in out["latencies"].items():
+        if not values:
+            continue
+        codes = {code: n for (kind, code), n in out["statuses"].items() if kind == name}
+        table.record(f"{name} p99", percentile(values, 0.99), f"{len(values)} requests",
+                     p50=statistics.median(values), max=max(values), statuses=str(codes))
+    if args.json:
+        table.save(args.json, load_average=os.getloadavg())
+    assert not out["lost"], f"lost requests: {out['lost'][:10]}"
+
+
+if __name__ == "__main__":
+    main()
