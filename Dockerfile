@@ -31,7 +31,7 @@ RUN pip install --no-deps --no-build-isolation .
 # handed to the app user: a new container traces compiled from its first request instead of on
 # the Python loop for the 20-30 s a cold compile takes.
 ENV NUMBA_CACHE_DIR=/home/app/.cache/numba
-RUN python -c "from engine import trace_kernel; assert trace_kernel.load(), trace_kernel.failure" \
+RUN python -c "from engine.space import trace_kernel; assert trace_kernel.load(), trace_kernel.failure" \
     && python -c "from engine.space.dyads import kernel; assert kernel.load(), kernel.failure" \
     && chown -R app:app /home/app/.cache
 
