@@ -17,6 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from engine.model.budget import NEVER, Deadline
 from engine.model.errors import NoNearbySolution
 from engine.model.hessian import dense_stress_hessian
 from engine.model.linkage import Linkage
@@ -313,16 +314,45 @@ class ProjectionResult:
 STEP_RCOND = 1e-7
 
 
+#: What one LSMR iteration is taken to cost at least: seconds per iteration and per stored value
+#: of ``J`` or unknown. A sparse step whose iteration limit could outlast the deadline at this
+#: rate runs in pieces of about :data:`LSMR_PIECE_S`, the deadline looked at between them.
+LSMR_SECONDS_PER_ITERATION = 1e-4
+LSMR_SECONDS_PER_VALUE = 5e-8
+LSMR_PIECE_S = 0.05
+
+
 def _min_norm_step(
-    jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray, rcond: float = STEP_RCOND
-) -> np.ndarray:
+    jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray, rcond: float = STEP_RCOND,
+    deadline: Deadline = NEVER,
+) -> np.ndarray | None:
     """Minimum-norm least-squares solution of ``J du = rhs`` with small singular values cut
-    (dense: truncated SVD; sparse: LSMR with a matching Tikhonov damping)."""
+    (dense: truncated SVD; sparse: LSMR with a matching Tikhonov damping); None when
+    ``deadline`` passed first.
+
+    LSMR's limit is ``20 (E + M)`` iterations of O(E + M) each: seconds from a few hundred
+    rotors on. Where that could outlast the deadline, it runs in pieces, each continuing from
+    the last one's solution (the damping then applies to each piece's correction)."""
     if sp.issparse(jac):
         scale = float(np.sqrt(abs(jac).sum(axis=0).max() * abs(jac).sum(axis=1).max()))
-        return spla.lsmr(
-            jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=20 * sum(jac.shape)
-        )[0]
+        limit = 20 * sum(jac.shape)
+        per = LSMR_SECONDS_PER_ITERATION + LSMR_SECONDS_PER_VALUE * (jac.nnz + sum(jac.shape))
+        if limit * per <= deadline.remaining():
+            return spla.lsmr(
+                jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=limit
+            )[0]
+        x = np.zeros(jac.shape[1])
+        done = 0
+        while done < limit:
+            if deadline.expired():
+                return None
+            x, istop, itn = spla.lsmr(
+                jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, x0=x,
+                maxiter=min(max(1, int(LSMR_PIECE_S / per)), limit - done))[:3]
+            done += max(int(itn), 1)
+            if istop != 7:  # (7: the piece's iteration limit)
+                break
+        return x
     return np.linalg.lstsq(jac, rhs, rcond=rcond)[0]
 
 
@@ -400,8 +430,13 @@ def _escape(
     return best
 
 
+#: :attr:`ProjectionResult.message` of a projection that ``deadline`` stopped.
+STOPPED_BY_DEADLINE = "stopped by the deadline"
+
+
 def project(
-    linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60
+    linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60,
+    deadline: Deadline = NEVER,
 ) -> ProjectionResult:
     """Project the given positions onto the constraint set ``l(u) = L``.
 
@@ -411,7 +446,8 @@ def project(
     ``||l^2 - L^2||``.
 
     Returns a result with ``success=False`` when the residual cannot be brought below
-    ``residual_atol`` (for example when the lengths admit no configuration nearby).
+    ``residual_atol`` (for example when the lengths admit no configuration nearby), or when
+    ``deadline`` passes first (message :data:`STOPPED_BY_DEADLINE`).
 
     Examples
     --------
@@ -436,7 +472,11 @@ def project(
         escapes = slow = 0
         for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)
             jac = cons.jacobian(u)
-            found = _line_search(cons, u, _min_norm_step(jac, -g), cost)
+            step = None if deadline.expired() else _min_norm_step(jac, -g, deadline=deadline)
+            if step is None:
+                message = STOPPED_BY_DEADLINE
+                break
+            found = _line_search(cons, u, step, cost)
             if (found is None or found[2] > 0.5 * cost) and escapes < 8:
                 # Poor progress: near a critical configuration a near-null direction dominates
                 # the step. Try steps that ignore it (fix the rest of the residual first), and

@@ -312,7 +312,7 @@ def iter_projected_random_starts(
             return
         pos = np.array(linkage.positions, dtype=float)
         pos[free] += scale * rng.normal(size=int(free.sum()))
-        res = project(linkage.with_positions(pos), tol)
+        res = project(linkage.with_positions(pos), tol, deadline=deadline)
         if res.success:
             yield linkage.coordinates(res.positions)
 
