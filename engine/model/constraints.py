@@ -336,7 +336,8 @@ def _min_norm_step(
     if sp.issparse(jac):
         scale = float(np.sqrt(abs(jac).sum(axis=0).max() * abs(jac).sum(axis=1).max()))
         limit = 20 * sum(jac.shape)
-        per = LSMR_SECONDS_PER_ITERATION + LSMR_SECONDS_PER_VALUE * (jac.nnz + sum(jac.shape))
+        stored = int(jac.nnz)  # type: ignore[union-attr]
+        per = LSMR_SECONDS_PER_ITERATION + LSMR_SECONDS_PER_VALUE * (stored + sum(jac.shape))
         if limit * per <= deadline.remaining():
             return spla.lsmr(
                 jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=limit
@@ -377,9 +378,12 @@ def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
 
 
 def _line_search(
-    cons: Constraints, u: np.ndarray, step: np.ndarray, cost: float
+    cons: Constraints, u: np.ndarray, step: np.ndarray | None, cost: float
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """Backtracking on ``||l^2 - L^2||^2`` along ``step``: the new point, residual, cost."""
+    """Backtracking on ``||l^2 - L^2||^2`` along ``step``: the new point, residual, cost
+    (None without a step)."""
+    if step is None:
+        return None
     t = 1.0
     while t > 1e-10:
         trial = u + t * step
