@@ -10,6 +10,7 @@ projected onto the constraint set.
 from __future__ import annotations
 
 import heapq
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -93,32 +94,36 @@ def dyad_plan(linkage: Linkage, rotor: int) -> list[Step] | None:
     return plan
 
 
-def _candidates(step: Step, pos: np.ndarray) -> list[np.ndarray]:
+def _candidates(step: Step, pos: np.ndarray) -> list[tuple[float, float]]:
+    """Where ``step`` may put its vertex given the positions ``pos`` (V, 2): both
+    intersections, first root first (none where the circles miss). Python floats: a node of
+    the depth-first enumeration costs microseconds, not numpy's per-call overhead."""
     if step.axis >= 0:  # slider: the line through pos[v] along axis meets a circle
-        base = pos[step.vertex].copy()
+        base = pos[step.vertex].tolist()
         other = 1 - step.axis
-        off = base[other] - pos[step.a][other]
-        disc = step.ra**2 - off**2
+        centre = pos[step.a].tolist()
+        disc = step.ra**2 - (base[other] - centre[other]) ** 2
         if disc < 0:
             return []
         out = []
         for sgn in (1.0, -1.0):
-            p = base.copy()
-            p[step.axis] = pos[step.a][step.axis] + sgn * np.sqrt(disc)
-            out.append(p)
+            p = list(base)
+            p[step.axis] = centre[step.axis] + sgn * math.sqrt(disc)
+            out.append((p[0], p[1]))
         return out
-    c0, c1 = pos[step.a], pos[step.b]
-    delta = c1 - c0
-    dist = float(np.hypot(*delta))
+    (x0, y0), (x1, y1) = pos[step.a].tolist(), pos[step.b].tolist()
+    dx, dy = x1 - x0, y1 - y0
+    dist = math.hypot(dx, dy)
     if dist == 0.0:
         return []
     along = (dist**2 + step.ra**2 - step.rb**2) / (2 * dist)
     h2 = step.ra**2 - along**2
     if h2 < 0:
         return []
-    e = delta / dist
-    normal = np.array([-e[1], e[0]])
-    return [c0 + along * e + sgn * np.sqrt(h2) * normal for sgn in (1.0, -1.0)]
+    ex, ey = dx / dist, dy / dist
+    h = math.sqrt(h2)
+    return [(x0 + along * ex - sgn * h * ey, y0 + along * ey + sgn * h * ex)
+            for sgn in (1.0, -1.0)]
 
 
 #: Nodes (partial assemblies) :func:`assemblies_at` visits at most, per assembly asked for and
@@ -155,7 +160,7 @@ def assemblies_at(
     pos[tip] = pos[pin] + length * np.array([np.cos(angle), np.sin(angle)])
     out: list[np.ndarray] = []
     # (depth, the position of the vertex plan[depth - 1] places; None at the root)
-    stack: list[tuple[int, np.ndarray | None]] = [(0, None)]
+    stack: list[tuple[int, tuple[float, float] | None]] = [(0, None)]
     cap = node_budget(plan, budget)
     nodes = 0
     while stack:

@@ -243,6 +243,9 @@ def trace_curve(
             return curve
         step: _Step | str | None = None
         if h < STEP_COLLAPSE * lim.h_max and not tried_at_u and cons.n_free <= 600:
+            if deadline.expired():  # (a refinement on the augmented system: dense, O(M^3))
+                curve.stop = STOP_TIME
+                return curve
             tried_at_u = True
             step = _cross_ahead(cons, u, t, tol, lim.h_max, options.max_turn, lim.h_cross)
         if step is None:
