@@ -36,9 +36,11 @@ SEARCH_S = 4.0
 
 @pytest.fixture(scope="module")
 def api() -> Iterator[ApiClient]:
-    app = create_app(Settings.from_env().replace(time_limit_s=30.0, search_time_s=SEARCH_S))
+    # one engine worker, warmed by a first request (it loads the compiled kernels, a second or
+    # more from numba's cache): no timed request lands on a cold worker
+    app = create_app(Settings.from_env().replace(time_limit_s=30.0, search_time_s=SEARCH_S,
+                                                 workers=1))
     client = ApiClient(app)
-    # a first request starts the worker process (and loads the compiled kernels): not timed
     assert client.post("/v1/analysis/critical-points",
                        json={"linkage": client.get("/v1/presets/four-bar").json()}
                        ).status_code == 200
