@@ -14,7 +14,6 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from engine.model.budget import NEVER, Deadline
@@ -22,6 +21,7 @@ from engine.model.errors import NoNearbySolution
 from engine.model.hessian import dense_stress_hessian
 from engine.model.linkage import Linkage
 from engine.model.lu import parity
+from engine.model.steps import min_norm_step
 from engine.model.tolerances import NORM_FLOOR, Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
@@ -309,54 +309,6 @@ class ProjectionResult:
     iterations: int
 
 
-#: Singular values below this fraction of the largest are left out of Gauss-Newton steps: near a
-#: critical configuration they would turn the step into a huge move along a near-null direction.
-STEP_RCOND = 1e-7
-
-
-#: What one LSMR iteration is taken to cost at least: seconds per iteration and per stored value
-#: of ``J`` or unknown. A sparse step whose iteration limit could outlast the deadline at this
-#: rate runs in pieces of about :data:`LSMR_PIECE_S`, the deadline looked at between them.
-LSMR_SECONDS_PER_ITERATION = 1e-4
-LSMR_SECONDS_PER_VALUE = 5e-8
-LSMR_PIECE_S = 0.05
-
-
-def _min_norm_step(
-    jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray, rcond: float = STEP_RCOND,
-    deadline: Deadline = NEVER,
-) -> np.ndarray | None:
-    """Minimum-norm least-squares solution of ``J du = rhs`` with small singular values cut
-    (dense: truncated SVD; sparse: LSMR with a matching Tikhonov damping); None when
-    ``deadline`` passed first.
-
-    LSMR's limit is ``20 (E + M)`` iterations of O(E + M) each: seconds from a few hundred
-    rotors on. Where that could outlast the deadline, it runs in pieces, each continuing from
-    the last one's solution (the damping then applies to each piece's correction)."""
-    if sp.issparse(jac):
-        scale = float(np.sqrt(abs(jac).sum(axis=0).max() * abs(jac).sum(axis=1).max()))
-        limit = 20 * sum(jac.shape)
-        stored = int(jac.nnz)  # type: ignore[union-attr]
-        per = LSMR_SECONDS_PER_ITERATION + LSMR_SECONDS_PER_VALUE * (stored + sum(jac.shape))
-        if limit * per <= deadline.remaining():
-            return spla.lsmr(
-                jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=limit
-            )[0]
-        x = np.zeros(jac.shape[1])
-        done = 0
-        while done < limit:
-            if deadline.expired():
-                return None
-            x, istop, itn = spla.lsmr(
-                jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, x0=x,
-                maxiter=min(max(1, int(LSMR_PIECE_S / per)), limit - done))[:3]
-            done += max(int(itn), 1)
-            if istop != 7:  # (7: the piece's iteration limit)
-                break
-        return x
-    return np.linalg.lstsq(jac, rhs, rcond=rcond)[0]
-
-
 def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
     """Nudge the free ends of bars whose ends coincide but whose target length is positive.
 
@@ -476,7 +428,7 @@ def project(
         escapes = slow = 0
         for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)
             jac = cons.jacobian(u)
-            step = None if deadline.expired() else _min_norm_step(jac, -g, deadline=deadline)
+            step = None if deadline.expired() else min_norm_step(jac, -g, deadline=deadline)
             if step is None:
                 message = STOPPED_BY_DEADLINE
                 break
@@ -486,7 +438,7 @@ def project(
                 # the step. Try steps that ignore it (fix the rest of the residual first), and
                 # leaving along negative curvature of the cost; keep the best.
                 escapes += 1
-                tries = [_line_search(cons, u, _min_norm_step(jac, -g, rc), cost)
+                tries = [_line_search(cons, u, min_norm_step(jac, -g, rc), cost)
                          for rc in (1e-4, 1e-2)] if not cons.use_sparse else []
                 tries += [found, _escape(cons, u, g, cost)]
                 done = [x for x in tries if x is not None]

@@ -113,7 +113,7 @@ def _candidates(step: Step, pos: np.ndarray) -> list[tuple[float, float]]:
         return out
     (x0, y0), (x1, y1) = pos[step.a].tolist(), pos[step.b].tolist()
     dx, dy = x1 - x0, y1 - y0
-    dist = math.hypot(dx, dy)
+    dist = float(np.hypot(dx, dy))  # (numpy's: math.hypot may differ in the last bit)
     if dist == 0.0:
         return []
     along = (dist**2 + step.ra**2 - step.rb**2) / (2 * dist)
