@@ -179,6 +179,35 @@ def assemblies_at(
     return out, False
 
 
+def _level_roots(step: Step, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_candidates` for every partial assembly of ``pos`` (N, V, 2) at once: where both
+    roots exist (N,), the first roots and the second (N, 2), the same arithmetic array-wise."""
+    if step.axis >= 0:
+        other = 1 - step.axis
+        off = pos[:, step.vertex, other] - pos[:, step.a, other]
+        disc = step.ra**2 - off**2
+        keep = disc >= 0
+        root = np.sqrt(np.where(keep, disc, 0.0))
+        first = pos[:, step.vertex].copy()
+        second = first.copy()
+        first[:, step.axis] = pos[:, step.a, step.axis] + 1.0 * root
+        second[:, step.axis] = pos[:, step.a, step.axis] + -1.0 * root
+        return keep, first, second
+    c0, c1 = pos[:, step.a], pos[:, step.b]
+    delta = c1 - c0
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    nonzero = dist != 0.0
+    safe = np.where(nonzero, dist, 1.0)
+    along = (safe**2 + step.ra**2 - step.rb**2) / (2 * safe)
+    h2 = step.ra**2 - along**2
+    keep = nonzero & (h2 >= 0)
+    e = delta / safe[:, None]
+    normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
+    mid = c0 + along[:, None] * e
+    root = np.sqrt(np.where(keep, h2, 0.0))
+    return keep, mid + (1.0 * root)[:, None] * normal, mid + (-1.0 * root)[:, None] * normal
+
+
 #: Partial assemblies held at once by :func:`assemblies_at_angles` (all angles, one level of the
 #: plan); past it, the angles with the largest trees are left to :func:`assemblies_at`.
 MAX_BATCHED_ASSEMBLIES = 1 << 16
@@ -228,31 +257,7 @@ def assemblies_at_angles(
             break  # every tree is done (dead ends) or left to assemblies_at
         if deadline.expired():
             return [([], True)] * n_angles
-        if step.axis >= 0:
-            other = 1 - step.axis
-            off = pos[:, step.vertex, other] - pos[:, step.a, other]
-            disc = step.ra**2 - off**2
-            keep = disc >= 0
-            root = np.sqrt(np.where(keep, disc, 0.0))
-            first = pos[:, step.vertex].copy()
-            second = first.copy()
-            first[:, step.axis] = pos[:, step.a, step.axis] + 1.0 * root
-            second[:, step.axis] = pos[:, step.a, step.axis] + -1.0 * root
-        else:
-            c0, c1 = pos[:, step.a], pos[:, step.b]
-            delta = c1 - c0
-            dist = np.hypot(delta[:, 0], delta[:, 1])
-            nonzero = dist != 0.0
-            safe = np.where(nonzero, dist, 1.0)
-            along = (safe**2 + step.ra**2 - step.rb**2) / (2 * safe)
-            h2 = step.ra**2 - along**2
-            keep = nonzero & (h2 >= 0)
-            e = delta / safe[:, None]
-            normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
-            mid = c0 + along[:, None] * e
-            root = np.sqrt(np.where(keep, h2, 0.0))
-            first = mid + (1.0 * root)[:, None] * normal
-            second = mid + (-1.0 * root)[:, None] * normal
+        keep, first, second = _level_roots(step, pos)
         rows = np.flatnonzero(keep)
         size = np.bincount(owner[rows], minlength=n_angles)
         seen += 2 * size
