@@ -232,3 +232,18 @@ def test_counts_of_any_size_are_their_decimal_strings(total):
     report = SearchReport.model_validate(search_out(
         {"complete": True, "reason": None, "components_total": total}))
     assert f'"components_total":"{digits}"' in serialise.dumps(report).decode()
+
+
+def test_counts_inside_nested_report_objects_are_decimal_strings_too():
+    """A homotopy's path count (2^199 for a 100-rotor chain) sits in ``search.homotopy``: it
+    made a 500 (orjson refuses integers beyond 64 bits) where only top-level counts were
+    converted."""
+    from service.mappers.space import search_out
+
+    report = SearchReport.model_validate(search_out(
+        {"complete": False, "reason": "searched",
+         "homotopy": {"paths": 2**199, "quadrics": 57, "success": False},
+         "rows": [2**70, 3]}))
+    data = json.loads(serialise.dumps(report))
+    assert data["homotopy"] == {"paths": str(2**199), "quadrics": 57, "success": False}
+    assert data["rows"] == [str(2**70), 3]
