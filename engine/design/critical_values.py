@@ -254,7 +254,8 @@ class _CurveTracing:
         """The seed's lengths lie on a curve already traced (other assemblies of the same
         critical sheet project onto the same curve of the slice)."""
         p = x[-2:][None, :]
-        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves)
+        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves
+                   if len(c) >= 2)  # (a curve the deadline cut to one point: no segment)
 
     def starts_at(self, p0: np.ndarray) -> np.ndarray:
         """The starts (K, M + E + 2) of the seed lengths ``p0``: every critical point (refined,
@@ -272,6 +273,9 @@ class _CurveTracing:
             + [(m.critical_u, m.critical_sigma) for m in res.near_misses]
         )
         for u0, s0 in found:
+            if self.deadline.expired():
+                self.timed_out = True
+                break
             if s0 is None:  # (a near miss's configuration is refined already, with its stress)
                 ref = refine_critical(cons, u0, self.tol)
                 u0, s0 = ref.u, ref.sigma
@@ -286,6 +290,9 @@ class _CurveTracing:
             return
         xs = _onto_solutions_batch(self.sys, np.concatenate(starts))
         for x in xs:
+            if self.deadline.expired():  # (every start left would be followed a little)
+                self.timed_out = True
+                return
             self.seeds_tried += 1
             if np.max(np.abs(self.sys.g(x))) > 1e-9 or self.known(x):
                 continue

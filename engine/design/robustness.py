@@ -197,6 +197,10 @@ def _slsqp(problem: _MarginProblem, x0: np.ndarray, deadline: Deadline) -> Optim
     )
 
 
+class _OutOfTime(Exception):
+    """The deadline passed inside a local search's least squares."""
+
+
 def _local(
     cons: Constraints, adj: np.ndarray, u0: np.ndarray, s0: np.ndarray, tol: Tolerances,
     deadline: Deadline = NEVER,
@@ -208,12 +212,21 @@ def _local(
     # start that lands on a degenerate configuration (a bar shrunk to nearly nothing) is in
     # that configuration's basin, where SLSQP spends its whole iteration budget for nothing.
     s0 = s0 * scale / max(float(np.linalg.norm(s0 * lengths(u0))), NORM_FLOOR)
+
+    def eq_in_time(x: np.ndarray) -> np.ndarray:
+        # (each evaluation: the deadline ends the least squares too, as it ends SLSQP)
+        if deadline.expired():
+            raise _OutOfTime
+        return eq(x)
+
     # a run that diverges (the stress growing without bound) overflows; it is rejected below
     with np.errstate(over="ignore", invalid="ignore"):
         try:
-            pre = least_squares(eq, np.concatenate([u0, s0]), jac=problem.eq_jac, method="trf",
-                                xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=15)
+            pre = least_squares(eq_in_time, np.concatenate([u0, s0]), jac=problem.eq_jac,
+                                method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=15)
         except ValueError:  # not finite at the start
+            return None
+        except _OutOfTime:
             return None
         if not np.all(np.isfinite(pre.x)) or (
                 np.min(lengths(pre.x[:m])) < DEGENERATE_START_REL * scale):
@@ -345,7 +358,7 @@ def _multistart(
     planned = len(starts) + 2 * extra_starts
     cut = cut or deadline.expired()
     if not cut:
-        for u0 in iter_projected_random_starts(linkage, tol, extra_starts, rng):
+        for u0 in iter_projected_random_starts(linkage, tol, extra_starts, rng, deadline):
             starts.append(refine_critical(cons, u0, tol).u)
             if deadline.expired():
                 cut = True

@@ -244,7 +244,7 @@ def _continue(
     passes = 0
     while len(pts) < budget:
         passes += 1
-        if passes % 16 == 0 and deadline.expired():
+        if passes % 16 == 1 and deadline.expired():  # (the first pass too)
             return pts, REASON_TIME
         if h < 1e-9 * h_max:
             return pts, "step underflow"

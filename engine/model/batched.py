@@ -187,7 +187,8 @@ def project_many(
     same stopping rules; an iteration in which a row needs the escapes of poor progress runs
     them with the scalar helpers for that row. Returns the projected coordinates and whether
     each met ``residual_atol`` (the tests compare with :func:`project` one start at a time)."""
-    from engine.model.constraints import STEP_RCOND, _escape, _unstick
+    from engine.model.constraints import _escape, _unstick
+    from engine.model.steps import STEP_RCOND
 
     batch = BatchedConstraints(cons)
     targets = batch.lengths**2

@@ -14,13 +14,14 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from engine.model.budget import NEVER, Deadline
 from engine.model.errors import NoNearbySolution
 from engine.model.hessian import dense_stress_hessian
 from engine.model.linkage import Linkage
 from engine.model.lu import parity
+from engine.model.steps import min_norm_step
 from engine.model.tolerances import NORM_FLOOR, Tolerances
 
 #: Above this many free coordinates, matrices are built and factorised as ``scipy.sparse``.
@@ -308,24 +309,6 @@ class ProjectionResult:
     iterations: int
 
 
-#: Singular values below this fraction of the largest are left out of Gauss-Newton steps: near a
-#: critical configuration they would turn the step into a huge move along a near-null direction.
-STEP_RCOND = 1e-7
-
-
-def _min_norm_step(
-    jac: np.ndarray | sp.csr_matrix, rhs: np.ndarray, rcond: float = STEP_RCOND
-) -> np.ndarray:
-    """Minimum-norm least-squares solution of ``J du = rhs`` with small singular values cut
-    (dense: truncated SVD; sparse: LSMR with a matching Tikhonov damping)."""
-    if sp.issparse(jac):
-        scale = float(np.sqrt(abs(jac).sum(axis=0).max() * abs(jac).sum(axis=1).max()))
-        return spla.lsmr(
-            jac, rhs, damp=rcond * scale, atol=1e-14, btol=1e-14, maxiter=20 * sum(jac.shape)
-        )[0]
-    return np.linalg.lstsq(jac, rhs, rcond=rcond)[0]
-
-
 def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
     """Nudge the free ends of bars whose ends coincide but whose target length is positive.
 
@@ -347,9 +330,12 @@ def _unstick(cons: Constraints, u: np.ndarray) -> np.ndarray:
 
 
 def _line_search(
-    cons: Constraints, u: np.ndarray, step: np.ndarray, cost: float
+    cons: Constraints, u: np.ndarray, step: np.ndarray | None, cost: float
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """Backtracking on ``||l^2 - L^2||^2`` along ``step``: the new point, residual, cost."""
+    """Backtracking on ``||l^2 - L^2||^2`` along ``step``: the new point, residual, cost
+    (None without a step)."""
+    if step is None:
+        return None
     t = 1.0
     while t > 1e-10:
         trial = u + t * step
@@ -400,8 +386,13 @@ def _escape(
     return best
 
 
+#: :attr:`ProjectionResult.message` of a projection that ``deadline`` stopped.
+STOPPED_BY_DEADLINE = "stopped by the deadline"
+
+
 def project(
-    linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60
+    linkage: Linkage, tolerances: Tolerances | None = None, max_iter: int = 60,
+    deadline: Deadline = NEVER,
 ) -> ProjectionResult:
     """Project the given positions onto the constraint set ``l(u) = L``.
 
@@ -411,7 +402,8 @@ def project(
     ``||l^2 - L^2||``.
 
     Returns a result with ``success=False`` when the residual cannot be brought below
-    ``residual_atol`` (for example when the lengths admit no configuration nearby).
+    ``residual_atol`` (for example when the lengths admit no configuration nearby), or when
+    ``deadline`` passes first (message :data:`STOPPED_BY_DEADLINE`).
 
     Examples
     --------
@@ -436,13 +428,17 @@ def project(
         escapes = slow = 0
         for iterations in range(1, max_iter + 1):  # noqa: B007 (reported after the loop)
             jac = cons.jacobian(u)
-            found = _line_search(cons, u, _min_norm_step(jac, -g), cost)
+            step = None if deadline.expired() else min_norm_step(jac, -g, deadline=deadline)
+            if step is None:
+                message = STOPPED_BY_DEADLINE
+                break
+            found = _line_search(cons, u, step, cost)
             if (found is None or found[2] > 0.5 * cost) and escapes < 8:
                 # Poor progress: near a critical configuration a near-null direction dominates
                 # the step. Try steps that ignore it (fix the rest of the residual first), and
                 # leaving along negative curvature of the cost; keep the best.
                 escapes += 1
-                tries = [_line_search(cons, u, _min_norm_step(jac, -g, rc), cost)
+                tries = [_line_search(cons, u, min_norm_step(jac, -g, rc), cost)
                          for rc in (1e-4, 1e-2)] if not cons.use_sparse else []
                 tries += [found, _escape(cons, u, g, cost)]
                 done = [x for x in tries if x is not None]

@@ -9,12 +9,15 @@ projected onto the constraint set.
 
 from __future__ import annotations
 
+import heapq
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from engine.model.batched import BATCH_MAX_FREE, project_many
+from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints, project
 from engine.model.linkage import Linkage
 from engine.model.tolerances import Tolerances
@@ -41,71 +44,114 @@ def rotors(linkage: Linkage) -> list[int]:
 
 
 def dyad_plan(linkage: Linkage, rotor: int) -> list[Step] | None:
-    """Order in which the vertices are placed once ``rotor``'s tip is, or None."""
+    """Order in which the vertices are placed once ``rotor``'s tip is, or None.
+
+    At every step the vertex placed is the one of lowest index that can be (two placed
+    neighbours, or one for a slider), from its first placed neighbours in bar order. A vertex
+    that can be placed stays so, so the candidates wait in a heap: O((V + E) log V), where
+    scanning the unplaced vertices at every step cost O(V^2) (seconds at a few thousand
+    vertices, before any deadline is looked at)."""
     if linkage.dimension != 2:
         return None
     full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
-    placed = set(np.flatnonzero(full).tolist())
+    placed = full.copy()
     pin, tip = linkage.ends[rotor]
     if not full[pin]:
         pin, tip = tip, pin
-    placed.add(int(tip))
+    placed[int(tip)] = True
     nbrs: dict[int, list[tuple[int, float]]] = {v: [] for v in range(linkage.n_vertices)}
-    for (i, j), length in zip(linkage.ends, linkage.lengths, strict=True):
-        nbrs[int(i)].append((int(j), float(length)))
-        nbrs[int(j)].append((int(i), float(length)))
+    for (i, j), length in zip(linkage.ends.tolist(), linkage.lengths.tolist(), strict=True):
+        nbrs[i].append((j, length))
+        nbrs[j].append((i, length))
+    n_free_axes = (~np.asarray(linkage.fixed, dtype=bool)).sum(axis=1)
+    free_axis = np.argmax(~np.asarray(linkage.fixed, dtype=bool), axis=1)
+    # placed neighbours (bars to them, with multiplicity) each vertex needs: 2, 1 on a slider
+    need = np.where(n_free_axes == 1, 1, 2)
+    known = np.zeros(linkage.n_vertices, dtype=int)
+    ready: list[int] = []
+
+    def mark(v: int) -> None:
+        for w, _ in nbrs[v]:
+            if not placed[w]:
+                known[w] += 1
+                if known[w] == need[w]:
+                    heapq.heappush(ready, w)
+
+    for v in np.flatnonzero(placed).tolist():
+        mark(v)
     plan: list[Step] = []
-    todo = [v for v in range(linkage.n_vertices) if v not in placed]
-    while todo:
-        for v in todo:
-            known = [(w, ln) for w, ln in nbrs[v] if w in placed]
-            free_axes = np.flatnonzero(~linkage.fixed[v])
-            if len(free_axes) == 2 and len(known) >= 2:
-                plan.append(Step(v, known[0][0], known[0][1], known[1][0], known[1][1]))
-                break
-            if len(free_axes) == 1 and len(known) >= 1:
-                plan.append(Step(v, known[0][0], known[0][1], axis=int(free_axes[0])))
-                break
-        else:
+    for _ in range(int((~placed).sum())):
+        if not ready:
             return None
-        placed.add(plan[-1].vertex)
-        todo.remove(plan[-1].vertex)
+        v = heapq.heappop(ready)
+        first = [(w, ln) for w, ln in nbrs[v] if placed[w]][:2]
+        if n_free_axes[v] == 2:
+            plan.append(Step(v, first[0][0], first[0][1], first[1][0], first[1][1]))
+        else:
+            plan.append(Step(v, first[0][0], first[0][1], axis=int(free_axis[v])))
+        placed[v] = True
+        mark(v)
     return plan
 
 
-def _candidates(step: Step, pos: np.ndarray) -> list[np.ndarray]:
+def _candidates(step: Step, pos: np.ndarray) -> list[tuple[float, float]]:
+    """Where ``step`` may put its vertex given the positions ``pos`` (V, 2): both
+    intersections, first root first (none where the circles miss). Python floats: a node of
+    the depth-first enumeration costs microseconds, not numpy's per-call overhead."""
     if step.axis >= 0:  # slider: the line through pos[v] along axis meets a circle
-        base = pos[step.vertex].copy()
+        base = pos[step.vertex].tolist()
         other = 1 - step.axis
-        off = base[other] - pos[step.a][other]
-        disc = step.ra**2 - off**2
+        centre = pos[step.a].tolist()
+        disc = step.ra**2 - (base[other] - centre[other]) ** 2
         if disc < 0:
             return []
         out = []
         for sgn in (1.0, -1.0):
-            p = base.copy()
-            p[step.axis] = pos[step.a][step.axis] + sgn * np.sqrt(disc)
-            out.append(p)
+            p = list(base)
+            p[step.axis] = centre[step.axis] + sgn * math.sqrt(disc)
+            out.append((p[0], p[1]))
         return out
-    c0, c1 = pos[step.a], pos[step.b]
-    delta = c1 - c0
-    dist = float(np.hypot(*delta))
+    (x0, y0), (x1, y1) = pos[step.a].tolist(), pos[step.b].tolist()
+    dx, dy = x1 - x0, y1 - y0
+    dist = float(np.hypot(dx, dy))  # (numpy's: math.hypot may differ in the last bit)
     if dist == 0.0:
         return []
     along = (dist**2 + step.ra**2 - step.rb**2) / (2 * dist)
     h2 = step.ra**2 - along**2
     if h2 < 0:
         return []
-    e = delta / dist
-    normal = np.array([-e[1], e[0]])
-    return [c0 + along * e + sgn * np.sqrt(h2) * normal for sgn in (1.0, -1.0)]
+    ex, ey = dx / dist, dy / dist
+    h = math.sqrt(h2)
+    return [(x0 + along * ex - sgn * h * ey, y0 + along * ey + sgn * h * ex)
+            for sgn in (1.0, -1.0)]
+
+
+#: Nodes (partial assemblies) :func:`assemblies_at` visits at most, per assembly asked for and
+#: per level of the plan: a tree whose branches fail deep (one part of the linkage assembles in
+#: 2^k ways before another part fails) is cut there, its answer marked truncated.
+NODES_PER_ASSEMBLY_LEVEL = 8
+#: The enumeration looks at its deadline every this many nodes.
+DEADLINE_EVERY_NODES = 256
+
+
+def node_budget(plan: list[Step], budget: int) -> int:
+    """Nodes :func:`assemblies_at` visits at most for ``budget`` assemblies of ``plan``:
+    :data:`NODES_PER_ASSEMBLY_LEVEL` per assembly and level (a tree without dead ends needs at
+    most ``len(plan) + 1`` per assembly)."""
+    return NODES_PER_ASSEMBLY_LEVEL * max(int(budget), 1) * (len(plan) + 1)
 
 
 def assemblies_at(
-    linkage: Linkage, rotor: int, plan: list[Step], angle: float, budget: int
+    linkage: Linkage, rotor: int, plan: list[Step], angle: float, budget: int,
+    deadline: Deadline = NEVER,
 ) -> tuple[list[np.ndarray], bool]:
-    """Every assembly (positions (V, 2)) with ``rotor`` at ``angle``; and whether the budget
-    cut the enumeration short."""
+    """Every assembly (positions (V, 2)) with ``rotor`` at ``angle``; and whether the
+    enumeration was cut short: by the budget of assemblies, by that of nodes
+    (:func:`node_budget`) or by ``deadline``.
+
+    Depth-first, on one array of positions: a node's children are computed from the positions
+    of its ancestors, which no node visited in between overwrites (they are all its
+    descendants), so a node costs O(1), not a copy of the V positions."""
     pin, tip = (int(x) for x in linkage.ends[rotor])
     if not linkage.fixed[pin].all():
         pin, tip = tip, pin
@@ -113,30 +159,67 @@ def assemblies_at(
     length = float(linkage.lengths[rotor])
     pos[tip] = pos[pin] + length * np.array([np.cos(angle), np.sin(angle)])
     out: list[np.ndarray] = []
-    stack: list[tuple[int, np.ndarray]] = [(0, pos)]
-    truncated = False
+    # (depth, the position of the vertex plan[depth - 1] places; None at the root)
+    stack: list[tuple[int, tuple[float, float] | None]] = [(0, None)]
+    cap = node_budget(plan, budget)
+    nodes = 0
     while stack:
-        depth, cur = stack.pop()
+        if nodes >= cap or (nodes % DEADLINE_EVERY_NODES == 0 and deadline.expired()):
+            return out, True
+        nodes += 1
+        depth, where = stack.pop()
+        if where is not None:
+            pos[plan[depth - 1].vertex] = where
         if depth == len(plan):
-            out.append(cur)
+            out.append(pos.copy())
             if len(out) >= budget:
-                truncated = bool(stack)
-                break
+                return out, bool(stack)
             continue
-        for cand in _candidates(plan[depth], cur):
-            nxt = cur.copy()
-            nxt[plan[depth].vertex] = cand
-            stack.append((depth + 1, nxt))
-    return out, truncated
+        stack += [(depth + 1, cand) for cand in _candidates(plan[depth], pos)]
+    return out, False
+
+
+def _level_roots(step: Step, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_candidates` for every partial assembly of ``pos`` (N, V, 2) at once: where both
+    roots exist (N,), the first roots and the second (N, 2), the same arithmetic array-wise."""
+    if step.axis >= 0:
+        other = 1 - step.axis
+        off = pos[:, step.vertex, other] - pos[:, step.a, other]
+        disc = step.ra**2 - off**2
+        keep = disc >= 0
+        root = np.sqrt(np.where(keep, disc, 0.0))
+        first = pos[:, step.vertex].copy()
+        second = first.copy()
+        first[:, step.axis] = pos[:, step.a, step.axis] + 1.0 * root
+        second[:, step.axis] = pos[:, step.a, step.axis] + -1.0 * root
+        return keep, first, second
+    c0, c1 = pos[:, step.a], pos[:, step.b]
+    delta = c1 - c0
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    nonzero = dist != 0.0
+    safe = np.where(nonzero, dist, 1.0)
+    along = (safe**2 + step.ra**2 - step.rb**2) / (2 * safe)
+    h2 = step.ra**2 - along**2
+    keep = nonzero & (h2 >= 0)
+    e = delta / safe[:, None]
+    normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
+    mid = c0 + along[:, None] * e
+    root = np.sqrt(np.where(keep, h2, 0.0))
+    return keep, mid + (1.0 * root)[:, None] * normal, mid + (-1.0 * root)[:, None] * normal
 
 
 #: Partial assemblies held at once by :func:`assemblies_at_angles` (all angles, one level of the
 #: plan); past it, the angles with the largest trees are left to :func:`assemblies_at`.
 MAX_BATCHED_ASSEMBLIES = 1 << 16
+#: Coordinates :func:`assemblies_at_angles` copies at most over the whole plan (each level
+#: copies its partial assemblies' V positions): fewer assemblies per level on long plans of
+#: large linkages, whose angles are left to :func:`assemblies_at` (O(1) a node) instead.
+MAX_BATCHED_WORK = 1 << 26
 
 
 def assemblies_at_angles(
-    linkage: Linkage, rotor: int, plan: list[Step], angles: np.ndarray, budget: int
+    linkage: Linkage, rotor: int, plan: list[Step], angles: np.ndarray, budget: int,
+    deadline: Deadline = NEVER,
 ) -> list[tuple[list[np.ndarray], bool]]:
     """:func:`assemblies_at` at every angle of ``angles`` at once: the same assemblies (the same
     arithmetic, array-wise), in the same order, with the same truncation flags.
@@ -148,7 +231,9 @@ def assemblies_at_angles(
     search, which stops with its stack not empty exactly when some node of the tree (a later
     assembly or a dead end) comes after the last one kept: a right sibling of one of its
     ancestors. Angles whose trees would hold more than :data:`MAX_BATCHED_ASSEMBLIES` nodes in
-    all on one level are left to :func:`assemblies_at` itself.
+    all on one level (fewer on long plans, :data:`MAX_BATCHED_WORK`), or more nodes than
+    :func:`node_budget` in all, are left to :func:`assemblies_at` itself. Once ``deadline``
+    has passed, every angle not yet enumerated answers no assembly, cut short.
     """
     angles = np.asarray(angles, dtype=float).reshape(-1)
     n_angles = len(angles)
@@ -161,41 +246,27 @@ def assemblies_at_angles(
     pos[:, tip] = base[pin] + length * np.stack([np.cos(angles), np.sin(angles)], axis=1)
     owner = np.arange(n_angles)  # the angle of each partial assembly
     scalar = np.zeros(n_angles, dtype=bool)  # angles left to assemblies_at
+    seen = np.ones(n_angles, dtype=int)  # each angle's nodes so far (the root)
+    cap = node_budget(plan, budget)
+    most = min(MAX_BATCHED_ASSEMBLIES, MAX_BATCHED_WORK // (2 * len(base) * max(len(plan), 1)))
     # per level below the root: each node's owner and the index of its parent one level up
     owners: list[np.ndarray] = []
     parents: list[np.ndarray] = []
     for step in plan:
-        if step.axis >= 0:
-            other = 1 - step.axis
-            off = pos[:, step.vertex, other] - pos[:, step.a, other]
-            disc = step.ra**2 - off**2
-            keep = disc >= 0
-            root = np.sqrt(np.where(keep, disc, 0.0))
-            first = pos[:, step.vertex].copy()
-            second = first.copy()
-            first[:, step.axis] = pos[:, step.a, step.axis] + 1.0 * root
-            second[:, step.axis] = pos[:, step.a, step.axis] + -1.0 * root
-        else:
-            c0, c1 = pos[:, step.a], pos[:, step.b]
-            delta = c1 - c0
-            dist = np.hypot(delta[:, 0], delta[:, 1])
-            nonzero = dist != 0.0
-            safe = np.where(nonzero, dist, 1.0)
-            along = (safe**2 + step.ra**2 - step.rb**2) / (2 * safe)
-            h2 = step.ra**2 - along**2
-            keep = nonzero & (h2 >= 0)
-            e = delta / safe[:, None]
-            normal = np.stack([-e[:, 1], e[:, 0]], axis=1)
-            mid = c0 + along[:, None] * e
-            root = np.sqrt(np.where(keep, h2, 0.0))
-            first = mid + (1.0 * root)[:, None] * normal
-            second = mid + (-1.0 * root)[:, None] * normal
+        if not len(owner):
+            break  # every tree is done (dead ends) or left to assemblies_at
+        if deadline.expired():
+            return [([], True)] * n_angles
+        keep, first, second = _level_roots(step, pos)
         rows = np.flatnonzero(keep)
-        if 2 * len(rows) > MAX_BATCHED_ASSEMBLIES:
+        size = np.bincount(owner[rows], minlength=n_angles)
+        seen += 2 * size
+        # trees past the node budget: the depth-first search cuts them where it does
+        scalar |= seen > cap
+        if 2 * len(rows) > most:
             # the largest trees go to the depth-first search; the others stay batched
-            size = np.bincount(owner[rows], minlength=n_angles)
-            scalar |= size > (MAX_BATCHED_ASSEMBLIES // 2) // n_angles
-            rows = rows[~scalar[owner[rows]]]
+            scalar |= size > (most // 2) // n_angles
+        rows = rows[~scalar[owner[rows]]]
         # children in depth-first order: each parent's second intersection, then its first
         children = np.repeat(pos[rows], 2, axis=0)
         children[0::2, step.vertex] = second[rows]
@@ -214,7 +285,7 @@ def assemblies_at_angles(
     out: list[tuple[list[np.ndarray], bool]] = []
     for k in range(n_angles):
         if scalar[k]:
-            out.append(assemblies_at(linkage, rotor, plan, float(angles[k]), budget))
+            out.append(assemblies_at(linkage, rotor, plan, float(angles[k]), budget, deadline))
             continue
         stop = starts[k] + min(int(count[k]), budget)
         truncated = False
@@ -230,9 +301,11 @@ def assemblies_at_angles(
 
 
 def iter_projected_random_starts(
-    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
+    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator,
+    deadline: Deadline = NEVER,
 ) -> Iterator[np.ndarray]:
-    """The projections of :func:`projected_random_starts`, one at a time."""
+    """The projections of :func:`projected_random_starts`, one at a time (large linkages: one
+    projection each, until ``deadline``)."""
     cons = Constraints(linkage)
     scale = float(np.median(linkage.lengths[cons.bars])) if cons.n_constraints else 1.0
     free = ~linkage.fixed
@@ -245,19 +318,27 @@ def iter_projected_random_starts(
             yield projected[k]
         return
     for _ in range(count):
+        if deadline.expired():
+            return
         pos = np.array(linkage.positions, dtype=float)
         pos[free] += scale * rng.normal(size=int(free.sum()))
-        res = project(linkage.with_positions(pos), tol)
+        res = project(linkage.with_positions(pos), tol, deadline=deadline)
         if res.success:
             yield linkage.coordinates(res.positions)
 
 
 def projected_random_starts(
-    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator
+    linkage: Linkage, tol: Tolerances, count: int, rng: np.random.Generator,
+    deadline: Deadline = NEVER,
 ) -> list[np.ndarray]:
     """``count`` random perturbations of the given positions (scale: the median bar length),
-    each projected onto the constraints; only the projections that succeed are returned."""
-    return list(iter_projected_random_starts(linkage, tol, count, rng))
+    each projected onto the constraints; only the projections that succeed are returned (those
+    made before ``deadline``)."""
+    return list(iter_projected_random_starts(linkage, tol, count, rng, deadline))
+
+
+#: ``report["seeding"]`` of a seed generation that the deadline stopped.
+STOPPED_BY_TIME = "stopped: time"
 
 
 @dataclass(frozen=True)
@@ -279,6 +360,7 @@ def iter_seeds(
     max_rotors: int = 4,
     *,
     with_random: bool = True,
+    deadline: Deadline = NEVER,
 ) -> Iterator[np.ndarray]:
     """The seeds of :func:`seeds`, in the same order, generated on demand.
 
@@ -288,6 +370,8 @@ def iter_seeds(
     is filled as generation proceeds; its counts describe the seeds generated so far.
     ``with_random=False``: the rotor sweeps' seeds only; :func:`iter_random_seeds` (same
     ``report``, ``random_starts`` and ``seed``) then gives the rest, when it is wanted.
+    Once ``deadline`` has passed no more seeds are generated and ``report["seeding"]`` is
+    ``"stopped: time"``.
     """
     cons = Constraints(linkage)
     ends = linkage.ends[cons.bars]
@@ -310,6 +394,9 @@ def iter_seeds(
         **counts,
     })
     for rotor in candidates:
+        if deadline.expired():
+            report["seeding"] = STOPPED_BY_TIME
+            return
         plan = dyad_plan(linkage, rotor)
         if plan is None:
             continue
@@ -319,7 +406,10 @@ def iter_seeds(
         # assemblies_at angle by angle) and checked at once (the same residual as
         # cons.max_residual of their coordinates, one vectorised expression); the report still
         # follows the consumer angle by angle
-        swept_angles = assemblies_at_angles(linkage, rotor, plan, grid, budget)
+        swept_angles = assemblies_at_angles(linkage, rotor, plan, grid, budget, deadline)
+        if deadline.expired():  # (the sweep may be cut anywhere: its seeds are not used)
+            report["seeding"] = STOPPED_BY_TIME
+            return
         everything = [a for found, _ in swept_angles for a in found]
         if everything:
             stack = np.array(everything, dtype=float)  # (F, V, d)
@@ -340,7 +430,7 @@ def iter_seeds(
                     yield us[k]
             start = stop
     if with_random:
-        yield from iter_random_seeds(linkage, tol, report, random_starts, seed)
+        yield from iter_random_seeds(linkage, tol, report, random_starts, seed, deadline)
 
 
 def iter_random_seeds(
@@ -349,19 +439,23 @@ def iter_random_seeds(
     report: dict[str, object],
     random_starts: int = 16,
     seed: int = 0,
+    deadline: Deadline = NEVER,
 ) -> Iterator[np.ndarray]:
     """The seeds that end :func:`iter_seeds`, after its rotor sweeps: the random projections,
-    counted on in ``report`` (as filled by ``iter_seeds(..., with_random=False)``)."""
+    counted on in ``report`` (as filled by ``iter_seeds(..., with_random=False)``), until
+    ``deadline``."""
     # The random projections come last, drawn from one generator in order: stopping early
     # never changes the seeds that were generated.
     rng = np.random.default_rng(seed)
     counts = {k: v if isinstance(v := report.get(k), int) else 0
               for k in ("seeds", "random_starts_projected")}
-    for u in iter_projected_random_starts(linkage, tol, random_starts, rng):
+    for u in iter_projected_random_starts(linkage, tol, random_starts, rng, deadline):
         counts["seeds"] += 1
         counts["random_starts_projected"] += 1
         report.update(counts)
         yield u
+    if deadline.expired():  # (conservatively: it may have cut the last projections)
+        report["seeding"] = STOPPED_BY_TIME
 
 
 def seeds(

@@ -244,7 +244,7 @@ def trace_curve(
         step: _Step | str | None = None
         if h < STEP_COLLAPSE * lim.h_max and not tried_at_u and cons.n_free <= 600:
             tried_at_u = True
-            step = _cross_ahead(cons, u, t, tol, lim.h_max, options.max_turn, lim.h_cross)
+            step = _cross_ahead(cons, u, t, tol, lim.h_max, options.max_turn, lim.h_cross, deadline)
         if step is None:
             step = _attempt(cons, u, t, h, fac, sign, tol, options, lim, u_prev, t_in)
         if step == SHRINK or (isinstance(step, _Step)
@@ -429,17 +429,20 @@ def _cross_ahead(
     h_max: float,
     max_turn: float,
     h_min: float,
+    deadline: Deadline = NEVER,
 ) -> _Step | None:
     """After the step collapsed: the critical point just ahead of ``u`` (within
     ``10 STEP_COLLAPSE h_max``, in the direction of ``t``) crossed to the point beyond it on
     the same branch, or None (no critical point there: a near miss, which the tracer passes
-    with small steps).
+    with small steps; or ``deadline`` has passed: the refinement is dense, O(M^3)).
 
     Near an exact branch point the corrector's own residual acts as a length perturbation of
     ``~residual_atol``, which splits the crossing into a tiny hyperbola
     (``~sqrt(residual_atol L)`` across) whose arc turns onto the other branch in steps that
     each pass the turn test: locating the critical point and jumping across it keeps the
     branch."""
+    if deadline.expired():
+        return None
     ref = refine_critical(cons, u, tol)
     ahead = ref.u - u
     dist = float(np.linalg.norm(ahead))

@@ -129,9 +129,10 @@ class LinkageSystem:
         quad[:, 0, 0] -= (lk.lengths[cons.bars] / self.scale) ** 2
         # fewest quadrics: combinations whose quadratic parts cancel are linear equations
         parts = quad[:, 1:, 1:].reshape(e, -1)
-        _, sv, _ = np.linalg.svd(parts, full_matrices=True)
+        # (economic: the same U (E, E) and singular values, without the (M^2, M^2) V that a
+        # full SVD allocates: 12.8 GB at M = 200, a 422 memory-limit for a 100-rotor chain)
+        u_left, sv, _ = np.linalg.svd(parts, full_matrices=False)
         rank = int((sv > LINEAR_RTOL * max(float(sv[0]) if len(sv) else 0.0, 1.0)).sum())
-        u_left = np.linalg.svd(parts, full_matrices=True)[0]
         null = u_left[:, rank:].T  # (E - r, E): null @ parts = 0
         _, _, piv = sla.qr(parts.T, pivoting=True, mode="economic")
         keep = np.sort(piv[:rank])

@@ -23,7 +23,24 @@ MAX_JSON_INT = 2**53 - 1
 def json_int(value: int) -> int | str:
     """``value`` as a JSON number when it is exact in a double, else as its decimal string
     (which no JSON encoder refuses and no client rounds)."""
-    return value if -MAX_JSON_INT <= value <= MAX_JSON_INT else str(value)
+    return value if -MAX_JSON_INT <= value <= MAX_JSON_INT else decimal_digits(value)
+
+
+#: Digits per piece of :func:`decimal_digits` (below Python's 4300-digit limit on ``str(int)``).
+PIECE_DIGITS = 1000
+
+
+def decimal_digits(value: int) -> str:
+    """The decimal string of an integer of any size: ``str`` refuses integers of more than
+    4300 digits (the 20000-rotor chain has 2^19999 components, 6021 digits: a 500), so the
+    digits are taken a thousand at a time (``divmod`` has no such limit)."""
+    sign, value = ("-" if value < 0 else ""), abs(value)
+    base = 10**PIECE_DIGITS
+    pieces: list[str] = []
+    while value >= base:
+        value, low = divmod(value, base)
+        pieces.append(str(low).zfill(PIECE_DIGITS))
+    return sign + str(value) + "".join(reversed(pieces))
 
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.

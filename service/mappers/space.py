@@ -63,13 +63,20 @@ def _critical_out(linkage: EngineLinkage, k: int, cp: CriticalPoint) -> space.Cr
 
 def search_out(search: Mapping[str, object]) -> dict[str, object]:
     """A search report as JSON data: numpy scalars as Python's, integers beyond
-    ``MAX_JSON_INT`` (e.g. ``components_total``) as decimal strings."""
-    out: dict[str, object] = {}
-    for k, v in search.items():
-        value = v.item() if isinstance(v, np.generic) else v
-        out[k] = json_int(value) if isinstance(value, int) and not isinstance(value, bool) \
-            else value
-    return out
+    ``MAX_JSON_INT`` (e.g. ``components_total``, a homotopy's ``paths``: 2^199 for a 100-rotor
+    chain) as decimal strings, inside nested objects and lists too."""
+    return {k: _json_value(v) for k, v in search.items()}
+
+
+def _json_value(v: object) -> object:
+    value = v.item() if isinstance(v, np.generic) else v
+    if isinstance(value, int) and not isinstance(value, bool):
+        return json_int(value)
+    if isinstance(value, Mapping):
+        return {k: _json_value(x) for k, x in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_value(x) for x in value]
+    return value
 
 
 def critical_list_out(

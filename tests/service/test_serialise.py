@@ -215,3 +215,35 @@ def test_counts_beyond_a_json_number_are_decimal_strings():
     data = json.loads(serialise.dumps(report))
     assert data["components_total"] == str(2**53) and data["big"] == str(2**64)
     assert data["small"] == -5 and data["flag"] is True
+
+
+@pytest.mark.parametrize("total", [2**64, -(2**70), 2**19999, 10**3000, 10**4000 - 1],
+                         ids=["2^64", "-2^70", "2^19999", "10^3000", "10^4000-1"])
+def test_counts_of_any_size_are_their_decimal_strings(total):
+    """Beyond ``str(int)``'s 4300 digits too (the 20000-rotor chain's 2^19999 components made
+    a 500); the reference digits come from ``decimal``, which has no such limit."""
+    from decimal import Decimal, localcontext
+
+    from service.mappers.space import search_out
+
+    with localcontext() as ctx:
+        ctx.prec = 7000
+        digits = format(Decimal(total), "f")
+    report = SearchReport.model_validate(search_out(
+        {"complete": True, "reason": None, "components_total": total}))
+    assert f'"components_total":"{digits}"' in serialise.dumps(report).decode()
+
+
+def test_counts_inside_nested_report_objects_are_decimal_strings_too():
+    """A homotopy's path count (2^199 for a 100-rotor chain) sits in ``search.homotopy``: it
+    made a 500 (orjson refuses integers beyond 64 bits) where only top-level counts were
+    converted."""
+    from service.mappers.space import search_out
+
+    report = SearchReport.model_validate(search_out(
+        {"complete": False, "reason": "searched",
+         "homotopy": {"paths": 2**199, "quadrics": 57, "success": False},
+         "rows": [2**70, 3]}))
+    data = json.loads(serialise.dumps(report))
+    assert data["homotopy"] == {"paths": str(2**199), "quadrics": 57, "success": False}
+    assert data["rows"] == [str(2**70), 3]

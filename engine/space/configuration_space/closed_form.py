@@ -236,8 +236,10 @@ def closed_form_critical(ex: Explorer) -> CriticalSearch | None:
         "strain_tol": ex.opt.trace.strain_tol,
     }
     # every sheet of the rotor's whole turn was searched: complete as the general search is
-    # when its curves cover the space and no critical point is degenerate
-    return CriticalSearch(crit, [], SearchReport(search, time_budget_s=granted(ex.deadline),
+    # when its curves cover the space and no critical point is degenerate, and when the
+    # deadline left no candidate unrefined or unclassified
+    return CriticalSearch(crit, [], SearchReport(search, timed_out=ex.timed_out,
+                                                 time_budget_s=granted(ex.deadline),
                                                  argument=ARGUMENT_DERIVED,
                                                  argument_detail=CANDIDATES_ARGUMENT),
                           False)

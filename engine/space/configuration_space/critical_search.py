@@ -50,7 +50,7 @@ def candidates(ex: Explorer) -> list[np.ndarray]:
     # the candidates along the traced curves.
     starts_used = ex.opt.random_starts if ex.cons.n_free <= MULTISTART_MAX_FREE else 0
     rng = np.random.default_rng(ex.opt.seed + 1)
-    starts += projected_random_starts(ex.linkage, ex.tol, starts_used, rng)
+    starts += projected_random_starts(ex.linkage, ex.tol, starts_used, rng, ex.deadline)
     ex.report["critical_multistart"] = starts_used
     return starts
 
@@ -70,7 +70,9 @@ def resolve(
 ) -> tuple[list[CriticalPoint], list[NearMiss], bool, int]:
     """Refine every candidate on the augmented system; deduplicate, classify and merge the
     critical points (near misses only against traced curves): ``(critical points, near
-    misses, degenerate, how many candidates did not refine to a critical point)``."""
+    misses, degenerate, how many candidates did not refine to a critical point)``. Once the
+    deadline has passed the candidates left are neither classified nor measured (the search
+    is then timed out)."""
     exact: list[CriticalPoint] = []
     misses: list[NearMiss] = []
     failed = 0
@@ -79,6 +81,8 @@ def resolve(
     off = [ref.u for ref in found if not ref.critical]
     nearest = iter(ex.nearest_points(np.array(off)) or []) if off else iter([])
     for ref in found:
+        if ex.out_of_time():  # (one classification is a second-order analysis: O(M^3))
+            break
         failed += not ref.critical
         if ref.critical:
             if any(np.linalg.norm(ref.u - c.u) <= SAME_POINT_REL * ex.scale for c in exact):

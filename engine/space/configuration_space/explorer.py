@@ -19,7 +19,7 @@ from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
-from engine.space.assembly import iter_random_seeds, iter_seeds
+from engine.space.assembly import STOPPED_BY_TIME, iter_random_seeds, iter_seeds
 from engine.space.configuration_space.results import (
     MIN_STEP_MAX_REL,
     SpaceOptions,
@@ -317,7 +317,7 @@ class Explorer:
         found = iter_seeds(
             self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
-            with_random=not batch,
+            with_random=not batch, deadline=self.deadline,
         )
         truncated = False
         first = [start] if start is not None else []
@@ -332,7 +332,7 @@ class Explorer:
         stack = np.array(list(itertools.chain(first, found)) if batch else [],
                          dtype=float).reshape(-1, m)
         tail = iter_random_seeds(self.linkage, self.tol, self.report, self.opt.random_starts,
-                                 self.opt.seed) if batch else None
+                                 self.opt.seed, self.deadline) if batch else None
         covered = np.zeros(len(stack), dtype=bool)
         tested = np.zeros(len(stack), dtype=int)
 
@@ -381,6 +381,8 @@ class Explorer:
                 continue
             self.curves.append(curve)
             self._rebuild_tree()  # (lazy: built when next read; on_curve has a tree per curve)
+        if self.report.get("seeding") == STOPPED_BY_TIME:
+            self.timed_out = True  # seeds the deadline kept from being made
         self.report["curves_traced"] = len(self.curves)
         self.report["component_budget_reached"] = truncated
         self.report["open_curves"] = sum(c.stop != "closed" for c in self.curves)

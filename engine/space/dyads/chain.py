@@ -92,13 +92,21 @@ class Chain:
 
 def chain_of(linkage: Linkage) -> Chain | None:
     """The first rotor whose dyad plan places every free vertex with exactly the active bars
-    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None."""
+    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None.
+
+    Such a plan places every free vertex but the rotor's tip, one dyad each, with two active
+    bars each and the rotor: a linkage with more free vertices or another count of active bars
+    is none, decided in O(V + E) before any plan is made (a plan per rotor of a long chain
+    cost seconds before the search's deadline was first looked at)."""
     if linkage.dimension != 2:
         return None
     fixed = np.asarray(linkage.fixed)
     full: np.ndarray = np.asarray(fixed.all(axis=1), dtype=bool)
     if not np.all(full | ~fixed.any(axis=1)):
         return None  # sliders: left to the general engine
+    dyads = int((~full).sum()) - 1
+    if not 0 <= dyads <= MAX_DYADS or int(np.count_nonzero(linkage.active)) != 2 * dyads + 1:
+        return None
     active = Counter(tuple(sorted((int(i), int(j)))) for i, j in linkage.ends[linkage.active])
     for rotor in rotors(linkage):
         plan = dyad_plan(linkage, rotor)

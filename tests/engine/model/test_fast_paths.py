@@ -261,8 +261,8 @@ def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
     fast.trace_all(lk.coordinates())
     assert fast.batched is not None
 
-    def everything(*args, with_random=True):
-        return assembly.iter_seeds(*args, with_random=True)
+    def everything(*args, with_random=True, **kw):
+        return assembly.iter_seeds(*args, with_random=True, **kw)
 
     def nothing(*args):
         return iter(())

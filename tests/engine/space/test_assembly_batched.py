@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from engine.catalogue.presets import PRESETS, build_preset
+from engine.model.budget import NEVER
 from engine.model.errors import EngineError
 from engine.model.tolerances import Tolerances
 from engine.space import assembly
@@ -94,8 +95,8 @@ def test_trees_too_large_to_batch_go_to_the_depth_first_search(monkeypatch):
     assert _assert_same(linkage, budgets=(4, 16, 10**6)) > 0
 
 
-def _one_angle_at_a_time(linkage, rotor, plan, angles, budget):
-    return [assemblies_at(linkage, rotor, plan, float(a), budget) for a in angles]
+def _one_angle_at_a_time(linkage, rotor, plan, angles, budget, deadline=NEVER):
+    return [assemblies_at(linkage, rotor, plan, float(a), budget, deadline) for a in angles]
 
 
 @pytest.mark.parametrize("name,params", [

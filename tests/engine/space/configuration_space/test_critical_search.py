@@ -177,3 +177,29 @@ def test_the_enumeration_knows_the_classical_counts():
     assert [k for *_, k in flat_critical_points(1.0, 1.0, 0.6, 0.6)] == ["branch"] * 2
     assert [k for *_, k in flat_critical_points(1.0, 1.0, 1.0, 1.0)] == ["branch"] * 3
     assert [k for *_, k in flat_critical_points(3.0, 1.0, 1.0, 1.0)] == ["rigid"]
+
+
+def test_a_deadline_passed_during_the_classification_makes_the_answer_incomplete():
+    """resolve() stops classifying once the deadline has passed (issue 23, item 4): the
+    closed-form answer built from it, and the general one, then say ``reason: time``."""
+    from engine.catalogue.presets import build_preset
+    from engine.model.budget import NEVER, Deadline
+    from engine.model.tolerances import Tolerances
+    from engine.space.configuration_space import Explorer, SpaceOptions, closed_form_critical
+    from engine.space.configuration_space.critical_search import resolve
+    from engine.space.dyads import critical_candidates
+
+    lk = build_preset("three-rotor")  # the paper's twelve branch points
+    tol = Tolerances()
+    starts = critical_candidates(lk, tol).points
+    assert starts is not None and len(starts) >= 12
+    ex = Explorer(lk, tol, SpaceOptions(), NEVER)
+    assert len(resolve(ex, list(starts))[0]) == 12 and not ex.timed_out
+    # a deadline already passed: nothing is classified, and the explorer knows it
+    gone = Deadline.after(0.0)
+    cut = Explorer(lk, tol, SpaceOptions(), gone)
+    assert resolve(cut, list(starts))[0] == [] and cut.timed_out
+    answer = closed_form_critical(Explorer(lk, tol, SpaceOptions(), gone))
+    assert answer is None or answer.search.reason == "time"
+    res = find_critical_points(lk, tol, deadline=gone)
+    assert res.search["complete"] is False and res.search["reason"] == "time"
