@@ -126,24 +126,6 @@ class RequestContext:
             })
             await send_with_id({"type": "http.response.body", "body": body})
 
-        async def internal_error(scope: Scope, responded: bool) -> None:
-            # Starlette's outermost middleware would answer the 500 and then re-raise, and
-            # uvicorn closes a connection whose application raised: the client's next request
-            # on it would fail. Answered here instead, the connection is kept.
-            error_log.exception("unhandled error on %s %s", scope.get("method"),
-                                scope.get("path"))
-            if responded:
-                return
-            body = json.dumps({"type": "/problems/internal-error", "title": "Internal error",
-                               "status": 500, "detail": "the service failed unexpectedly",
-                               "errors": []}).encode()
-            await send_with_id({
-                "type": "http.response.start", "status": 500,
-                "headers": [(b"content-type", b"application/problem+json"),
-                            (b"content-length", str(len(body)).encode())],
-            })
-            await send_with_id({"type": "http.response.body", "body": body})
-
         async def reply_413() -> None:
             await reply(413, _problem(
                 413, "body-too-large", "Request body too large",
@@ -195,21 +177,44 @@ class RequestContext:
                     try:
                         await self.app(scope, replay, send_with_id)
                     except Exception:  # answered here, so that the connection stays usable
-                        await internal_error(scope, started["yes"])
+                        await _internal_error(send_with_id, scope, started["yes"])
         finally:
-            seconds = time.perf_counter() - start
-            route = route_label({**original, "route": scope.get("route")})
-            if self.metrics is not None:
-                self.metrics.in_flight.dec()
-                method = str(scope.get("method"))
-                self.metrics.observe(method if method in KNOWN_METHODS else "other", route,
-                                     status["code"], seconds)
-            if log.isEnabledFor(logging.INFO):
-                log.info(json.dumps({
-                    "request_id": request_id,
-                    "method": scope.get("method"),
-                    "route": route,
-                    "path": scope.get("path"),
-                    "status": status["code"],
-                    "duration_ms": round(1e3 * seconds, 2),
-                }))
+            self._record(scope, original, request_id, status["code"], start)
+
+    def _record(self, scope: Scope, original: dict[str, Any], request_id: str, status: int,
+                start: float) -> None:
+        """The request's metrics and access-log line."""
+        seconds = time.perf_counter() - start
+        route = route_label({**original, "route": scope.get("route")})
+        if self.metrics is not None:
+            self.metrics.in_flight.dec()
+            method = str(scope.get("method"))
+            self.metrics.observe(method if method in KNOWN_METHODS else "other", route,
+                                 status, seconds)
+        if log.isEnabledFor(logging.INFO):
+            log.info(json.dumps({
+                "request_id": request_id,
+                "method": scope.get("method"),
+                "route": route,
+                "path": scope.get("path"),
+                "status": status,
+                "duration_ms": round(1e3 * seconds, 2),
+            }))
+
+
+async def _internal_error(send: Send, scope: Scope, responded: bool) -> None:
+    """A 500 problem for an unforeseen error. Starlette's outermost middleware would answer the
+    500 and then re-raise, and uvicorn closes a connection whose application raised: the
+    client's next request on it would fail. Answered here instead, the connection is kept."""
+    error_log.exception("unhandled error on %s %s", scope.get("method"), scope.get("path"))
+    if responded:
+        return
+    body = json.dumps({"type": "/problems/internal-error", "title": "Internal error",
+                       "status": 500, "detail": "the service failed unexpectedly",
+                       "errors": []}).encode()
+    await send({
+        "type": "http.response.start", "status": 500,
+        "headers": [(b"content-type", b"application/problem+json"),
+                    (b"content-length", str(len(body)).encode())],
+    })
+    await send({"type": "http.response.body", "body": body})

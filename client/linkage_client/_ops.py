@@ -12,9 +12,11 @@ from linkage_client.models import (
     DesignResult,
     Health,
     Job,
+    JobSummary,
     Linkage,
     Operation,
     PresetInfo,
+    Readiness,
     RigidityResult,
     RobustnessResult,
     SecondOrderResult,
@@ -43,6 +45,15 @@ def _space_options(options: Opts, compact: bool) -> dict[str, Any] | None:
 
 def health() -> Call[Health]:
     return Call("GET", "/health", model(Health.from_json))
+
+
+def health_live() -> Call[Health]:
+    return Call("GET", "/health/live", model(Health.from_json))
+
+
+def health_ready() -> Call[Readiness]:
+    """Ready: the kernels loaded and the engine workers answer (a 503 problem while not)."""
+    return Call("GET", "/health/ready", model(Readiness.from_json))
 
 
 def metrics() -> Call[str]:
@@ -137,6 +148,12 @@ def create_job(operation: str, body: Mapping[str, Any]) -> Call[Job]:
 def list_job_operations() -> Call[list[Operation]]:
     return Call("GET", "/v1/jobs/operations",
                 model(lambda d: [Operation.from_json(o) for o in sequence(d)]))
+
+
+def list_jobs(status: str | None = None) -> Call[list[JobSummary]]:
+    params = {} if status is None else {"status": status}
+    return Call("GET", "/v1/jobs", model(lambda data: [JobSummary.from_json(j) for j in data]),
+                params=params)
 
 
 def get_job(job_id: str) -> Call[Job]:

@@ -21,9 +21,11 @@ from linkage_client.models import (
     DesignResult,
     Health,
     Job,
+    JobSummary,
     Linkage,
     Operation,
     PresetInfo,
+    Readiness,
     RigidityResult,
     RobustnessResult,
     SecondOrderResult,
@@ -100,6 +102,18 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
         return call.parse(response)
 
     # ------------------------------------------------------------ health, presets
+
+    async def get_health_live(self) -> Health:
+        return await self._run(ops.health_live())
+
+    async def get_health_ready(self) -> Readiness:
+        """Ready to analyse; a 503 ``not-ready`` problem (raised) while starting or replacing
+        a broken worker pool."""
+        return await self._run(ops.health_ready())
+
+    async def list_jobs(self, status: str | None = None) -> list[JobSummary]:
+        """The jobs kept, oldest first, without their results (``status`` filters)."""
+        return await self._run(ops.list_jobs(status))
 
     async def get_health(self) -> Health:
         return await self._run(ops.health())

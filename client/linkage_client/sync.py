@@ -20,9 +20,11 @@ from linkage_client.models import (
     DesignResult,
     Health,
     Job,
+    JobSummary,
     Linkage,
     Operation,
     PresetInfo,
+    Readiness,
     RigidityResult,
     RobustnessResult,
     SecondOrderResult,
@@ -107,6 +109,18 @@ class Client(PresetRoutes[Linkage]):
         return call.parse(response)
 
     # ------------------------------------------------------------ health, presets
+
+    def get_health_live(self) -> Health:
+        return self._run(ops.health_live())
+
+    def get_health_ready(self) -> Readiness:
+        """Ready to analyse; a 503 ``not-ready`` problem (raised) while starting or replacing
+        a broken worker pool."""
+        return self._run(ops.health_ready())
+
+    def list_jobs(self, status: str | None = None) -> list[JobSummary]:
+        """The jobs kept, oldest first, without their results (``status`` filters)."""
+        return self._run(ops.list_jobs(status))
 
     def get_health(self) -> Health:
         return self._run(ops.health())

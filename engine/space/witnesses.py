@@ -198,6 +198,23 @@ def _det_adjugate(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return det, adj
 
 
+def _fewest_quadrics(linkage: Linkage, cons: Constraints) -> int:
+    """A lower bound on the quadrics left after the linear reduction, in O(V + E): the
+    quadratic parts' diagonal blocks are the unsigned incidence of the bars on the moving
+    vertices (a bar to a pinned vertex has one entry), whose rank is at least the moving
+    vertices less the pieces of the graph among them."""
+    fixed = np.asarray(np.asarray(linkage.fixed, dtype=bool).all(axis=1))
+    ends = linkage.ends[cons.bars]
+    moving = np.unique(ends[~fixed[ends]])
+    if not len(moving):
+        return 0
+    inner = ends[~fixed[ends].any(axis=1)]
+    v = linkage.n_vertices
+    graph = coo_matrix((np.ones(len(inner)), (inner[:, 0], inner[:, 1])), shape=(v, v))
+    _, label = connected_components(graph, directed=False)
+    return int(len(moving) - len(np.unique(label[moving])))
+
+
 def _reach(linkage: Linkage, cons: Constraints, scale: float) -> float:
     """A bound on ``|y|`` (the scaled, centred free coordinates) over every configuration:
     each moving vertex stays within the farthest pinned coordinate plus the sum of every
@@ -230,6 +247,11 @@ def witness_points(linkage: Linkage, cons: Constraints | None = None, seed: int 
         return Witnesses(empty, empty, 0, {}, False,
                          "the configuration space may be unbounded (a piece of the bar graph "
                          "holds no pinned vertex): a height need not have a maximum")
+    least = _fewest_quadrics(linkage, cons)
+    if 2.0**least * least > paths_max:  # before the (E, M + 1, M + 1) quadrics are built
+        return Witnesses(empty, empty, 0, {"quadrics_at_least": least}, False,
+                         f"at least {least} quadrics: at least {2**least * least} paths, beyond "
+                         f"the bound of {paths_max}")
     rng = np.random.default_rng(seed)
     c = rng.normal(size=cons.n_free)
     system = LinkageSystem(linkage, cons, c)

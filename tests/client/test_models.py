@@ -30,6 +30,7 @@ MODELS = {
     "CriticalValuesResponse": models.CriticalValuesResult, "PredictedOut": models.Predicted,
     "ConflictOut": models.Conflict, "DesignResponse": models.DesignResult,
     "Progress": models.Progress, "JobError": models.JobError, "JobOut": models.Job,
+    "JobSummary": models.JobSummary, "Readiness": models.Readiness,
     "OperationOut": models.Operation,
 }
 

@@ -21,7 +21,7 @@ from tests.service.preset_matrix import ALWAYS, TRACING, one_dof, preset_cases
 # Every preset through every endpoint: the longest single test of the service's.
 pytestmark = pytest.mark.slow
 
-REASONS = {"time", "budget", "degenerate", "unresolved"}
+REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 
 
 @pytest.fixture(scope="module")
@@ -59,6 +59,7 @@ def test_every_preset_answers_every_endpoint(api, preset):
         for search in searches(r.json()):
             if search["complete"]:
                 assert search["reason"] is None, (preset, path, search)
+                assert search["argument"] in ("derived", "proved"), (preset, path, search)
             else:
                 assert search["reason"] in REASONS, (preset, path, search)
     # every preset: first and second order and a figure; a 1-DOF one also every tracing

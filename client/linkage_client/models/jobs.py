@@ -48,19 +48,27 @@ FINISHED = ("done", "failed", "cancelled")
 
 
 @dataclass(frozen=True)
-class Job(Model):
-    """A job or sweep (``/v1/jobs/{id}``); ``result`` is the raw JSON when done."""
+class JobSummary(Model):
+    """A job without its result (``GET /v1/jobs``); times are RFC 3339 strings (UTC)."""
 
     id: str
     operation: str
     status: str
     progress: Progress
-    created: float
-    started: float | None = None
-    finished: float | None = None
-    expires: float | None = None
-    result: Any | None = None
+    created: str
+    started: str | None = None
+    finished: str | None = None
+    expires: str | None = None
     error: JobError | None = None
+    partial: bool = False
+
+
+@dataclass(frozen=True)
+class Job(JobSummary):
+    """A job or sweep (``/v1/jobs/{id}``); ``result`` is the raw JSON when done (or, with
+    ``partial``, what a stopped job finished)."""
+
+    result: Any | None = None
 
     @property
     def location(self) -> str:

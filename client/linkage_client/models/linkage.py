@@ -115,6 +115,13 @@ class Health(Model):
 
 
 @dataclass(frozen=True)
+class Readiness(Model):
+    status: str
+    version: str
+    workers: int
+
+
+@dataclass(frozen=True)
 class PresetInfo(Model):
     name: str
     description: str

@@ -137,7 +137,8 @@ def test_a_traced_slice_has_one_topology_per_region():
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
     res = critical_value_slice(lk, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], resolution=n,
                                options=opt)
-    assert res.search["complete"]
+    # traced: nothing was cut short, but only a search (issue 23, item 3 is open)
+    assert not res.search["complete"] and res.search["reason"] == "searched"
     free = ~_blocked_cells(res.curves, box, n)
     labels, count = ndimage.label(free)
     assert count == len(res.regions)

@@ -270,7 +270,8 @@ def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
     fast = critical_value_slice(lk, axes, resolution=16, options=opt)
     _one_at_a_time(monkeypatch)
     slow = critical_value_slice(lk, axes, resolution=16, options=opt)
-    assert fast.search["complete"] and slow.search["complete"]
+    # traced curves: no argument proves every curve found, neither path claims it
+    assert fast.search["reason"] == slow.search["reason"] == "searched"
     assert len(fast.curves) == len(slow.curves)
     step = float(fast.search["step"])
     for one, other in ((fast.curves, slow.curves), (slow.curves, fast.curves)):
