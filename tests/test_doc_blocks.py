@@ -34,7 +34,8 @@ NOT_RUN = {
     ("README.md", "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/uvicorn "
      "service.main:app --host 127.0.0.1 --port 8000 --http service.protocol:GuardedH11Protocol"),
     ("README.md", '.venv/bin/python -m pytest -q -m "not slow"'),
-    ("README.md", ".venv/bin/dask scheduler --host 127.0.0.1 --port 8786 --no-dashboard &"),
+    ("README.md", "openssl req -x509 -newkey rsa:3072 -nodes -days 365 "
+                  '-subj "/CN=linkage-dask-ca" \\'),
 }
 
 
@@ -84,7 +85,11 @@ def base_url() -> Iterator[str]:
 @pytest.mark.parametrize(("lang", "code"), RUN)
 def test_block_runs(lang: str, code: str, base_url: str, tmp_path: Path) -> None:
     code = code.replace(ADDRESS, base_url).replace(".venv/bin/", f"{Path(sys.executable).parent}/")
-    env = {**os.environ, "LINKAGE_DASK_WORKERS": "1", "NO_PROXY": "*", "no_proxy": "*"}
+    # the client (client/, installed with `pip install ./client`) as pytest's pythonpath has it
+    client = str(Path(__file__).resolve().parents[1] / "client")
+    path = os.pathsep.join(p for p in (client, os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "LINKAGE_DASK_WORKERS": "1", "NO_PROXY": "*", "no_proxy": "*",
+           "PYTHONPATH": path}
     command = ([sys.executable, "-c", code] if lang == "python"
                else ["bash", "-e", "-o", "pipefail", "-c", code])
     proc = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path,

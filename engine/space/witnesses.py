@@ -42,8 +42,10 @@ from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.space.homotopy import FAR, REGULAR, SINGULAR, track
 
-#: Largest number of paths tracked (``2^r r``, ``r`` quadrics): 22,528 for ``r = 11``.
-PATHS_MAX = 4096
+#: Largest number of paths tracked (``2^r r``, ``r`` quadrics; 160 for ``r = 5``, 896 for
+#: ``r = 7``, 2048 for ``r = 8``): a path costs about 5-10 ms of one core (more under load), so
+#: 512 keeps the homotopy near a second; a caller may ask for more (``homotopy_paths_max``).
+PATHS_MAX = 512
 #: Relative size of the imaginary part below which a regular end is real.
 REAL_TOL = 1e-6
 #: Relative size of the imaginary part below which a singular end is refined as a possible

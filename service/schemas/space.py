@@ -68,6 +68,13 @@ class SpaceOptions(Strict):
         None, description="seed of the random starts (default 0)",
         json_schema_extra=default_of(0),
     )
+    homotopy_paths_max: Annotated[int, Field(strict=True, ge=0, le=8192)] | None = Field(
+        None, description="largest path count of the homotopy that proves a search complete "
+        "(the witness points, docs/methods.md; 2^r r paths for r quadrics: 24 for the "
+        "four-bar, 160 for the three-rotor, 896 for a 3D chain of four hinged rotors; "
+        "default 512, about a second); 0 skips it",
+        json_schema_extra=default_of(512),
+    )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
     points: Literal["objects", "compact"] | None = Field(
         None, description="how configuration-space components carry their points: \"objects\" "

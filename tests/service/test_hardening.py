@@ -170,9 +170,12 @@ def test_small_requests_stay_fast_while_a_slow_one_runs(kl_chain, four_bar):
     finally:
         app.state.engine_pool.close()
     assert all(status == 200 for status, _, _ in small)
-    # The slow request ran to its time limit; every small one was answered before it ended,
-    # each within a few seconds (a busy CI machine still answers a four-bar in milliseconds).
-    assert slow.status_code == 504
+    # The slow request held the one worker until its search budget (4 s: an incomplete 200,
+    # since every search loop checks its deadline) or the time limit (504); every small one was
+    # answered before it ended, each within a few seconds.
+    assert slow.status_code in (200, 504)
+    if slow.status_code == 200:
+        assert slow.json()["search"]["complete"] is False
     assert max(done for _, _, done in small) < slow_end
     assert max(latency for _, latency, _ in small) < 5.0
 

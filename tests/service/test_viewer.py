@@ -108,7 +108,7 @@ def test_errors_set_the_status_and_captions_to_the_new_state(base_url: str, brow
     wait_for(lambda: "Invalid preset parameter" in text(browser, "status"), 30, "the error")
     status = text(browser, "status")
     assert "computing" not in status
-    assert "n must be even" in status and "[422]" in status
+    assert "must be a multiple of 2" in status and "[422]" in status
     assert "four-bar" not in text(browser, "linkage-caption")
     assert "cn-symmetric-four-regular" in text(browser, "linkage-caption")
     assert text(browser, "space-caption") == "no configuration space"
@@ -452,7 +452,7 @@ def region_numbers(driver: Any) -> list[tuple[int, float, float]]:
 
     out = []
     for b in driver.find_elements(By.CSS_SELECTOR, "#regions button"):
-        m = re.match(r"R\d+: (\d+) components? .*at \(([-\d.e]+), ([-\d.e]+)\)", b.text)
+        m = re.match(r"R\d+: (\d+) components?\b.*at \(([-\d.e]+), ([-\d.e]+)\)", b.text)
         assert m, b.text
         out.append((int(m[1]), float(m[2]), float(m[3])))
     return out

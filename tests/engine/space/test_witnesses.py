@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 from engine.catalogue.presets import build_preset
 from engine.model.constraints import Constraints
 from engine.model.linkage import BarSpec, VertexSpec, build_linkage
-from engine.space.configuration_space import explore, find_critical_points
+from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
 from engine.space.witnesses import LinkageSystem, bounded, witness_points
 
 
@@ -129,12 +129,13 @@ def circles_of(lk) -> tuple[list, list[float], list[int]]:
     return circles, [lengths[f"l{j}"] for j in range(n - 1)], tips
 
 
-def check_against_reference(lk, samples: int = 20000) -> None:
+def check_against_reference(lk, samples: int = 20000, paths_max: int | None = None) -> None:
     circles, lengths, tips = circles_of(lk)
     sheets = reference_sheets(circles, lengths, samples)
     expected = reference_components(sheets)
     cloud = sheets[np.isfinite(sheets).all(axis=(2, 3))]
-    res = explore(lk)
+    res = explore(lk, options=None if paths_max is None
+                  else SpaceOptions(homotopy_paths_max=paths_max))
     assert res.search["complete"], res.search
     assert res.search["argument"] == "proved"
     assert len(res.components) == expected
@@ -153,7 +154,7 @@ def test_rotor_chain_3d_of_three_against_dense_sampling(tilt, h):
 @pytest.mark.slow
 def test_rotor_chain_3d_of_four_against_dense_sampling():
     """896 paths (seven quadrics): tens of seconds; the time budget of a request is not set."""
-    check_against_reference(build_preset("rotor-chain-3d", {"n": 4, "tilt": 0.7}))
+    check_against_reference(build_preset("rotor-chain-3d", {"n": 4, "tilt": 0.7}), paths_max=1024)
 
 
 def random_skew_four_bar(rng: np.random.Generator):
