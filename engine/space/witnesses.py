@@ -252,7 +252,7 @@ def witness_points(linkage: Linkage, cons: Constraints | None = None, seed: int 
     least = _fewest_quadrics(linkage, cons)
     if 2.0**least * least > paths_max:  # before the (E, M + 1, M + 1) quadrics are built
         return Witnesses(empty, empty, 0, {"quadrics_at_least": least}, False,
-                         f"at least {least} quadrics: at least {2**least * least} paths, beyond "
+                         f"at least {least} quadrics: at least {2**least * least} paths exceed "
                          f"the bound of {paths_max}")
     rng = np.random.default_rng(seed)
     c = rng.normal(size=cons.n_free)
