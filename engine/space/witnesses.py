@@ -72,8 +72,9 @@ class Witnesses:
     paths : int
         Paths tracked (the Bezout number ``2^r r``).
     counts : dict
-        ``regular``, ``singular``, ``failed``, ``far`` (at or towards infinity, or outside the
-        region the linkage can reach), ``real``, ``quadrics``, ``linear``, ``steps``.
+        ``regular`` and ``singular`` (ends in the region the linkage can reach), ``far`` (at or
+        towards infinity, or beyond that region), ``failed`` (or stopped): a partition of the
+        paths; ``real``, ``critical_candidates``, ``quadrics``, ``linear``, ``steps``.
     success : bool
         The argument holds: bounded space, every path ended, none jumped, the deadline kept.
     message : str
@@ -274,10 +275,12 @@ def witness_points(linkage: Linkage, cons: Constraints | None = None, seed: int 
     singular = (res.state == SINGULAR) & near
     real = regular & (imag <= REAL_TOL)
     candidates = singular & (imag <= SINGULAR_IMAG_TOL)
-    counts.update(regular=int((res.state == REGULAR).sum()),
-                  singular=int((res.state == SINGULAR).sum()),
-                  failed=int((~np.isin(res.state, (REGULAR, SINGULAR, FAR))).sum()),
-                  far=int((~near).sum()), real=int(real.sum()),
+    ended = np.isin(res.state, (REGULAR, SINGULAR, FAR))
+    # a partition of the paths: regular and singular ends in reach, far ones (towards infinity
+    # or beyond reach), failed or stopped ones
+    counts.update(regular=int(regular.sum()), singular=int(singular.sum()),
+                  far=int((ended & ~(regular | singular)).sum()),
+                  failed=int((~ended).sum()), real=int(real.sum()),
                   critical_candidates=int(candidates.sum()), steps=res.steps)
     return Witnesses(system.coordinates(y[real].real), system.coordinates(y[candidates].real),
                      system.paths, counts, res.success, res.message)

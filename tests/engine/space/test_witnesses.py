@@ -263,3 +263,8 @@ def test_the_paper_three_rotor_has_twelve_critical_points_proved():
     assert res.search["complete"] and res.search["argument"] == "proved"
     assert len(res.critical_points) == 12
     assert all(c.kind == "branch" for c in res.critical_points)
+    # the ends partition the paths; a line through a branch point meets both of its branches,
+    # so each of the 12 is an end of (at least) two paths
+    h = res.search["homotopy"]
+    assert h["regular"] + h["singular"] + h["far"] + h["failed"] == h["paths"] == 160
+    assert h["failed"] == 0 and h["critical_candidates"] >= 2 * 12
