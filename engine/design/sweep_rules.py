@@ -101,6 +101,13 @@ def _four_bar_turns(r: np.ndarray, a: np.ndarray, coupler: float) -> list[int]:
     return [int(shortest in (0, 1)), int(shortest in (0, 3))]
 
 
+def _closes(sides: list[float] | tuple[float, ...]) -> bool:
+    """A four-bar with these sides assembles somewhere: its longest side is shorter than the
+    other three together (the rules count the components of one that does; a linkage given
+    with new lengths, off its configuration space, need not)."""
+    return 2 * max(sides) < sum(sides)
+
+
 def _ordered(linkage: Linkage, turns: dict[str, int]) -> dict[str, int] | None:
     """``turns`` in the order of the rotor bars, or None when a rotor has no entry."""
     ids = [linkage.bar_ids[k] for k in rotors(linkage)]
@@ -109,15 +116,17 @@ def _ordered(linkage: Linkage, turns: dict[str, int]) -> dict[str, int] | None:
     return {b: turns[b] for b in ids}
 
 
-def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow:
+def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
     r, a = _cells(linkage, count.rotors)
-    if count.driver is not None:
+    if count.driver is not None:  # (driven cells assemble at every angle of the driver)
         turns = _chain_turns(r, a, count.driver, 1)
     else:  # one generic four-bar: its coupler is the bar between the two tips
         tips = {int(v) for b in count.rotors for v in linkage.ends[linkage.bar_ids.index(b)]
                 if not linkage.fixed[v].all()}
         coupler = next(float(linkage.lengths[k]) for k, (i, j) in enumerate(linkage.ends)
                        if {int(i), int(j)} == tips)
+        if not _closes([float(a[0]), float(r[0]), coupler, float(r[1])]):
+            return None
         turns = _four_bar_turns(r, a, coupler)
     by_bar = _ordered(linkage, dict(zip(count.rotors, turns, strict=True)))
     if by_bar is None:
@@ -135,7 +144,7 @@ def _gated(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
     if parts is None:
         return None
     decision = gate_decision(linkage)
-    if decision.gated is None:
+    if decision.gated is None or not _closes(parts.sides):
         return None
     r, a = _cells(linkage, parts.rotors)
     turns: dict[str, int] = dict(zip(

@@ -103,6 +103,7 @@ def sweep_out(names: tuple[str, ...], rows: list[PointResult],
                 margin=r.margin,
                 windings=None if r.windings is None else list(r.windings),
                 gated=r.gated,
+                gated_reason=r.gated_reason,
                 error=r.error,
             )
             for r in rows
