@@ -13,10 +13,10 @@ anywhere (the service runs them on Dask); :func:`run_points` runs one chunk and 
 
 What the points share is the chain's cell structure: where the chain rules count a point's
 components (rotor chains, chains with the paper's gate), its row is derived from them
-(:mod:`engine.design.sweep_rules`: the count, the rotor-turn pattern and ``gated``, in
-microseconds, no tracing); elsewhere the point is explored. Either way a row is complete only
-with an argument, as a single exploration is, and ``gated`` never rests on which components
-happened to be traced (see :class:`PointResult`).
+(:mod:`engine.design.sweep_rules`: the count, the rotor-turn pattern and ``gated``, in a
+few milliseconds a point with the preset's build, no tracing); elsewhere the point is
+explored. Either way a row is complete only with an argument, as a single exploration is, and
+``gated`` never rests on which components happened to be traced (see :class:`PointResult`).
 
 >>> fam = PresetFamily("four-bar", {}, ("L2",))
 >>> pts = grid_points([GridAxis("L2", 0.5, 3.5, 4)])  # L2 = 0.5, 1.5, 2.5, 3.5
