@@ -149,6 +149,17 @@ class PresetFamily:
         named = [n for n in self.names if n in base.bar_ids]
         return named if len(named) == len(self.names) else None
 
+    def unassembled(self, values: np.ndarray) -> Linkage | None:
+        """Where :meth:`at` finds no assembly: the preset's bars with the point's lengths (off
+        its configuration space, for the chain rules to prove it empty), when every swept name
+        is a bar of the preset; else None."""
+        try:
+            if self.adjustable() is None:
+                return None
+            return BarFamily(build_preset(self.name, self.parameters), self.names).at(values)
+        except (InvalidParameter, InvalidRequest):
+            return None
+
 
 Family = BarFamily | PresetFamily
 
@@ -230,6 +241,18 @@ def evaluate(
 def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want: set[str],
               tol: Tolerances, opt: SpaceOptions) -> PointResult:
     linkage = family.at(values)
+    if linkage is None and isinstance(family, PresetFamily):
+        off = family.unassembled(values)
+        empty = None if off is None else derive(off)
+        if empty is not None and empty.components == 0:  # the rules prove it empty
+            return PointResult(
+                point,
+                components=0 if "components" in want else None,
+                complete=True if "components" in want else None,
+                argument=ARGUMENT_DERIVED if "components" in want else None,
+                critical_points=0 if "critical" in want else None,
+                windings=() if "windings" in want else None,
+                gated_reason=empty.gated_reason if "windings" in want else None)
     if linkage is None:  # empty configuration space
         return PointResult(
             point,

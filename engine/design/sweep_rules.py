@@ -20,8 +20,10 @@ or one generic four-bar) or of a chain with the paper's gate, the row's count is
   turns once iff it or the ground is the shortest side; no rotor turns in a non-Grashof one.
 
 Every component then has the same pattern, so the row's ``windings`` is that one pattern.
-Anything else (other linkages, critical lengths, a chain not driven from its gate) gets None
-here and the sweep explores the point.
+A four-bar of the chain (the gate four-bar, or the single four-bar) whose longest side is
+longer than the other three together closes nowhere: the linkage then has no configuration
+(0 components, derived). Anything else (other linkages, critical lengths, a chain not driven
+from its gate) gets None here and the sweep explores the point.
 """
 
 from __future__ import annotations
@@ -33,7 +35,9 @@ import numpy as np
 from engine.model.linkage import Linkage
 from engine.space.assembly import rotors
 from engine.space.chain_count import (
+    GENERIC_RTOL,
     ChainCount,
+    GatedChain,
     chain_components,
     gate_decision,
     gated_chain,
@@ -108,6 +112,17 @@ def _closes(sides: list[float] | tuple[float, ...]) -> bool:
     return 2 * max(sides) < sum(sides)
 
 
+def _never_closes(sides: list[float] | tuple[float, ...], what: str) -> DerivedRow | None:
+    """The empty row of a linkage with a four-bar that closes nowhere (its longest side longer
+    than the other three together, beyond rounding), or None."""
+    longest = max(sides)
+    if longest - (sum(sides) - longest) <= GENERIC_RTOL * longest:
+        return None
+    return DerivedRow(0, f"{what} closes nowhere: its longest side {longest:g} exceeds the "
+                      f"other three together ({sum(sides) - longest:g})", {}, None,
+                      "no configuration: nothing turns and nothing is gated", True)
+
+
 def _ordered(linkage: Linkage, turns: dict[str, int]) -> dict[str, int] | None:
     """``turns`` in the order of the rotor bars, or None when a rotor has no entry."""
     ids = [linkage.bar_ids[k] for k in rotors(linkage)]
@@ -125,8 +140,9 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
                 if not linkage.fixed[v].all()}
         coupler = next(float(linkage.lengths[k]) for k, (i, j) in enumerate(linkage.ends)
                        if {int(i), int(j)} == tips)
-        if not _closes([float(a[0]), float(r[0]), coupler, float(r[1])]):
-            return None
+        sides = [float(a[0]), float(r[0]), coupler, float(r[1])]
+        if not _closes(sides):
+            return _never_closes(sides, "the four-bar")
         turns = _four_bar_turns(r, a, coupler)
     by_bar = _ordered(linkage, dict(zip(count.rotors, turns, strict=True)))
     if by_bar is None:
@@ -139,12 +155,14 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
                       True)
 
 
-def _gated(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
-    parts = gated_chain(linkage)
-    if parts is None:
+def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
+    if not _closes(parts.sides):
+        return _never_closes(parts.sides, "the gate four-bar (D, r, L2, L1)")
+    count = gated_chain_components(linkage)
+    if count is None:
         return None
     decision = gate_decision(linkage)
-    if decision.gated is None or not _closes(parts.sides):
+    if decision.gated is None:
         return None
     r, a = _cells(linkage, parts.rotors)
     turns: dict[str, int] = dict(zip(
@@ -175,7 +193,5 @@ def derive(linkage: Linkage) -> DerivedRow | None:
     count = chain_components(linkage)
     if count is not None:
         return _rotor_chain(linkage, count)
-    gated = gated_chain_components(linkage)
-    if gated is not None:
-        return _gated(linkage, gated)
-    return None
+    parts = gated_chain(linkage)
+    return None if parts is None else _gated(linkage, parts)

@@ -204,3 +204,25 @@ def test_a_gated_grid_is_derived_wherever_it_assembles():
             assert row.argument == "derived" and row.components in (1024, 2048)
             assert row.gated is (row.windings == ((",".join(
                 f"r{k}:0" for k in range(10)) + ",D:0"),))
+
+
+@pytest.mark.parametrize("name,params,names,values", [
+    ("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D"), (0.5, 4.5)),  # 4.5 > 0.5 + 1.5 + 2
+    ("four-bar", {}, ("L2",), (3.5,)),  # 3.5 > 1 + 1 + 1
+])
+def test_a_point_whose_four_bar_cannot_close_is_proved_empty(name, params, names, values):
+    """The preset assembles nowhere, and its bars at these lengths include a four-bar whose
+    longest side exceeds the other three together: 0 components, derived, nothing gated."""
+    (row,) = run_points(PresetFamily(name, params, names), np.array([values]),
+                        ("components", "windings"))
+    assert (row.components, row.complete, row.argument) == (0, True, "derived")
+    assert row.windings == () and row.gated is None and "no configuration" in row.gated_reason
+
+
+def test_an_empty_point_without_a_rule_stays_a_lower_bound():
+    """Swept parameters that are not bars (the chain's rotor length r): no rule sees the
+    lengths, and a preset that assembles at none of its sampled angles is a search, not a
+    proof."""
+    fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1, "D": 4.5, "L2": 0.5}, ("r",))
+    (row,) = run_points(fam, np.array([[1.5]]), ("components", "windings"))
+    assert (row.components, row.complete, row.argument, row.gated) == (0, False, None, None)

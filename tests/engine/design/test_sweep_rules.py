@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from engine.catalogue.presets import build_preset
+from engine.design.sweep import BarFamily
 from engine.design.sweep_rules import derive
 from engine.model.errors import InvalidParameter
 
@@ -99,9 +100,15 @@ SLICE = [(2.0, 2.4), (2.0, 2.6), (2.0, 1.4), (2.0, 1.6), (1.0, 2.0), (1.6, 2.0),
 def test_gated_chain_rows_follow_the_sampled_components(n, gate, a, r, L1, L2, D):
     params = {"n": n, "gate": gate, "a": a, "r": r, "l": r, "D": D * a, "L1": L1, "L2": L2}
     count, patterns, gated = gated_reference(n, gate, a, r, r, D * a, L1, L2)
-    if not count:  # the gate four-bar does not close: no configuration, no row to derive
+    if not count:  # the gate four-bar does not close: the preset does not assemble, and the
+        # rules prove the bars with these lengths (off the space) have no configuration
         with pytest.raises(InvalidParameter):
             build_preset("gated-kl-chain", params)
+        off = BarFamily(build_preset("gated-kl-chain", {**params, "D": 2.0 * a, "L2": L1}),
+                        ("D", "L2")).at(np.array([D * a, L2]))
+        row = derive(off)
+        assert row is not None and (row.components, row.windings) == (0, ())
+        assert row.gated is None and "closes nowhere" in row.rule
         return
     row = derive(build_preset("gated-kl-chain", params))
     assert row is not None
