@@ -162,8 +162,8 @@ def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
 
 
 #: Columns of a sweep's CSV after the swept names, in this order.
-SWEEP_CSV_COLUMNS = ("components", "complete", "critical_points", "margin", "gated", "windings",
-                     "error")
+SWEEP_CSV_COLUMNS = ("components", "complete", "argument", "critical_points", "margin", "gated",
+                     "gated_reason", "windings", "error")
 
 
 def sweep_csv(result: dict[str, Any]) -> str:

@@ -226,3 +226,18 @@ def test_an_empty_point_without_a_rule_stays_a_lower_bound():
     fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1, "D": 4.5, "L2": 0.5}, ("r",))
     (row,) = run_points(fam, np.array([[1.5]]), ("components", "windings"))
     assert (row.components, row.complete, row.argument, row.gated) == (0, False, None, None)
+
+
+def test_bars_and_preset_families_give_the_same_derived_rows():
+    """The gated chain's (L2, D) grid as the preset rebuilt and as its bars re-lengthened (off
+    the configuration space): the rules see the same cells, so the rows agree."""
+    lk = build_preset("gated-kl-chain", {"n": 3, "gate": 1})
+    pts = grid_points([GridAxis("L2", 0.5, 5.0, 6), GridAxis("D", 0.5, 5.0, 6)])
+    want = ("components", "windings")
+    by_preset = run_points(PresetFamily("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D")),
+                           pts, want)
+    by_bars = run_points(BarFamily(lk, ("L2", "D")), pts, want)
+    for a, b in zip(by_preset, by_bars, strict=True):
+        assert (a.components, a.complete, a.windings, a.gated) == \
+            (b.components, b.complete, b.windings, b.gated), (a, b)
+        assert a.argument == b.argument == "derived"
