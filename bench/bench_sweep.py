@@ -9,7 +9,8 @@ Two sweeps, each run as a job by :class:`service.tasks.JobManager` exactly as ``
 * ``four-bar grid``: 400 points of a four-bar grid over L1 and L2, components only (the closed
   form: milliseconds per point, so this measures the overhead of the job machinery too);
 * ``gated chain MC``: 24 Monte Carlo samples of the gate length D of a 3-rotor gated chain,
-  components and windings (traced: about half a second per point).
+  components and windings (traced until the chain rules gave these rows: about half a second
+  a point then, milliseconds now).
 
 The cluster is started and warmed up before timing (its start-up is not part of a sweep). Best
 of ``--repeat`` wall-clock runs, from submission to the finished job; the machine is shared, so
