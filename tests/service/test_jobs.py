@@ -95,9 +95,13 @@ def four_bar(api: TestClient) -> dict[str, Any]:
     return api.get("/v1/presets/four-bar").json()
 
 
-def gated_sweep(seed: int, count: int) -> dict[str, Any]:
+def gated_sweep(seed: int, count: int, critical: bool = False) -> dict[str, Any]:
+    """Monte Carlo samples of the gated chain's D; its rows come from the chain rules (no
+    trace), unless ``critical`` asks for the critical points, which the tracer searches
+    (about half a second a point: a sweep that runs long enough to be stopped)."""
+    compute = ["components", "critical", "windings"] if critical else ["components", "windings"]
     return {"preset": GATED, "samples": {"D": {"mean": 2.5, "sd": 0.25}}, "count": count,
-            "seed": seed, "compute": ["components", "windings"], "options": QUICK}
+            "seed": seed, "compute": compute, "options": QUICK}
 
 
 def run_sweep(api: TestClient, body: dict[str, Any],
@@ -267,7 +271,7 @@ def executing(api: TestClient) -> int:
 
 def start_slow_sweep(api: TestClient) -> str:
     """A sweep of many gated-chain points (~0.5 s each), returned once it is running."""
-    r = api.post("/v1/sweeps", json=gated_sweep(seed=1, count=60))
+    r = api.post("/v1/sweeps", json=gated_sweep(seed=1, count=60, critical=True))
     assert r.status_code == 202
     location = r.headers["location"]
     job = wait(api, location, until=("running",))
@@ -395,8 +399,8 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
     kept = manager.settings
     manager.settings = kept.replace(job_time_limit_s=1.0, job_ttl_s=1.0)
     try:
-        r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(seed=2,
-                                                                                 count=60)})
+        r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(
+            seed=2, count=60, critical=True)})
         assert r.status_code == 202
         job = wait(api, r.headers["location"])
         assert job["status"] == "failed" and job["error"]["title"] == "Time limit exceeded"
