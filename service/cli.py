@@ -267,7 +267,9 @@ def _in_process(args: argparse.Namespace, operation: str) -> Any:
         from service import figures
 
         draw = getattr(figures, op.run.__name__)
-        return draw(body, settings)
+        kwargs = ({"deadline": Deadline.after(limit)}
+                  if "deadline" in inspect.signature(draw).parameters else {})
+        return draw(body, settings, **kwargs)
     answer = op.run(body, settings, **kwargs)
     return answer if isinstance(answer, str) else answer.model_dump(mode="json")
 

@@ -6,7 +6,9 @@ given: :mod:`service.figure_formats`).
 Each figure job runs the job of the JSON endpoint it pictures (:mod:`service.jobs`, or the same
 engine calls and mappers) and draws the *response model*, so a figure shows exactly what the
 JSON answer says. The jobs are module-level functions of picklable arguments, run in the engine
-worker pool under the time limit like every analysis (:func:`service.workers.EnginePool.run`).
+worker pool under the time limit like every analysis (:func:`service.workers.EnginePool.run`);
+the command line runs them in its own process with a ``deadline`` for the search (the drawing
+after it is bounded by the answer's size: the engine's point limit, a PNG's pixel limit).
 
 Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests can find them:
 ``bar-<k>``, ``pin-<k>``, ``vertex-<k>``, ``slider-<k>``, ``zero-mode-<j>``, ``tangent-<j>``
@@ -33,6 +35,7 @@ from typing import Any
 import matplotlib as mpl
 from matplotlib.figure import Figure
 
+from engine.model.budget import Deadline
 from engine.model.errors import InvalidRequest
 from service import figure_dxf, figure_tikz, jobs
 from service.config import Settings
@@ -75,7 +78,8 @@ def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
     return _render(body, _draw_linkage, body.linkage, ans, body.show)
 
 
-def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> bytes:
+def configuration_space_figure(body: SpaceFigureRequest, settings: Settings,
+                               deadline: Deadline | None = None) -> bytes:
     """The components in two rotor angles, critical points by kind, segments labelled."""
     fmt = _format("configuration-space", body)
     if body.linkage.dimension != 2:
@@ -102,23 +106,25 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> 
     # the figure reads the per-vertex lists: the compact form is for clients of the JSON
     options = None if body.options is None else body.options.model_copy(update={"points": None})
     req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances, options=options)
-    ans = jobs.configuration_space(req, settings)
+    ans = jobs.configuration_space(req, settings, deadline)
     if fmt == "tikz":
         return figure_tikz.configuration_space(ans, axes, rotors)
     return _render(body, _draw_space, ans, axes, rotors)
 
 
-def critical_values_figure(body: CriticalValuesFigureRequest, settings: Settings) -> bytes:
+def critical_values_figure(body: CriticalValuesFigureRequest, settings: Settings,
+                           deadline: Deadline | None = None) -> bytes:
     """The slice: curves, regions shaded and labelled with their component counts."""
     _format("critical-values", body)
-    ans = jobs.critical_values(body, settings)
+    ans = jobs.critical_values(body, settings, deadline)
     return _render(body, _draw_critical_values, body, ans)
 
 
-def splitting_figure(body: SplittingFigureRequest, settings: Settings) -> bytes:
+def splitting_figure(body: SplittingFigureRequest, settings: Settings,
+                     deadline: Deadline | None = None) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
     _format("splitting", body)
-    ans, points = jobs.splitting_with_points(body, settings)
+    ans, points = jobs.splitting_with_points(body, settings, deadline)
     return _render(body, _draw_splitting, body, ans, points)
 
 

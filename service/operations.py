@@ -4,6 +4,7 @@ request schema and the work behind it. No Dask here: the command line runs them 
 from __future__ import annotations
 
 import base64
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import import_module
@@ -70,8 +71,11 @@ def _figure_job(draw: str) -> Callable[[Any, Settings], str]:
     """A figure as a job's answer: ``service.figures.<draw>``'s figure as text (a JSON
     string in the job: see figure_text)."""
 
-    def figure(body: Any, settings: Settings) -> str:
-        data: bytes = getattr(import_module("service.figures"), draw)(body, settings)
+    def figure(body: Any, settings: Settings, deadline: Any = None) -> str:
+        fn = getattr(import_module("service.figures"), draw)
+        # the job's deadline (its time limit, cancel flag and progress) for the search
+        given = "deadline" in inspect.signature(fn).parameters and deadline is not None
+        data: bytes = fn(body, settings, **({"deadline": deadline} if given else {}))
         return figure_text(data, body.format)
 
     figure.__name__ = draw

@@ -141,6 +141,15 @@ def test_figure_writes_pdf_tikz_and_dxf_in_process(tmp_path: Path) -> None:
     assert len(doc.modelspace().query("LINE[layer=='BARS']")) == 3
 
 
+def test_figure_search_stops_at_the_time_limit(tmp_path: Path) -> None:
+    """In-process figures search under --time-limit (the job's deadline): a second is too
+    short for the three-rotor's space, and the figure says its search is incomplete."""
+    tikz, report = probe("figure", "configuration-space", "--preset", "three-rotor",
+                         "--time-limit", "1", "--format", "tikz", cwd=tmp_path)
+    assert report == {"rc": 0, "dask": [], "children": 0}
+    assert "(search incomplete: time)" in tikz
+
+
 def test_figure_usage_errors(tmp_path: Path) -> None:
     for args, says in (
             (["-o", str(tmp_path / "fb.gif")], "a figure is written as"),
