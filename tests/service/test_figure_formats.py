@@ -34,7 +34,19 @@ from tests.service.test_figures import assert_problem, preset
 SVG_NS = "{http://www.w3.org/2000/svg}"
 #: The four-bar preset at L2 = 1.2: its bar lengths (the preset's parameters: a = L1 = L3 = 1).
 LENGTHS = {"L1": 1.0, "L2": 1.2, "L3": 1.0}
-PDFLATEX = shutil.which("pdflatex") or shutil.which("lualatex")
+
+
+def _tex_with_tikz() -> str | None:
+    """pdflatex (or lualatex) where TikZ is installed too (.ci/run installs both), else None."""
+    exe = shutil.which("pdflatex") or shutil.which("lualatex")
+    kpsewhich = shutil.which("kpsewhich")
+    if exe is None or kpsewhich is None:
+        return None
+    found = subprocess.run([kpsewhich, "tikz.sty"], capture_output=True, text=True, timeout=60)
+    return exe if found.returncode == 0 and found.stdout.strip() else None
+
+
+PDFLATEX = _tex_with_tikz()
 
 
 @pytest.fixture(scope="module")
