@@ -250,7 +250,8 @@ def _presets(name: str | None) -> int:
 
 
 def _in_process(args: argparse.Namespace, operation: str) -> Any:
-    """One operation run here under the time limit: its answer as JSON data (a figure: SVG)."""
+    """One operation run here under the time limit: its answer as JSON data (a figure: its
+    bytes)."""
     import inspect
 
     from engine.model.budget import Deadline
@@ -261,17 +262,15 @@ def _in_process(args: argparse.Namespace, operation: str) -> Any:
     settings = get_settings()
     limit = args.time_limit or settings.job_time_limit_s
     body = _request(args, op.request)
-    kwargs = ({"deadline": Deadline.after(limit)}
-              if "deadline" in inspect.signature(op.run).parameters else {})
-    if op.media_type != "application/json":  # a figure: its bytes, in any format
+    run = op.run
+    if op.media_type != "application/json":  # a figure: its bytes (any format), not the job's text
         from service import figures
 
-        draw = getattr(figures, op.run.__name__)
-        kwargs = ({"deadline": Deadline.after(limit)}
-                  if "deadline" in inspect.signature(draw).parameters else {})
-        return draw(body, settings, **kwargs)
-    answer = op.run(body, settings, **kwargs)
-    return answer if isinstance(answer, str) else answer.model_dump(mode="json")
+        run = getattr(figures, op.run.__name__)
+    kwargs = ({"deadline": Deadline.after(limit)}
+              if "deadline" in inspect.signature(run).parameters else {})
+    answer = run(body, settings, **kwargs)
+    return answer if isinstance(answer, bytes | str) else answer.model_dump(mode="json")
 
 
 def _operation(args: argparse.Namespace) -> str:
