@@ -460,6 +460,7 @@ def test_a_generated_client_reads_the_figures(app: Any, tmp_path: Path,
     """openapi-python-client (the generator the issue named) on openapi/openapi.json: the
     figure operations' 200s are files of bytes (before, image/svg+xml alone was an unknown
     media type and the answer was dropped: ``parsed`` was None)."""
+    import asyncio
     import importlib
     import sys
 
@@ -481,19 +482,16 @@ def test_a_generated_client_reads_the_figures(app: Any, tmp_path: Path,
         generated = importlib.import_module("generated_linkage")
         draw_linkage = importlib.import_module("generated_linkage.api.figures.draw_linkage")
         models = importlib.import_module("generated_linkage.models")
-        transport = httpx.ASGITransport(app=app)
         api = generated.Client(base_url="http://testserver")
-        api.set_async_httpx_client(httpx.AsyncClient(transport=transport,
+        api.set_async_httpx_client(httpx.AsyncClient(transport=httpx.ASGITransport(app=app),
                                                      base_url="http://testserver"))
-        import asyncio
 
         async def fetch(body: dict[str, Any]) -> Any:
             return await draw_linkage.asyncio_detailed(
                 client=api, body=models.LinkageFigureRequest.from_dict(body))
 
         png = asyncio.run(fetch({"linkage": four_bar, "format": "png", "dpi": 30}))
-        assert png.status_code == 200
-        png_chunks(png.parsed.payload.read())
+        assert png.status_code == 200 and png_chunks(png.parsed.payload.read())
         pdf = asyncio.run(fetch({"linkage": four_bar, "format": "pdf"}))
         assert pdf.parsed.payload.read().startswith(b"%PDF-")
     finally:
