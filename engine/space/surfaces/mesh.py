@@ -265,7 +265,53 @@ def march(surface: Surface, seed: np.ndarray, step: float, max_triangles: int,
             stuck.add(int(verts[pick]))
         else:
             stuck.clear()
+    _flip_folded(b)
     return _result(b, "closed")
+
+
+def _negative(b: _Builder, tri: np.ndarray) -> np.ndarray:
+    """How many of each triangle's vertices see it negative (clockwise) in their frames."""
+    x = b.x
+    e1 = x[tri[:, 1]] - x[tri[:, 0]]
+    e2 = x[tri[:, 2]] - x[tri[:, 0]]
+    out = np.zeros(len(tri), dtype=np.int64)
+    for k in range(3):
+        z = b.z[tri[:, k]]
+        p = np.einsum("tm,tmj->tj", e1, z)
+        q = np.einsum("tm,tmj->tj", e2, z)
+        out += p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0] <= 0
+    return out
+
+
+def _flip_folded(b: _Builder, passes: int = 10) -> None:
+    """Flip the longest edge of each folded triangle (negative in two of its vertices'
+    frames) with its neighbour across it, where the new edge is not an edge already: an edge
+    flip keeps a closed surface closed and coherently oriented ((u, v, w), (v, u, w') become
+    (u, w', w), (v, w, w'))."""
+    for _ in range(passes):
+        tri = np.asarray(b.tri, dtype=np.int64)
+        bad = np.flatnonzero(_negative(b, tri) >= 2)
+        if not len(bad):
+            return
+        where = {}
+        for t, row in enumerate(tri.tolist()):
+            for k in range(3):
+                where[(row[k], row[(k + 1) % 3])] = t
+        edges = set(where) | {(v, u) for u, v in where}
+        for t in bad.tolist():
+            row = tri[t].tolist()
+            length = [np.linalg.norm(b.x[row[k]] - b.x[row[(k + 1) % 3]]) for k in range(3)]
+            k = int(np.argmax(length))
+            u, v, w = row[k], row[(k + 1) % 3], row[(k + 2) % 3]
+            other = where.get((v, u))
+            if other is None or other == t:
+                continue
+            w2 = next(x for x in tri[other].tolist() if x not in (u, v))
+            if w2 == w or (w, w2) in edges:
+                continue
+            tri[t], tri[other] = (u, w2, w), (v, w, w2)
+            b.tri = [(r[0], r[1], r[2]) for r in tri.tolist()]
+            break  # the edge maps changed: the next pass rebuilds them
 
 
 def _result(b: _Builder, message: str) -> Mesh:
