@@ -49,7 +49,7 @@ from engine.space.surfaces.morse import (
     pl_critical_vertices,
     ring,
 )
-from engine.space.witnesses import PATHS_MAX
+from engine.space.witnesses import PATHS_MAX, bounded
 
 #: Largest angle (radians) between a triangle's plane and a vertex's tangent plane: it grows
 #: as the step times the surface's curvature (the equilateral pentagon: 52 degrees at
@@ -120,7 +120,9 @@ class SurfaceResult:
 
 
 def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
-    """Raise :class:`InvalidLinkage` unless ``M - E = 2`` with something fixed."""
+    """Raise :class:`InvalidLinkage` unless ``M - E = 2`` with something fixed and a bounded
+    configuration space (every moving vertex on a bar, every piece of the bar graph pinned:
+    the components are then compact, and each can be meshed whole)."""
     if cons.n_free - cons.n_constraints != 2 or not linkage.anything_fixed:
         raise InvalidLinkage(
             "surfaces need two degrees of freedom (M - E = 2 with something fixed); this "
@@ -128,15 +130,24 @@ def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
             + ("" if linkage.anything_fixed else " and nothing fixed"),
             loc=("bars",),
         )
+    moving = ~np.asarray(linkage.fixed, dtype=bool).all(axis=1)
+    on_bar = np.zeros(linkage.n_vertices, dtype=bool)
+    on_bar[linkage.ends[cons.bars].ravel()] = True
+    if (moving & ~on_bar).any() or not bounded(linkage, cons):
+        raise InvalidLinkage(
+            "the configuration space is unbounded (a moving vertex on no bar, or a piece of "
+            "the bar graph with no pinned vertex): its surfaces cannot be meshed whole",
+            loc=("bars",),
+        )
 
 
-def _geometry_checks(surface: Surface, mesh: Mesh) -> tuple[int, float]:
+def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
     """Triangles negative in at least two of their vertices' positive frames (folded), and
     the largest angle between a triangle's plane and its vertices' tangent planes."""
     tri, x = mesh.triangles, mesh.vertices
     if not len(tri):
         return 0, 0.0
-    frames = np.array([surface.frame(u).basis for u in x])  # (N, M, 2)
+    frames = mesh.frames  # (N, M, 2)
     negative = np.zeros(len(tri), dtype=np.int64)
     worst = 0.0
     e1 = x[tri[:, 1]] - x[tri[:, 0]]
@@ -199,11 +210,11 @@ def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadli
     with ``REMESH_FACTOR`` times the step if the budget allows. The mesh, its checks
     (inverted triangles, largest tangent angle) and whether the budget stopped it."""
     mesh = march(surface, seed, step, left, dl)
-    check = _geometry_checks(surface, mesh)
+    check = _geometry_checks(mesh)
     if mesh.closed and (check[0] or check[1] > TANGENT_ANGLE_MAX) and not dl.expired():
         finer = march(surface, seed, REMESH_FACTOR * step, left, dl)
         if finer.closed:
-            return finer, _geometry_checks(surface, finer), False
+            return finer, _geometry_checks(finer), False
         return mesh, check, "budget" in finer.message
     return mesh, check, "budget" in mesh.message
 

@@ -7,13 +7,15 @@ maps ``d1`` (edges to vertices) and ``d2`` (triangles to edges)::
     b0 = V - rank d1,   b1 = E - rank d1 - rank d2,   b2 = F - rank d2,
     chi = V - E + F = b0 - b1 + b2   (over any field).
 
-The ranks are computed exactly: over Z/2 by column reduction with Python integers as bit sets
-(a column is the XOR of its edges' bits), over Q by fraction-free column reduction on integer
-columns (each reduced column divided by the gcd of its entries, so the entries stay small; no
-rounding anywhere). Both are the standard reduction of persistent homology (a column is reduced
-while its lowest entry is the lowest entry of an earlier column); the triangles are taken in
-breadth-first order over shared edges and the edges numbered in order of first appearance, so
-that a column's lowest entry is usually an edge no earlier column has and the reduction is short.
+The ranks are exact. ``rank d1`` is ``V`` less the number of connected pieces over any field
+(the incidence matrix of a graph). ``rank d2``: over Z/2 by column reduction with Python
+integers as bit sets (a column is the XOR of its edges' bits), over Q by fraction-free column
+reduction on integer columns (each reduced column divided by the gcd of its entries, so the
+entries stay small; no rounding anywhere). Both are the standard reduction of persistent
+homology (a column is reduced while its lowest entry is the lowest entry of an earlier column);
+the triangles are taken in breadth-first order over shared edges and the edges numbered in
+order of first appearance, so that a column's lowest entry is usually an edge no earlier column
+has and the reduction is short.
 
 A closed surface is checked separately (:func:`manifold_defects`): every edge in exactly two
 triangles and the link of every vertex a single cycle.
@@ -32,6 +34,8 @@ from dataclasses import dataclass
 from math import gcd
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 
 @dataclass(frozen=True)
@@ -150,6 +154,14 @@ def _rank_q(columns: list[dict[int, int]]) -> int:
     return rank
 
 
+def _pieces(edges: np.ndarray, verts: np.ndarray) -> int:
+    """Connected pieces of the graph of ``edges`` on ``verts``."""
+    n = int(verts.max()) + 1
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    return len(np.unique(label[verts]))
+
+
 def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int, int]:
     """``(V, E, F, rank d1 over Z/2, rank d2 over Z/2, rank d1 over Q, rank d2 over Q)``."""
     tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
@@ -167,11 +179,10 @@ def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int,
                 renum[e] = k
                 k += 1
     verts = np.unique(tri)
-    vnum = {int(v): i for i, v in enumerate(verts.tolist())}
-    # d1: edge (a, b) with a < b -> b - a (rows: vertices)
-    by_new = np.argsort(renum)
-    d1_z2 = [[vnum[int(edges[e, 0])], vnum[int(edges[e, 1])]] for e in by_new.tolist()]
-    d1_q = [{vnum[int(edges[e, 0])]: -1, vnum[int(edges[e, 1])]: 1} for e in by_new.tolist()]
+    # d1 is the incidence matrix of the graph of the edges: its rank over any field is the
+    # number of vertices less the number of connected pieces (a spanning forest's edges are
+    # independent, every other edge closes a cycle of them), exact without elimination
+    rank1 = len(verts) - _pieces(edges, verts)
     # d2: triangle (v0, v1, v2) -> (v0 v1) + (v1 v2) - (v0 v2), each edge's sign against its
     # sorted direction
     d2_z2: list[list[int]] = []
@@ -184,8 +195,7 @@ def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int,
             col[int(renum[tri_edges[t, j]])] = 1 if a < b else -1
         d2_z2.append(list(col))
         d2_q.append(col)
-    return (len(verts), len(edges), len(tri), _rank_z2(d1_z2), _rank_z2(d2_z2),
-            _rank_q(d1_q), _rank_q(d2_q))
+    return len(verts), len(edges), len(tri), rank1, _rank_z2(d2_z2), rank1, _rank_q(d2_q)
 
 
 def orientable(triangles: np.ndarray) -> bool:
@@ -231,7 +241,11 @@ def orientable(triangles: np.ndarray) -> bool:
 def manifold_defects(triangles: np.ndarray) -> dict[str, int]:
     """What keeps the triangles from being a closed 2-manifold: ``open_edges`` (in one
     triangle), ``branched_edges`` (in three or more), ``pinched_vertices`` (whose link is not
-    one cycle) and ``repeated_triangles``; all zero for a closed surface."""
+    one cycle) and ``repeated_triangles``; all zero for a closed surface.
+
+    The link of a vertex is one piece when its corners (the vertex in each of its triangles)
+    are connected through the edges at the vertex: each edge ``v w`` joins the corners of ``v``
+    (and of ``w``) in the triangles that share it."""
     tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if not len(tri):
         return {"open_edges": 0, "branched_edges": 0, "pinched_vertices": 0,
@@ -239,30 +253,28 @@ def manifold_defects(triangles: np.ndarray) -> dict[str, int]:
     edges, tri_edges = edges_of(tri)
     count = np.bincount(tri_edges.ravel(), minlength=len(edges))
     repeated = len(tri) - len(np.unique(np.sort(tri, axis=1), axis=0))
-    pinched = 0
-    for v in np.unique(tri).tolist():
-        rows = tri[(tri == v).any(axis=1)]
-        # the link: the opposite edge of each triangle at v; one cycle <=> connected, every
-        # link vertex of degree 2
-        link = [tuple(x for x in r.tolist() if x != v) for r in rows]
-        adj: dict[int, list[int]] = {}
-        for a, b in link:
-            adj.setdefault(a, []).append(b)
-            adj.setdefault(b, []).append(a)
-        if any(len(n) != 2 for n in adj.values()):
-            pinched += 1
-            continue
-        start = next(iter(adj))
-        seen = {start}
-        stack = [start]
-        while stack:
-            for w in adj[stack.pop()]:
-                if w not in seen:
-                    seen.add(w)
-                    stack.append(w)
-        pinched += len(seen) != len(adj)
+    # half-edges (triangle t, side j: from tri[t, j] to tri[t, j + 1]) sorted by edge: each
+    # joined to the next one of the same edge (a chain over the triangles of a branched edge)
+    e = tri_edges.ravel()
+    order = np.argsort(e, kind="stable")
+    same = e[order[:-1]] == e[order[1:]]
+    h1, h2 = order[:-1][same], order[1:][same]
+    t1, j1, t2 = h1 // 3, h1 % 3, h2 // 3
+    rows, cols = [], []
+    for side in (0, 1):  # the edge's two ends
+        v = tri[t1, (j1 + side) % 3]
+        k2 = np.argmax(tri[t2] == v[:, None], axis=1)
+        rows.append(3 * t1 + (j1 + side) % 3)
+        cols.append(3 * t2 + k2)
+    n = 3 * len(tri)
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    vertex = tri.ravel()
+    pieces = np.unique(np.stack([vertex, label], axis=1), axis=0)[:, 0]
+    pinched = int((np.bincount(pieces) > 1).sum())
     return {"open_edges": int((count == 1).sum()), "branched_edges": int((count > 2).sum()),
-            "pinched_vertices": int(pinched), "repeated_triangles": int(repeated)}
+            "pinched_vertices": pinched, "repeated_triangles": int(repeated)}
 
 
 def surface_homology(triangles: np.ndarray) -> Homology:

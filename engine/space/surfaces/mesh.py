@@ -56,6 +56,8 @@ class Mesh:
         Points on the surface (configuration coordinates).
     triangles : (T, 3) int
         Counter-clockwise in the positive frames.
+    frames : (N, M, 2) float
+        The positive tangent frame at each vertex.
     gaps : (N,) float
         ``s_min / s_max`` of ``J`` at each vertex (small near a critical point).
     fronts : list of (k,) int arrays
@@ -66,6 +68,7 @@ class Mesh:
 
     vertices: np.ndarray
     triangles: np.ndarray
+    frames: np.ndarray
     gaps: np.ndarray
     fronts: list[np.ndarray]
     closed: bool
@@ -318,6 +321,7 @@ def _result(b: _Builder, message: str) -> Mesh:
     return Mesh(
         vertices=b.x[:b.count].copy(),
         triangles=np.asarray(b.tri, dtype=np.int64).reshape(-1, 3),
+        frames=b.z[:b.count].copy(),
         gaps=b.gap[:b.count].copy(),
         fronts=[np.asarray(fr, dtype=np.int64) for fr in b.fronts],
         closed=not b.fronts,

@@ -10,6 +10,7 @@ import pytest
 from engine.catalogue.presets import build_preset
 from engine.model.budget import Deadline
 from engine.model.errors import InvalidLinkage
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces
 from tests.engine.space.surfaces.conftest import (
     five_bar,
@@ -62,9 +63,19 @@ def test_budget_and_deadline():
     assert res.search.reason == "time"
 
 
-def test_other_degrees_of_freedom_are_refused():
+def test_other_degrees_of_freedom_and_unbounded_spaces_are_refused():
     with pytest.raises(InvalidLinkage, match="M - E = 2"):
         explore_surfaces(build_preset("four-bar"))
+    plane = build_linkage(2, [VertexSpec("P", (0, 0), True), VertexSpec("A", (1, 0))], [])
+    with pytest.raises(InvalidLinkage, match="unbounded"):
+        explore_surfaces(plane)
+    # a bar between two free vertices in 2D (three rigid motions, M - E = 3) is refused for its
+    # degrees of freedom; one free vertex on a slider with a bar to a free vertex is unbounded
+    slider = build_linkage(2, [VertexSpec("S", (0, 0), (False, True)), VertexSpec("A", (1, 0)),
+                               VertexSpec("P", (5, 5), True)],
+                           [BarSpec("b", ("S", "A"))])
+    with pytest.raises(InvalidLinkage, match="unbounded"):
+        explore_surfaces(slider)
 
 
 def test_two_components_are_both_meshed():
@@ -78,3 +89,18 @@ def test_two_components_are_both_meshed():
     assert len(res.components) == 2
     assert [c.homology.betti_q for c in res.components] == [(1, 2, 1)] * 2
     assert np.all([c.closed and c.morse_agrees for c in res.components])
+
+
+def test_critical_lengths_locate_the_cones():
+    """At lengths (2, 1, 1, 1, 1) the pentagon has critical configurations: a planar polygon
+    is critical exactly where all its bars are parallel (the ground bar and one other against
+    the remaining three, 2 + 1 = 1 + 1 + 1). They are found, collinear, with Q indefinite on
+    their three zero modes (cones), and the answer is not complete."""
+    res = explore_surfaces(pentagon((2, 1, 1, 1, 1)))
+    assert res.critical_points
+    for cp in res.critical_points:
+        ys = cp.u[1::2]  # the free coordinates are (x, y) of A, B, C
+        assert np.abs(ys).max() < 1e-6  # collinear with the pinned bar on the x axis
+        q = cp.analysis.q_eigenvalues
+        assert len(q) == 3 and q.max() > 0 > q.min()
+    assert res.search.reason == "degenerate" and not res.search.complete
