@@ -310,3 +310,26 @@ def test_two_degrees_of_freedom_compact_and_bounded(client):
         assert r.status_code == 422
         assert r.headers["content-type"].startswith("application/problem+json")
         assert "options" in r.text
+
+
+def test_two_degrees_of_freedom_answer_size_is_estimated_first(app, client):
+    """A triangle budget whose surfaces could exceed LINKAGE_MAX_POINTS is a 422 naming
+    options before any work (the estimate: about half a mesh vertex per triangle)."""
+    from service import config
+
+    before = app.dependency_overrides[config.get_settings]
+    app.dependency_overrides[config.get_settings] = lambda: before().replace(max_points=1000)
+    try:
+        r = client.post("/v1/analysis/configuration-space",
+                        json={"linkage": pentagon_body(), "options": {"max_triangles": 5000}})
+        ok = client.post("/v1/analysis/configuration-space",
+                         json={"linkage": pentagon_body(),
+                               "options": {"max_triangles": 1000, "homotopy_paths_max": 0,
+                                           "random_starts": 0}})
+    finally:
+        app.dependency_overrides[config.get_settings] = before
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "options"]
+    assert "max_triangles" in r.json()["errors"][0]["msg"]
+    assert ok.status_code == 200, ok.text
+    assert sum(len(s["triangles"]) for s in ok.json()["surfaces"]) <= 1000 + 12
