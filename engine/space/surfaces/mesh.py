@@ -131,11 +131,19 @@ class _Builder:
 def _front_entries(b: _Builder) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every front entry: (front, position, vertex) and the uncovered angle there (from the
     previous front vertex counter-clockwise to the next, in the vertex's frame)."""
-    fk = np.concatenate([np.full(len(fr), k) for k, fr in enumerate(b.fronts)])
-    pos = np.concatenate([np.arange(len(fr)) for fr in b.fronts])
-    p = np.concatenate([np.asarray(fr) for fr in b.fronts])
-    a = np.concatenate([np.roll(fr, 1) for fr in b.fronts])
-    c = np.concatenate([np.roll(fr, -1) for fr in b.fronts])
+    fk_l: list[int] = []
+    pos_l: list[int] = []
+    p_l: list[int] = []
+    a_l: list[int] = []
+    c_l: list[int] = []
+    for k, fr in enumerate(b.fronts):
+        fk_l += [k] * len(fr)
+        pos_l += range(len(fr))
+        p_l += fr
+        a_l += fr[-1:] + fr[:-1]
+        c_l += fr[1:] + fr[:1]
+    fk, pos = np.array(fk_l), np.array(pos_l)
+    p, a, c = np.array(p_l), np.array(a_l), np.array(c_l)
     z = b.z[p]  # (k, M, 2)
     va = np.einsum("km,kmj->kj", b.x[a] - b.x[p], z)
     vc = np.einsum("km,kmj->kj", b.x[c] - b.x[p], z)
