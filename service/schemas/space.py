@@ -207,8 +207,8 @@ class SurfaceOut(BaseModel):
                                     "2-manifold")
     inverted_triangles: int = Field(description="triangles negative in two of their vertices' "
                                     "tangent frames (folded)")
-    tangent_angle_max: float = Field(description="largest angle (degrees) between a "
-                                     "triangle's plane and its vertices' tangent planes")
+    tangent_angle_max: float = Field(description="largest angle (degrees) between a mesh "
+                                     "edge and the tangent planes at its ends")
     morse_sum: int | None = Field(description="sum of (-1)^index over the height's critical "
                                   "points on it (null: one is degenerate)")
     morse_agrees: bool = Field(description="morse_sum equals euler (the Morse check)")

@@ -39,7 +39,12 @@ from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
 from engine.space.surfaces.geometry import Surface
-from engine.space.surfaces.homology import Homology, manifold_defects, surface_homology
+from engine.space.surfaces.homology import (
+    Homology,
+    edges_of,
+    manifold_defects,
+    surface_homology,
+)
 from engine.space.surfaces.mesh import Mesh, march
 from engine.space.surfaces.morse import (
     HeightCritical,
@@ -51,13 +56,15 @@ from engine.space.surfaces.morse import (
 )
 from engine.space.witnesses import PATHS_MAX, bounded
 
-#: Largest angle (radians) between a triangle's plane and a vertex's tangent plane: it grows
-#: as the step times the surface's curvature (the equilateral pentagon: 52 degrees at
-#: ``step_rel = 0.25``, 30 at 0.12); beyond it the orientation test of the triangles means
-#: little, and the component is meshed again with a shorter step.
-TANGENT_ANGLE_MAX = np.deg2rad(60.0)
+#: Largest angle (radians) between a mesh edge and the tangent planes at its ends: it grows as
+#: the step times the surface's curvature (the equilateral pentagon: 36 degrees at
+#: ``step_rel = 0.25``); beyond it the mesh cuts across the surface (a thin part, a tight
+#: bend), and the component is meshed again with a shorter step.
+TANGENT_ANGLE_MAX = np.deg2rad(45.0)
 #: The step of a component meshed again (its geometric checks failed), relative to the last.
 REMESH_FACTOR = 0.6
+#: Times a component is meshed again at most.
+REMESH_MAX = 2
 #: Mesh vertices where ``s_min / s_max`` of ``J`` is below this are refined as possible
 #: critical points of the linkage.
 NEAR_CRITICAL_GAP = 0.02
@@ -86,7 +93,7 @@ class SurfaceComponent:
     """One meshed component: ``vertices`` (N, M), ``triangles`` (T, 3), ``closed``, its
     ``homology`` (None without triangles), ``defects`` (:func:`.homology.manifold_defects`),
     ``inverted`` (triangles negative in two of their vertices' frames),
-    ``tangent_angle_max`` (radians),
+    ``tangent_angle_max`` (radians: the largest angle of an edge off its ends' tangent planes),
     the height's critical points on it (indices into :attr:`SurfaceResult.height_critical`),
     ``morse_sum`` (their alternating sum) and ``morse_agrees``, and the linkage's critical
     points on it (indices into :attr:`SurfaceResult.critical_points`)."""
@@ -143,23 +150,29 @@ def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
 
 def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
     """Triangles negative in at least two of their vertices' positive frames (folded), and
-    the largest angle between a triangle's plane and its vertices' tangent planes."""
+    the largest angle between an edge and the tangent planes at its ends (an edge of a mesh
+    that follows the surface leaves its tangent planes by about half the step times the
+    curvature; unlike the plane of a thin triangle, an edge's direction is well defined)."""
     tri, x = mesh.triangles, mesh.vertices
     if not len(tri):
         return 0, 0.0
     frames = mesh.frames  # (N, M, 2)
     negative = np.zeros(len(tri), dtype=np.int64)
-    worst = 0.0
     e1 = x[tri[:, 1]] - x[tri[:, 0]]
     e2 = x[tri[:, 2]] - x[tri[:, 0]]
-    plane = np.linalg.qr(np.stack([e1, e2], axis=2))[0]  # (T, M, 2)
     for k in range(3):
         z = frames[tri[:, k]]
         a = np.einsum("tm,tmj->tj", e1, z)
         b = np.einsum("tm,tmj->tj", e2, z)
         negative += a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0
-        s = np.linalg.svd(np.einsum("tmi,tmj->tij", plane, z), compute_uv=False)
-        worst = max(worst, float(np.arccos(np.clip(s[:, -1].min(), -1.0, 1.0))))
+    edges, _ = edges_of(tri)
+    d = x[edges[:, 1]] - x[edges[:, 0]]
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    worst = 0.0
+    for end in (0, 1):
+        inplane = np.linalg.norm(np.einsum("em,emj->ej", d, frames[edges[:, end]]), axis=1)
+        off = np.sqrt(np.maximum(length ** 2 - inplane ** 2, 0.0)) / length
+        worst = max(worst, float(np.arcsin(np.clip(off, 0.0, 1.0)).max()))
     # a fold shows in the frames of most of a triangle's vertices; a sliver left by a join
     # (its area near zero) may lean across one vertex's frame without any overlap
     return int((negative >= 2).sum()), worst
@@ -206,16 +219,22 @@ def _linkage_critical(surface: Surface, meshes: list[Mesh], tol: Tolerances
 
 def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadline
           ) -> tuple[Mesh, tuple[int, float], bool]:
-    """March from ``seed``; where the closed mesh fails the geometric checks, march once more
-    with ``REMESH_FACTOR`` times the step if the budget allows. The mesh, its checks
-    (inverted triangles, largest tangent angle) and whether the budget stopped it."""
+    """March from ``seed``; where the closed mesh fails the geometric checks, march again
+    with ``REMESH_FACTOR`` times the step (at most ``REMESH_MAX`` times) while the budget and
+    the deadline allow. The mesh, its checks (folded triangles, largest edge angle) and whether
+    the budget stopped a march."""
     mesh = march(surface, seed, step, left, dl)
     check = _geometry_checks(mesh)
-    if mesh.closed and (check[0] or check[1] > TANGENT_ANGLE_MAX) and not dl.expired():
-        finer = march(surface, seed, REMESH_FACTOR * step, left, dl)
-        if finer.closed:
-            return finer, _geometry_checks(finer), False
-        return mesh, check, "budget" in finer.message
+    for _ in range(REMESH_MAX):
+        if not mesh.closed or not (check[0] or check[1] > TANGENT_ANGLE_MAX) or dl.expired():
+            break
+        if len(mesh.gaps) and float(mesh.gaps.min()) < NEAR_CRITICAL_GAP:
+            break  # near a cone of the linkage: no step makes the surface smooth there
+        step *= REMESH_FACTOR
+        finer = march(surface, seed, step, left, dl)
+        if not finer.closed:
+            return mesh, check, "budget" in finer.message
+        mesh, check = finer, _geometry_checks(finer)
     return mesh, check, "budget" in mesh.message
 
 
