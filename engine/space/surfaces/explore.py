@@ -26,7 +26,7 @@ Morse checks, no linkage critical point lies on it, and the homotopy proved the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -48,6 +48,7 @@ from engine.space.surfaces.homology import (
 from engine.space.surfaces.mesh import Mesh, march
 from engine.space.surfaces.morse import (
     HeightCritical,
+    HeightWitnesses,
     assign,
     classify_points,
     height_witnesses,
@@ -108,8 +109,8 @@ class SurfaceComponent:
     height_critical: list[int]
     morse_sum: int | None
     morse_agrees: bool
-    critical_points: list[int] = field(default_factory=list)
-    message: str = ""
+    critical_points: list[int]
+    message: str
 
 
 @dataclass(frozen=True)
@@ -239,7 +240,7 @@ def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadli
 
 
 def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner: np.ndarray,
-               k: int) -> SurfaceComponent:
+               k: int, critical: list[int]) -> SurfaceComponent:
     hom = surface_homology(mesh.triangles) if len(mesh.triangles) else None
     defects = manifold_defects(mesh.triangles)
     inverted, angle = check
@@ -248,7 +249,7 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
     morse = None if (idx < 0).any() else int(sum((-1) ** int(i) for i in idx))
     agrees = hom is not None and morse is not None and morse == hom.euler
     return SurfaceComponent(mesh.vertices, mesh.triangles, mesh.closed, hom, defects, inverted,
-                            angle, mine, morse, agrees, message=mesh.message)
+                            angle, mine, morse, agrees, critical, mesh.message)
 
 
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
@@ -308,18 +309,21 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                                                               m.vertices @ c)[0])]
             for m in meshes if m.closed]), 0.5 * step)
     owner = assign(crit.points, [m.vertices for m in meshes], 2.0 * step)
-    comps = [_component(m, checks[k], crit, owner, k) for k, m in enumerate(meshes)]
     critical, where = _linkage_critical(surface, meshes, tol)
-    for j, k in enumerate(where):
-        comps[k].critical_points.append(j)
+    comps = [_component(m, checks[k], crit, owner, k,
+                        [j for j, w in enumerate(where) if w == k])
+             for k, m in enumerate(meshes)]
     return SurfaceResult(comps, c, crit, owner, critical,
-                         _report(opt, wit, comps, owner, critical, dl, budget_hit, step))
+                         _report(wit, comps, owner, critical, dl, budget_hit, step))
 
 
-def _report(opt: SurfaceOptions, wit: object, comps: list[SurfaceComponent], owner: np.ndarray,
-            critical: list[CriticalPoint], dl: Deadline, budget_hit: bool, step: float
-            ) -> SearchReport:
-    proved = getattr(wit, "success", False)
+def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
+            owner: np.ndarray, critical: list[CriticalPoint], dl: Deadline, budget_hit: bool,
+            step: float) -> SearchReport:
+    """The search report: complete only with the homotopy's proof, every surface closed and
+    sound, every critical point of the height on one, no cone of the linkage."""
+    proved = wit is not None and wit.success
+    paths = wit.paths if wit is not None else 0
     sound = all(c.closed and not any(c.defects.values()) and c.inverted == 0
                 and c.tangent_angle_max <= TANGENT_ANGLE_MAX and c.morse_agrees for c in comps)
     missed = int((owner < 0).sum())
@@ -327,15 +331,14 @@ def _report(opt: SurfaceOptions, wit: object, comps: list[SurfaceComponent], own
         "method": "marching", "dof": 2, "step": step, "components_meshed": len(comps),
         "triangles": int(sum(len(c.triangles) for c in comps)),
         "height_critical_points": len(owner), "height_critical_unplaced": missed,
-        "homotopy": getattr(wit, "message", "skipped"),
-        "homotopy_paths": int(getattr(wit, "paths", 0)),
-        "morse_agrees": all(c.morse_agrees for c in comps),
+        "homotopy": wit.message if wit is not None else "skipped",
+        "homotopy_paths": paths, "morse_agrees": all(c.morse_agrees for c in comps),
     }
-    argument = ("proved", "every compact component holds a maximum of a generic height: the "
-                f"{getattr(wit, 'paths', 0)} paths of the Lagrange system's homotopy found "
-                f"its {len(owner)} real critical points, each on a meshed closed surface whose "
-                "Morse sum equals its Euler characteristic") if proved else (None, None)
+    detail = ("every compact component holds a maximum of a generic height: the "
+              f"{paths} paths of the Lagrange system's homotopy found its {len(owner)} real "
+              "critical points, each on a meshed closed surface whose Morse sum equals its "
+              "Euler characteristic") if proved else None
     return SearchReport(details, timed_out=dl.expired(), budget=budget_hit,
                         degenerate=bool(critical), unresolved=not sound or missed > 0,
-                        time_budget_s=granted(dl), argument=argument[0],  # type: ignore[arg-type]
-                        argument_detail=argument[1])
+                        time_budget_s=granted(dl), argument="proved" if proved else None,
+                        argument_detail=detail)
