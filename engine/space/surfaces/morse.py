@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
-from engine.space.homotopy import REGULAR, SINGULAR, track
+from engine.space.homotopy import FAR, REGULAR, SINGULAR, track
 from engine.space.surfaces.geometry import Surface
 from engine.space.witnesses import FAR_REACH, REAL_TOL, _reach, bar_quadrics, bounded
 
@@ -47,6 +47,8 @@ NEWTON_TOL = 1e-12
 #: Eigenvalues of the height's Hessian on the surface below this (relative to the norm of
 #: ``H_lambda``) make a critical point degenerate.
 HESSIAN_RTOL = 1e-8
+#: Times the homotopy is tracked (with a new gamma and patch) while paths fail.
+TRACK_ATTEMPTS = 2
 #: Two critical points of the height closer than this (relative to the median bar length) are
 #: the same.
 SAME_REL = 1e-6
@@ -187,7 +189,12 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
         return HeightWitnesses(empty, system.paths, {}, False,
                                f"{system.paths} paths exceed the bound of {paths_max}")
     reach = _reach(lk, cons, system.scale)
-    res = track(system, system.degrees, rng, deadline, far=FAR_REACH * reach * 10.0)
+    # a failed path (its step fell below the floor) is a matter of the random gamma and patch:
+    # the homotopy is tracked once more with new ones before the argument is given up
+    for _ in range(TRACK_ATTEMPTS):
+        res = track(system, system.degrees, rng, deadline, far=FAR_REACH * reach * 10.0)
+        if res.success or deadline.expired():
+            break
     m = cons.n_free
     x0 = res.ends[:, 0]
     y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
@@ -195,9 +202,13 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
     near = np.isfinite(size) & (size <= reach) & (np.abs(x0) > 0)
     imag = np.linalg.norm(y.imag, axis=1) / np.maximum(size, 1.0)
     real = (res.state == REGULAR) & near & (imag <= REAL_TOL)
-    counts = {"paths": system.paths, "regular": int(((res.state == REGULAR) & near).sum()),
-              "singular": int(((res.state == SINGULAR) & near).sum()), "real": int(real.sum()),
-              "steps": res.steps}
+    regular = (res.state == REGULAR) & near
+    singular = (res.state == SINGULAR) & near
+    ended = np.isin(res.state, (REGULAR, SINGULAR, FAR))
+    # a partition of the paths, as in engine.space.witnesses
+    counts = {"paths": system.paths, "regular": int(regular.sum()),
+              "singular": int(singular.sum()), "far": int((ended & ~(regular | singular)).sum()),
+              "failed": int((~ended).sum()), "real": int(real.sum()), "steps": res.steps}
     starts = system.centre + system.scale * y[real].real
     crit = classify_points(surface, system.c, starts)
     counts["refined"] = len(crit.points)

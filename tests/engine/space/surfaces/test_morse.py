@@ -56,6 +56,8 @@ def test_torus_has_four_critical_points_summing_to_zero():
     idx = sorted(w.critical.index.tolist())
     assert sum((-1) ** i for i in idx) == 0 and idx[0] == 0 and idx[-1] == 2
     assert w.counts["paths"] == 2 ** 8
+    c = w.counts
+    assert c["regular"] + c["singular"] + c["far"] + c["failed"] == c["paths"]
 
 
 def test_pl_critical_vertices_refine_to_the_morse_sum():
