@@ -191,8 +191,37 @@ def markdown(rows: list[Json], meta: Json) -> str:
             f"| {complete} | {why} | {'yes' if met(r) else '**no**'} |")
     n_met = sum(met(r) for r in rows)
     lines += ["", f"{n_met} of {len(rows)} cells met; wall time of the run "
-              f"{meta['wall_s']:.0f} s.", ""]
+              f"{meta['wall_s']:.0f} s.", "", *WHY_INCOMPLETE, ""]
     return "\n".join(lines)
+
+
+#: What the reasons of the incomplete cells mean here (the answers' ``search`` says it per
+#: answer: ``reason``, ``argument_detail``, ``components_total``, ``homotopy``).
+WHY_INCOMPLETE = [
+    "## Why a cell is incomplete",
+    "",
+    "- `budget` on a configuration space of a long chain: the chain rules "
+    "(`engine/space/chain_count.py`) count 2^(n-1) components (512 for the 10-rotor chain, "
+    "2^99 for 100 rotors), more than `max_components` (32) can trace; `components_total` says "
+    "how many there are. The critical points of these chains are derived (none), so "
+    "`critical-points`, `splitting` and `design` are complete.",
+    "- `searched` on a 3D chain: no rule applies and the homotopy that would prove the search "
+    "complete has more paths than `homotopy_paths_max` (512; the 6-rotor 3D chain needs "
+    "22,528): the answer says so in `argument_detail`.",
+    "- `searched` or `time` on `robustness` (not the four-bar family): the margin is a "
+    "multistart's upper bound (`guarantee: upper-bound`); no argument bounds it from below.",
+    "- `time` or `searched` on `critical-values` (maps) of chains: the curves are traced from "
+    "seed lengths, and no argument proves that every critical curve crossing the box was "
+    "found (`engine/design/critical_values.py`); the time goes into exploring every region "
+    "of the raster. For the gated chain the gate's critical lengths are the gate four-bar's "
+    "flat conditions (`D = +-r +-L2 +-L1`), lines in the (L2, D) plane, and the region "
+    "counts are derived by `gated_chain_components`: a closed form of those lines would make "
+    "the gate slice complete in a fraction of a second (the maps' modules, another "
+    "engineer's area at the time of writing).",
+    "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
+    "vertices each (40-90 MB of JSON as objects): mapping and serialising it takes seconds "
+    "beyond the search budget; `options.points = \"compact\"` sends it as packed arrays.",
+]
 
 
 def commit() -> str:
@@ -205,7 +234,12 @@ def commit() -> str:
 
 def wait_ready(url: str, timeout: float) -> None:
     deadline = time.monotonic() + timeout
-    while httpx.get(url + "/health/ready", timeout=5.0).status_code != 200:
+    while True:
+        try:  # (a loaded machine may keep a probe waiting for seconds)
+            if httpx.get(url + "/health/ready", timeout=30.0).status_code == 200:
+                return
+        except httpx.TimeoutException:
+            pass
         if time.monotonic() > deadline:
             raise RuntimeError("the service did not become ready")
         time.sleep(0.2)

@@ -98,7 +98,12 @@ def test_no_count_for_the_gated_chain_or_other_linkages() -> None:
     assert chain_components(build_preset("four-bar")) is None
     crank_rocker = chain_components(build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}))
     assert crank_rocker is not None and crank_rocker.components == 2
+    # the gated chain's count is gated_chain_components' (below): an exploration cut by its
+    # component budget reports it and is incomplete; at the gate's critical lengths there is none
     res = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 2}),
+                  options=SpaceOptions(max_components=2))
+    assert res.search["components_total"] == 32 and res.search["reason"] == "budget"
+    res = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 2, "D": 1.5}),
                   options=SpaceOptions(max_components=2))
     assert "components_total" not in res.search
 
@@ -135,9 +140,10 @@ def test_search_skipped_where_the_rules_prove_smoothness(n: int) -> None:
     assert len(fast.components) == len(full.components) == 2 ** (n - 1)
     assert sorted(len(c.points) for c in fast.components) == \
         sorted(len(c.points) for c in full.components)
-    # never skipped where the rules give no count (the gated chain has critical lengths)
-    gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1}), near_misses=False,
-                    options=SpaceOptions(max_components=2))
+    # never skipped where the rules give no count (a gated chain whose gate four-bar has
+    # critical lengths: D = r + L2 - L1, a flat configuration)
+    gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 1.5}),
+                    near_misses=False, options=SpaceOptions(max_components=2))
     assert "critical_search" not in gated.search
 
 
