@@ -4,11 +4,11 @@ through every endpoint it is meaningful for, with the options a request gets by 
 HTTP on a warm service and in-process; time and completeness per cell.
 
     .venv/bin/python bench/bench_matrix.py [--repeat 3] [--only kl-chain] [--no-in-process]
-        [--json bench/results/matrix.json] [--markdown docs/benchmarks.md]
+        [--json bench/results/matrix.json] [--markdown docs/preset-matrix.md]
 
 The cases are those of ``tests/service/preset_matrix.py`` (the maps: the first two bars with a
 free end as axes over ``[0.8 L, 1.2 L]`` each, resolution and budget by default), for each
-variant in :data:`VARIANTS`, plus the cells in :data:`EXTRA` (the gate slice of the issue).
+variant in ``preset_matrix.VARIANTS``, plus the gate slice (``preset_matrix.gate_slice``).
 
 The service runs as deployed (``uvicorn service.main:app`` in a process of its own, its
 default settings: ``LINKAGE_SEARCH_TIME_S`` 4 s) and is measured once it is *ready*
@@ -155,16 +155,17 @@ def met(row: Json) -> bool:
 
 
 def markdown(rows: list[Json], meta: Json) -> str:
-    """The matrix as a Markdown page (``docs/benchmarks.md``)."""
+    """The matrix as a Markdown page (``docs/preset-matrix.md``)."""
     lines = [
-        "# Benchmarks: the preset matrix",
+        "# The preset matrix at the defaults",
         "",
-        "Every preset with its default parameters (and the chains of issue 30) through every "
-        "endpoint it is meaningful for, **with the options a request gets by default**, "
+        "Every preset with its default parameters (and a 100-rotor chain, the 4-rotor gated "
+        "chain and its gate slice) through every endpoint it is meaningful for, **with the "
+        "options a request gets by default**, "
         "measured by `bench/bench_matrix.py` (run on demand; `tests/service/"
-        "test_matrix_completeness.py` checks the completeness column, not the times). Maps "
+        "test_matrix_completeness.py` checks its completeness column, not the times). Maps "
         "take the first two bars with a free end as axes over `[0.8 L, 1.2 L]` each; the gate "
-        "slice is the issue's (`L2` in [1, 3] x `D` in [1, 3.5]).",
+        "slice is the 4-rotor gated chain's (`L2` in [1, 3] x `D` in [1, 3.5]).",
         "",
         f"Measured {meta['date']} on {meta['machine']}, commit `{meta['commit']}`; load average "
         f"{meta['load_before']} before, {meta['load_after']} after (several engineers share "
@@ -258,11 +259,12 @@ def main() -> None:
     parser.add_argument("--no-in-process", action="store_true")
     parser.add_argument("--json", type=Path, default=Path("bench/results/matrix.json"))
     parser.add_argument("--markdown", type=Path, default=None,
-                        help="write the table there too (e.g. docs/benchmarks.md)")
+                        help="write the table there too (e.g. docs/preset-matrix.md)")
     parser.add_argument("--log", type=Path, default=None, help="the server's output")
     args = parser.parse_args()
 
     load_before = [round(x, 2) for x in os.getloadavg()]
+    served = commit()  # (the code the server imports as it starts)
     t_start = time.perf_counter()
     rows: list[Json] = []
     run_local = None if args.no_in_process else in_process_runner()
@@ -295,7 +297,7 @@ def main() -> None:
                   flush=True)
     meta = {"date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "commit": commit(), "repeat": args.repeat, "load_before": load_before,
+            "commit": served, "repeat": args.repeat, "load_before": load_before,
             "load_after": [round(x, 2) for x in os.getloadavg()],
             "wall_s": time.perf_counter() - t_start}
     args.json.parent.mkdir(parents=True, exist_ok=True)

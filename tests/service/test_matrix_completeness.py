@@ -1,5 +1,5 @@
 """The preset matrix's completeness at the service's defaults (issue 30; its times are
-``bench/bench_matrix.py``'s and ``docs/benchmarks.md``'s, not a test's): every preset with its
+``bench/bench_matrix.py``'s and ``docs/preset-matrix.md``'s, not a test's): every preset with its
 default parameters, the chains of the issue (``kl-chain`` n=100, ``gated-kl-chain`` n=4 gate=2)
 and the issue's gate slice, through every JSON endpoint they are meaningful for, with the
 options and the search budget a request gets by default (``LINKAGE_SEARCH_TIME_S``, 4 s).
