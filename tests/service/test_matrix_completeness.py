@@ -53,6 +53,9 @@ MUST_COMPLETE = {
 @pytest.fixture(scope="module")
 def api() -> Iterator[ApiClient]:
     app = create_app(Settings.from_env().replace(time_limit_s=30.0, search_time_s=4.0))
+    # started and warmed as the served app is before it is ready (the ASGI transport runs no
+    # lifespan): no cell pays a worker's start or its kernels' loading
+    app.state.engine_pool.start()
     client = ApiClient(app)
     yield client
     client.close()
