@@ -34,9 +34,10 @@ from engine.design.slice_regions import (
     Region,
     _clip,
     _merge_coincident,
-    _polyline_distance,
+    _on_polyline,
     _regions,
 )
+from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths, scanline_values
 from engine.local.critical import refine_critical
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
 from engine.model.constraints import Constraints
@@ -51,6 +52,13 @@ from engine.space.configuration_space import SpaceOptions, find_critical_points
 #: critical values of symmetric linkages lie (a seed at critical lengths is the slowest and least
 #: robust exploration there is; its neighbours seed the same curves from regular lengths).
 GRID_OFFSET = np.array([0.5 + (np.sqrt(2.0) - 1.0) / 10.0, 0.5 - (np.sqrt(5.0) - 2.0) / 10.0])
+
+#: A seed this close to a traced polyline (relative to the tracing step), going its way, lies on
+#: that curve: a chord of a circle of radius ``R`` is within ``h^2 / (8 R)`` of it, so a curve
+#: whose radius of curvature is above ``1 / (8 KNOWN_REL)`` steps is recognised.
+KNOWN_REL = 0.05
+#: Sine of the angle below which a seed's direction is a traced polyline's.
+SAME_WAY = 0.2
 
 #: Point budget of one curve in a seed exploration.
 SEED_MAX_POINTS = 2000
@@ -124,13 +132,18 @@ def critical_value_slice(
     span = box[:, 1] - box[:, 0]
     h_max = float(min(span)) / resolution
     lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
+    scan: Scan | None = None
     if lines is not None:
         raw, seeds, timed_out = lines, 0, False
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
-        grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
-                for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
+        scan = _scan(tracing, seeds_per_axis, opt.homotopy_paths_max, opt.seed)
+        # Seed lengths only where the scanlines did not all solve: their explorations find what
+        # they find, and add nothing to the scanlines' argument.
+        grid = [] if scan.complete else [
+            box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
+            for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
         # One column of seed lengths at a time: the explorations first, then all their starts
         # onto G = 0 in one batch (a pure function of each start), then taken in seed order
         # (the same curves as seed by seed; a deadline still leaves the earlier columns' curves).
@@ -140,14 +153,14 @@ def critical_value_slice(
                 if dl.expired():
                     tracing.timed_out = True
                     break
-                dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
+                dl.report(0.3 + 0.3 * k / len(grid), "critical values: tracing the curves")
                 starts.append(tracing.starts_at(grid[k]))
             tracing.take(starts)
             if tracing.timed_out and dl.expired():
                 break
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
-    curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
+    curves = _merge_coincident([c for c in raw if len(c) >= 2], KNOWN_REL * h_max)
     regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
     timed_out = timed_out or any(r.components is None for r in regions)
     search = SearchReport({
@@ -159,20 +172,74 @@ def critical_value_slice(
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
         "regions_exact": sum(r.argument is not None for r in regions),
+        **_scan_details(scan),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions))
+    search = search.with_argument(*_slice_argument(lines, regions, scan))
     return Slice(curves, regions, search)
 
 
-def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region]
-                    ) -> tuple[Argument | None, str]:
+def _scan(tracing: _CurveTracing, count: int, paths_max: int, seed: int) -> Scan:
+    """Every critical configuration on the scanlines of both directions (the box's edges and
+    ``count`` lines inside, :func:`engine.design.slice_scan.scanline_values`), each solved by
+    its homotopy where its paths are within ``paths_max``, and the curves through them traced
+    (:meth:`_CurveTracing.take`)."""
+    box, ax, dl = tracing.box, tracing.ax, tracing.deadline
+    values = [scanline_values(box[k, 0], box[k, 1], count, GRID_OFFSET[k]) for k in range(2)]
+    planned = sum(len(v) for v in values)
+    paths = scan_paths(tracing.linkage)
+    if paths > paths_max:
+        return Scan([], planned, 0, f"{paths} paths per scanline exceed the bound of {paths_max}")
+    lines: list[Scanline] = []
+    for fixed in range(2):
+        if dl.expired():
+            tracing.timed_out = True
+            return Scan(lines, planned, paths, "the deadline stopped the scanlines")
+        direction = ScanDirection(tracing.linkage, ax[1 - fixed].bar, ax[fixed].bar, fixed,
+                                  float(box[fixed].mean()), float(box[1 - fixed, 1]),
+                                  seed=seed + fixed, deadline=dl)
+        for v in values[fixed]:
+            if dl.expired():
+                tracing.timed_out = True
+                return Scan(lines, planned, paths, "the deadline stopped the scanlines")
+            dl.report(0.3 * len(lines) / planned, "critical values: solving the scanlines")
+            line = direction.at_value(float(v), dl)
+            lines.append(line)
+            tracing.take([line.starts])
+    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]} = {s.value:.6g}: {s.message}"
+              for s in lines if not s.success]
+    return Scan(lines, planned, paths, "; ".join(failed))
+
+
+def _scan_details(scan: Scan | None) -> dict[str, object]:
+    """The scanlines in the search report (none for a closed form)."""
+    if scan is None:
+        return {}
+    return {"scanlines": scan.planned,
+            "scanlines_complete": sum(s.success for s in scan.lines),
+            "scanline_paths": scan.paths}
+
+
+def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
+                    scan: Scan | None = None) -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box (the closed
     form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
-    count is exact (its exploration complete, with an argument)."""
+    count is exact (its exploration complete, with an argument). A traced slice says what is
+    proved so far: which curves the scanlines guarantee, how many regions are exact."""
     inexact = sum(r.argument is None for r in regions)
     if lines is None:
-        return None, ("the curves were traced from seed lengths: no argument proves that every "
-                      "critical curve crossing the box was found")
+        labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "
+                  "exact, the others lower bounds")
+        if scan is None or not scan.complete:
+            what = scan.summary() if scan is not None else "no scanline"
+            return None, (f"the curves were traced from seed lengths ({what}): no argument "
+                          f"proves that every critical curve crossing the box was found; {labels}")
+        return None, (
+            f"every critical curve that meets one of the {scan.planned} scanlines (the box's "
+            "edges and lines inside, at most 1/" + str((scan.planned - 4) // 2) + " of each "
+            "side apart) was found: each scanline's critical configurations are every "
+            f"isolated solution of a square system ({scan.paths} homotopy paths, every one "
+            "ended); a closed curve lying inside one cell of the scanlines' grid (its turning "
+            f"points are not computed) is not excluded; {labels}")
     if inexact:
         return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
                       "regions' component counts are lower bounds")
@@ -251,10 +318,17 @@ class _CurveTracing:
         )
 
     def known(self, x: np.ndarray) -> bool:
-        """The seed's lengths lie on a curve already traced (other assemblies of the same
-        critical sheet project onto the same curve of the slice)."""
-        p = x[-2:][None, :]
-        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves
+        """The seed's lengths lie on a curve already traced, going the same way there (other
+        assemblies of the same critical sheet project onto the same curve of the slice). A
+        traced polyline is a chord of its curve (within ``KNOWN_REL`` of a step of it); a
+        curve that only crosses it there has another direction, and is traced."""
+        p = x[-2:]
+        t = _tangent(self.sys, x, np.random.default_rng(0).normal(size=self.sys.n))
+        d = None if t is None else t[-2:]
+        if t is not None and np.linalg.norm(t[-2:]) <= 1e-3 * np.linalg.norm(t):
+            d = None  # (a cusp of the projection: its direction is no guide)
+        atol = KNOWN_REL * self.h_max
+        return any(_on_polyline(p, d, c[:, -2:], atol, SAME_WAY) for c in self.curves
                    if len(c) >= 2)  # (a curve the deadline cut to one point: no segment)
 
     def starts_at(self, p0: np.ndarray) -> np.ndarray:

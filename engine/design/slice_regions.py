@@ -61,6 +61,22 @@ def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.min(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
 
 
+def _on_polyline(p: np.ndarray, d: np.ndarray | None, line: np.ndarray, atol: float,
+                 same_way: float = 0.2) -> bool:
+    """``p`` (2,) lies within ``atol`` of a segment of ``line`` (m, 2) that runs along ``d``
+    (2,; ``|sin|`` of the angle at most ``same_way``; None: any segment)."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
+    s = np.clip(np.einsum("ij,ij->i", p - a, ab) / denom, 0.0, 1.0)
+    near = np.linalg.norm(a + s[:, None] * ab - p, axis=1) <= atol
+    if d is None or not near.any():
+        return bool(near.any())
+    seg = ab[near] / np.sqrt(denom[near])[:, None]
+    sine = np.abs(seg[:, 0] * d[1] - seg[:, 1] * d[0]) / max(float(np.linalg.norm(d)), 1e-300)
+    return bool((sine <= same_way).any())
+
+
 def _merge_coincident(curves: list[np.ndarray], atol: float) -> list[np.ndarray]:
     """Drop a curve lying on another one: two sheets of the critical value set can project onto
     the same line of the slice (a self-intersection of the set); the slice draws it once."""
