@@ -31,6 +31,7 @@ import numpy as np
 from engine.design.dyad_margin import critical_planes
 from engine.design.slice_curves import Axis, _continue, _onto_solutions_batch, _System, _tangent
 from engine.design.slice_regions import (
+    THIN_REFINE,
     Region,
     _clip,
     _merge_coincident,
@@ -161,7 +162,7 @@ def critical_value_slice(
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
     curves = _merge_coincident([c for c in raw if len(c) >= 2], KNOWN_REL * h_max)
-    regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
+    regions, thin_unresolved = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
     timed_out = timed_out or any(r.components is None for r in regions)
     search = SearchReport({
         "method": "closed form" if lines is not None else "traced",
@@ -172,9 +173,11 @@ def critical_value_slice(
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
         "regions_exact": sum(r.argument is not None for r in regions),
+        "regions_thin": sum(r.cells == 0 for r in regions),
+        "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions, scan))
+    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved))
     return Slice(curves, regions, search)
 
 
@@ -220,7 +223,8 @@ def _scan_details(scan: Scan | None) -> dict[str, object]:
 
 
 def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
-                    scan: Scan | None = None) -> tuple[Argument | None, str]:
+                    scan: Scan | None = None, thin_unresolved: int = 0
+                    ) -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box (the closed
     form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
     count is exact (its exploration complete, with an argument). A traced slice says what is
@@ -243,6 +247,10 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
     if inexact:
         return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
                       "regions' component counts are lower bounds")
+    if thin_unresolved:
+        return None, (f"the curves are the closed form's, but at {thin_unresolved} places they "
+                      f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
+                      "may be missing (a finer resolution resolves it)")
     return ARGUMENT_DERIVED, (
         "every critical curve in the box is a critical hyperplane of the one-dyad chain (closed "
         f"form) met with the plane; every one of the {len(regions)} regions' component counts "

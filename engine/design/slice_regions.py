@@ -144,6 +144,81 @@ def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndar
     return blocked
 
 
+#: Curves closer than this many raster cells, running alike (``|sin|`` of their angle at most
+#: ``THIN_SAME_WAY``) and not meeting there, may hold a region the raster loses between them.
+THIN_CELLS = 1.5
+THIN_SAME_WAY = 0.3
+#: The finer raster (``THIN_REFINE`` times the resolution) that thin regions are looked for in.
+THIN_REFINE = 8
+
+
+def _close_pairs(curves: list[np.ndarray], cell: float) -> list[np.ndarray]:
+    """Points (2,) midway between two curves (or two parts of one) that run alike closer than
+    ``THIN_CELLS`` cells without meeting: one per run of such samples along a curve."""
+    out: list[np.ndarray] = []
+    for i, c in enumerate(curves):
+        if len(c) < 2:
+            continue
+        d_c = np.gradient(c, axis=0)
+        d_c /= np.maximum(np.linalg.norm(d_c, axis=1, keepdims=True), NORM_FLOOR)
+        for j, other in enumerate(curves):
+            if len(other) < 2 or j < i:
+                continue
+            pts = c
+            a, b = other[:-1], other[1:]
+            ab = b - a
+            denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
+            rel = pts[:, None, :] - a[None]
+            s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
+            foot = a[None] + s[:, :, None] * ab[None]
+            dist = np.linalg.norm(pts[:, None, :] - foot, axis=2)  # (n, m - 1)
+            if j == i:  # leave out the segments near each point along the curve
+                idx = np.arange(len(pts))[:, None] - np.arange(len(ab))[None, :]
+                along = np.abs(idx) * np.median(np.sqrt(denom))
+                dist = np.where(along > 3 * THIN_CELLS * cell, dist, np.inf)
+            seg = np.argmin(dist, axis=1)
+            near = dist[np.arange(len(pts)), seg]
+            u = ab[seg] / np.sqrt(denom[seg])[:, None]
+            sine = np.abs(u[:, 0] * d_c[:, 1] - u[:, 1] * d_c[:, 0])
+            close = np.flatnonzero((near < THIN_CELLS * cell) & (sine <= THIN_SAME_WAY))
+            off = pts - foot[np.arange(len(pts)), seg]
+            side = np.sign(u[:, 0] * off[:, 1] - u[:, 1] * off[:, 0])
+            for run in np.split(close, np.flatnonzero(np.diff(close) > 1) + 1):
+                if len(run) and len(set(side[run].tolist()) - {0.0}) == 1:  # (crossing: no strip)
+                    k = run[len(run) // 2]
+                    out.append(0.5 * (pts[k] + foot[k, seg[k]]))
+    return out
+
+
+def _thin_points(curves: list[np.ndarray], box: np.ndarray, n: int, free: np.ndarray
+                 ) -> tuple[list[np.ndarray], int]:
+    """Sample points of the regions narrower than a raster cell, and how many places where
+    curves run closer than a cell of the finer raster remain unresolved. A point midway
+    between two close curves is a thin region's when, in the raster ``THIN_REFINE`` times finer,
+    its cell is free and its piece holds no free cell of the coarse raster (``free``, (n, n));
+    points in one piece give one region."""
+    span = box[:, 1] - box[:, 0]
+    pairs = _close_pairs(curves, float(max(span)) / n)
+    if not pairs:
+        return [], 0
+    k = THIN_REFINE
+    fine_free = ~_blocked_cells(curves, box, k * n)
+    labels, _ = ndimage.label(fine_free)
+    coarse = np.repeat(np.repeat(free, k, axis=0), k, axis=1)
+    wide = set(np.unique(labels[coarse & fine_free]).tolist())
+    seen: set[int] = set()
+    points, unresolved = [], 0
+    for q in pairs:
+        cell = tuple(np.clip(((q - box[:, 0]) / span * k * n).astype(int), 0, k * n - 1))
+        lab = int(labels[cell])
+        if lab == 0:
+            unresolved += 1
+        elif lab not in wide and lab not in seen:
+            seen.add(lab)
+            points.append(q)
+    return points, unresolved
+
+
 def _regions(
     linkage: Linkage,
     ax: tuple[Axis, Axis],
@@ -153,24 +228,31 @@ def _regions(
     opt: SpaceOptions,
     tol: Tolerances,
     deadline: Deadline = NEVER,
-) -> list[Region]:
+) -> tuple[list[Region], int]:
+    """The regions (the raster's, then those thinner than a cell, with ``cells = 0``) and
+    how many places where curves run closer than a cell of the finer raster are unresolved."""
     n = resolution
     span = box[:, 1] - box[:, 0]
     blocked = _blocked_cells(curves, box, n)
     labels, count = ndimage.label(~blocked)
     dist = ndimage.distance_transform_edt(~blocked)
-    out = []
+    samples = []
     for k in range(1, count + 1):
         cells = labels == k
         idx = np.unravel_index(int(np.argmax(np.where(cells, dist, -1))), cells.shape)
-        point = box[:, 0] + span * (np.array(idx) + 0.5) / n
+        samples.append((box[:, 0] + span * (np.array(idx) + 0.5) / n, int(cells.sum())))
+    thin, unresolved = _thin_points(curves, box, n, ~blocked)
+    samples += [(q, 0) for q in thin]
+    out = []
+    for k, (point, size) in enumerate(samples):
         lengths = linkage.lengths.copy()
         lengths[ax[0].bar], lengths[ax[1].bar] = point
         where = (float(point[0]), float(point[1]))
         if deadline.expired():
-            out.append(Region(where, None, "not explored (time)", int(cells.sum())))
+            out.append(Region(where, None, "not explored (time)", size))
             continue
-        deadline.report(0.6 + 0.4 * k / count, "critical values: exploring the regions")
+        deadline.report(0.6 + 0.4 * (k + 1) / len(samples),
+                        "critical values: exploring the regions")
         comps, sig, argument = _signature(linkage, lengths, opt, tol, deadline)
-        out.append(Region(where, comps, sig, int(cells.sum()), argument))
-    return out
+        out.append(Region(where, comps, sig, size, argument))
+    return out, unresolved
