@@ -7,8 +7,11 @@ With two bar lengths ``p = (L_x, L_y)`` free, the critical configurations solve:
 ``E + M + 1`` equations in ``M + E + 2`` unknowns: a one-dimensional solution set whose
 projection on ``p`` is the slice (paper, Sec. III B). It is traced by pseudo-arclength
 continuation (tangent from one factorisation of ``[DG; tau_prev]``, hyperplane Newton corrector)
-until it leaves the box or closes. Seeds: at a grid of sample lengths, every critical
-configuration the exploration reaches (critical points, and the nearest critical
+until it leaves the box or closes. Seeds: every critical configuration on the slice's
+scanlines (the box's edges and ``seeds_per_axis`` lines inside, both directions), each found
+completely by homotopy (:mod:`.slice_scan`), so that every curve crossing a scanline is traced;
+where the homotopy's paths exceed ``options.homotopy_paths_max``, at a grid of sample lengths,
+every critical configuration the exploration reaches (critical points, and the nearest critical
 configurations of the near misses), projected onto ``G = 0`` from the sample lengths. The
 boundaries where the configuration space becomes empty are critical values too (a component
 shrinks to a rigid point) and are found the same way.
@@ -16,7 +19,13 @@ shrinks to a rigid point) and are found the same way.
 Regions: the box is rasterised at ``resolution``; cells crossed by a curve separate the rest,
 which is split into 4-connected regions; each region is sampled at the cell farthest from every
 curve and explored there: its number of components (0 where empty) and a ``signature``
-(component count and the sorted rotor windings) tell topologies apart.
+(component count and the sorted rotor windings) tell topologies apart. Regions thinner than a
+cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
+
+What is proved is said in the report: a slice is complete only with the closed form's curves
+and every region's count exact; a traced slice names its scanlines (every curve crossing one is
+found) and its exact regions, and stays ``searched`` (a closed curve inside one cell of the
+scanlines' grid is not excluded).
 
 This module seeds the curves and puts the slice together; ``G`` and its continuation are in
 :mod:`.slice_curves`, the regions and the polyline helpers in :mod:`.slice_regions`.
@@ -241,9 +250,11 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
             f"every critical curve that meets one of the {scan.planned} scanlines (the box's "
             "edges and lines inside, at most 1/" + str((scan.planned - 4) // 2) + " of each "
             "side apart) was found: each scanline's critical configurations are every "
-            f"isolated solution of a square system ({scan.paths} homotopy paths, every one "
-            "ended); a closed curve lying inside one cell of the scanlines' grid (its turning "
-            f"points are not computed) is not excluded; {labels}")
+            f"isolated solution of a square system (a {scan.paths}-path total-degree homotopy "
+            "per direction at a generic length, its finite solutions followed to each "
+            "scanline, every path ended); a closed curve lying inside one cell of the "
+            "scanlines' grid (its turning points are not computed) is not excluded; "
+            f"{labels}")
     if inexact:
         return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
                       "regions' component counts are lower bounds")

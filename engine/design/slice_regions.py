@@ -152,53 +152,74 @@ THIN_SAME_WAY = 0.3
 THIN_REFINE = 8
 
 
-def _close_pairs(curves: list[np.ndarray], cell: float) -> list[np.ndarray]:
+def _close_pairs(curves: list[np.ndarray], cell: float, deadline: Deadline = NEVER
+                 ) -> list[np.ndarray]:
     """Points (2,) midway between two curves (or two parts of one) that run alike closer than
-    ``THIN_CELLS`` cells without meeting: one per run of such samples along a curve."""
+    ``THIN_CELLS`` cells without crossing: one per run of such samples along a curve."""
     out: list[np.ndarray] = []
+    reach = THIN_CELLS * cell
+    lo = [c.min(axis=0) - reach for c in curves]
+    hi = [c.max(axis=0) + reach for c in curves]
     for i, c in enumerate(curves):
-        if len(c) < 2:
-            continue
-        d_c = np.gradient(c, axis=0)
+        d_c = np.gradient(c, axis=0) if len(c) >= 2 else np.zeros_like(c)
         d_c /= np.maximum(np.linalg.norm(d_c, axis=1, keepdims=True), NORM_FLOOR)
-        for j, other in enumerate(curves):
-            if len(other) < 2 or j < i:
+        for j in range(i, len(curves)):
+            if deadline.expired():
+                return out
+            if len(c) < 2 or len(curves[j]) < 2 or np.any(lo[j] > hi[i]) or \
+                    np.any(lo[i] > hi[j]):
                 continue
-            pts = c
-            a, b = other[:-1], other[1:]
-            ab = b - a
-            denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
-            rel = pts[:, None, :] - a[None]
-            s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
-            foot = a[None] + s[:, :, None] * ab[None]
-            dist = np.linalg.norm(pts[:, None, :] - foot, axis=2)  # (n, m - 1)
-            if j == i:  # leave out the segments near each point along the curve
-                idx = np.arange(len(pts))[:, None] - np.arange(len(ab))[None, :]
-                along = np.abs(idx) * np.median(np.sqrt(denom))
-                dist = np.where(along > 3 * THIN_CELLS * cell, dist, np.inf)
-            seg = np.argmin(dist, axis=1)
-            near = dist[np.arange(len(pts)), seg]
-            u = ab[seg] / np.sqrt(denom[seg])[:, None]
-            sine = np.abs(u[:, 0] * d_c[:, 1] - u[:, 1] * d_c[:, 0])
-            close = np.flatnonzero((near < THIN_CELLS * cell) & (sine <= THIN_SAME_WAY))
-            off = pts - foot[np.arange(len(pts)), seg]
+            near, foot, u = _nearest_segments(c, curves[j], reach if j == i else None)
+            close = np.flatnonzero((near < reach) & (np.abs(u[:, 0] * d_c[:, 1] - u[:, 1]
+                                                           * d_c[:, 0]) <= THIN_SAME_WAY))
+            off = c - foot
             side = np.sign(u[:, 0] * off[:, 1] - u[:, 1] * off[:, 0])
             for run in np.split(close, np.flatnonzero(np.diff(close) > 1) + 1):
                 if len(run) and len(set(side[run].tolist()) - {0.0}) == 1:  # (crossing: no strip)
                     k = run[len(run) // 2]
-                    out.append(0.5 * (pts[k] + foot[k, seg[k]]))
+                    out.append(0.5 * (c[k] + foot[k]))
     return out
 
 
-def _thin_points(curves: list[np.ndarray], box: np.ndarray, n: int, free: np.ndarray
-                 ) -> tuple[list[np.ndarray], int]:
+def _nearest_segments(points: np.ndarray, line: np.ndarray, skip: float | None,
+                      chunk: int = 256) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each point (n, 2): the distance to the nearest segment of ``line`` (m, 2), the
+    nearest point on it and the segment's unit direction, in chunks of points (memory
+    ``chunk * m``). ``skip``: ``points`` is ``line`` itself, and segments within ``3 skip``
+    along it are left out."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
+    step = float(np.median(np.sqrt(denom)))
+    near = np.full(len(points), np.inf)
+    foot = np.zeros_like(points)
+    unit = np.zeros_like(points)
+    for s0 in range(0, len(points), chunk):
+        pts = points[s0:s0 + chunk]
+        rel = pts[:, None, :] - a[None]
+        s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
+        f = a[None] + s[:, :, None] * ab[None]
+        dist = np.linalg.norm(pts[:, None, :] - f, axis=2)
+        if skip is not None:
+            along = np.abs(np.arange(s0, s0 + len(pts))[:, None] - np.arange(len(ab))[None])
+            dist = np.where(along * step > 3 * skip, dist, np.inf)
+        seg = np.argmin(dist, axis=1)
+        rows = np.arange(len(pts))
+        near[s0:s0 + len(pts)] = dist[rows, seg]
+        foot[s0:s0 + len(pts)] = f[rows, seg]
+        unit[s0:s0 + len(pts)] = ab[seg] / np.sqrt(denom[seg])[:, None]
+    return near, foot, unit
+
+
+def _thin_points(curves: list[np.ndarray], box: np.ndarray, n: int, free: np.ndarray,
+                 deadline: Deadline = NEVER) -> tuple[list[np.ndarray], int]:
     """Sample points of the regions narrower than a raster cell, and how many places where
     curves run closer than a cell of the finer raster remain unresolved. A point midway
     between two close curves is a thin region's when, in the raster ``THIN_REFINE`` times finer,
     its cell is free and its piece holds no free cell of the coarse raster (``free``, (n, n));
     points in one piece give one region."""
     span = box[:, 1] - box[:, 0]
-    pairs = _close_pairs(curves, float(max(span)) / n)
+    pairs = _close_pairs(curves, float(max(span)) / n, deadline)
     if not pairs:
         return [], 0
     k = THIN_REFINE
@@ -241,7 +262,7 @@ def _regions(
         cells = labels == k
         idx = np.unravel_index(int(np.argmax(np.where(cells, dist, -1))), cells.shape)
         samples.append((box[:, 0] + span * (np.array(idx) + 0.5) / n, int(cells.sum())))
-    thin, unresolved = _thin_points(curves, box, n, ~blocked)
+    thin, unresolved = _thin_points(curves, box, n, ~blocked, deadline)
     samples += [(q, 0) for q in thin]
     out = []
     for k, (point, size) in enumerate(samples):

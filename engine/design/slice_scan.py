@@ -21,7 +21,15 @@ three-rotor), so the critical values on the scanline are complete when every pat
 the two-degree-of-freedom space is bounded.
 
 A curve of the slice that crosses the scanline meets one of these configurations; the slice
-seeds its tracing from all of them (:func:`scanline_starts`).
+seeds its tracing from all of them (:class:`ScanDirection`: one homotopy per direction, then a
+parameter homotopy per scanline).
+
+>>> from engine.catalogue.presets import build_preset
+>>> lk = build_preset("four-bar", {"L2": 1.2})
+>>> scan = ScanDirection(lk, free_bar=2, held_bar=1, fixed=0, mid=1.2, free_hi=4.0)
+>>> line = scan.at_value(1.2)
+>>> line.success, sorted({round(float(v), 6) for v in line.starts[:, -1] if v > 1e-6})
+(True, [0.8, 1.2, 3.2])
 """
 
 from __future__ import annotations
@@ -400,6 +408,6 @@ class Scan:
         if not self.paths:
             return f"no scanline solved ({self.message})"
         done = sum(s.success for s in self.lines)
-        return (f"{done} of {self.planned} scanlines solved completely ({self.paths} homotopy "
-                f"paths each, every path ended)" + ("" if done == self.planned else
-                                                    f": {self.message}"))
+        return (f"{done} of {self.planned} scanlines solved completely (a {self.paths}-path "
+                "homotopy per direction, its finite solutions followed to each scanline)"
+                + ("" if done == self.planned else f": {self.message}"))
