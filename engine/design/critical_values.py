@@ -7,9 +7,10 @@ With two bar lengths ``p = (L_x, L_y)`` free, the critical configurations solve:
 ``E + M + 1`` equations in ``M + E + 2`` unknowns: a one-dimensional solution set whose
 projection on ``p`` is the slice (paper, Sec. III B). It is traced by pseudo-arclength
 continuation (tangent from one factorisation of ``[DG; tau_prev]``, hyperplane Newton corrector)
-until it leaves the box or closes. Seeds: every critical configuration on the slice's
-scanlines (the box's edges and ``seeds_per_axis`` lines inside, both directions), each found
-completely by homotopy (:mod:`.slice_scan`), so that every curve crossing a scanline is traced;
+until it leaves the box or closes. Seeds: every critical configuration on the box's edges and
+wherever a curve turns or enters the box between them (a sweep of each axis in steps of one
+raster cell), each found by homotopy (:mod:`.slice_scan`), so that every curve crossing the box
+but a closed one smaller than a cell is traced;
 where the homotopy's paths exceed ``options.homotopy_paths_max``, at a grid of sample lengths,
 every critical configuration the exploration reaches (critical points, and the nearest critical
 configurations of the near misses), projected onto ``G = 0`` from the sample lengths. The
@@ -23,9 +24,9 @@ curve and explored there: its number of components (0 where empty) and a ``signa
 cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
 
 What is proved is said in the report: a slice is complete only with the closed form's curves
-and every region's count exact; a traced slice names its scanlines (every curve crossing one is
-found) and its exact regions, and stays ``searched`` (a closed curve inside one cell of the
-scanlines' grid is not excluded).
+and every region's count exact; a traced slice names its scanlines and sweeps and its exact
+regions, and stays ``searched`` (a closed curve born and gone within one sweep step is not
+excluded).
 
 This module seeds the curves and puts the slice together; ``G`` and its continuation are in
 :mod:`.slice_curves`, the regions and the polyline helpers in :mod:`.slice_regions`.
@@ -47,7 +48,7 @@ from engine.design.slice_regions import (
     _on_polyline,
     _regions,
 )
-from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths, scanline_values
+from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
 from engine.local.critical import refine_critical
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
 from engine.model.constraints import Constraints
@@ -148,7 +149,7 @@ def critical_value_slice(
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
-        scan = _scan(tracing, seeds_per_axis, opt.homotopy_paths_max, opt.seed)
+        scan = _scan(tracing, opt.homotopy_paths_max, opt.seed)
         # Seed lengths only where the scanlines did not all solve: their explorations find what
         # they find, and add nothing to the scanlines' argument.
         grid = [] if scan.complete else [
@@ -190,36 +191,48 @@ def critical_value_slice(
     return Slice(curves, regions, search)
 
 
-def _scan(tracing: _CurveTracing, count: int, paths_max: int, seed: int) -> Scan:
-    """Every critical configuration on the scanlines of both directions (the box's edges and
-    ``count`` lines inside, :func:`engine.design.slice_scan.scanline_values`), each solved by
-    its homotopy where its paths are within ``paths_max``, and the curves through them traced
-    (:meth:`_CurveTracing.take`)."""
+def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
+    """For each axis held in turn: every critical configuration on the box's two edges across
+    it, and where a curve turns or enters the box in between (:meth:`engine.design.slice_scan.
+    ScanDirection.sweep`, steps of at most the tracing step ``h_max``), each found by homotopy
+    where its paths are within ``paths_max``; the curves through them traced
+    (:meth:`_CurveTracing.take`). Every connected piece of a curve in the box meets one of
+    these (its point of least ``L_x`` is on the left edge, or where it enters through the top or
+    bottom edge, or where it turns; a segment ``L_x = const``, where the linkage without the
+    other bar is critical, is a curve like any other for the sweep of ``L_y``) unless it is
+    born and gone within one step of both sweeps."""
     box, ax, dl = tracing.box, tracing.ax, tracing.deadline
-    values = [scanline_values(box[k, 0], box[k, 1], count, GRID_OFFSET[k]) for k in range(2)]
-    planned = sum(len(v) for v in values)
     paths = scan_paths(tracing.linkage)
+    planned = 6
     if paths > paths_max:
-        return Scan([], planned, 0, f"{paths} paths per scanline exceed the bound of {paths_max}")
+        return Scan([], planned, 0,
+                    f"{paths} paths per scanline exceed the bound of {paths_max}", tracing.h_max)
     lines: list[Scanline] = []
     for fixed in range(2):
+        lo, hi = (float(v) for v in box[fixed])
         if dl.expired():
             tracing.timed_out = True
-            return Scan(lines, planned, paths, "the deadline stopped the scanlines")
+            return Scan(lines, planned, paths, "the deadline stopped the scanlines",
+                        tracing.h_max)
         direction = ScanDirection(tracing.linkage, ax[1 - fixed].bar, ax[fixed].bar, fixed,
-                                  float(box[fixed].mean()), float(box[1 - fixed, 1]),
-                                  seed=seed + fixed, deadline=dl)
-        for v in values[fixed]:
+                                  0.5 * (lo + hi), float(box[1 - fixed, 1]), seed=seed + fixed,
+                                  deadline=dl)
+        for what in ("lo", "sweep", "hi"):
             if dl.expired():
                 tracing.timed_out = True
-                return Scan(lines, planned, paths, "the deadline stopped the scanlines")
+                return Scan(lines, planned, paths, "the deadline stopped the scanlines",
+                            tracing.h_max)
             dl.report(0.3 * len(lines) / planned, "critical values: solving the scanlines")
-            line = direction.at_value(float(v), dl)
+            if what == "sweep":
+                line = direction.sweep(lo, hi, float(box[1 - fixed, 0]),
+                                       float(box[1 - fixed, 1]), tracing.h_max, dl)
+            else:
+                line = direction.at_value(lo if what == "lo" else hi, dl)
             lines.append(line)
             tracing.take([line.starts])
-    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]} = {s.value:.6g}: {s.message}"
+    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]} from {s.value:.6g}: {s.message}"
               for s in lines if not s.success]
-    return Scan(lines, planned, paths, "; ".join(failed))
+    return Scan(lines, planned, paths, "; ".join(failed), tracing.h_max)
 
 
 def _scan_details(scan: Scan | None) -> dict[str, object]:
@@ -228,7 +241,8 @@ def _scan_details(scan: Scan | None) -> dict[str, object]:
         return {}
     return {"scanlines": scan.planned,
             "scanlines_complete": sum(s.success for s in scan.lines),
-            "scanline_paths": scan.paths}
+            "scanline_paths": scan.paths,
+            "sweep_step": scan.step}
 
 
 def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
@@ -247,14 +261,13 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
             return None, (f"the curves were traced from seed lengths ({what}): no argument "
                           f"proves that every critical curve crossing the box was found; {labels}")
         return None, (
-            f"every critical curve that meets one of the {scan.planned} scanlines (the box's "
-            "edges and lines inside, at most 1/" + str((scan.planned - 4) // 2) + " of each "
-            "side apart) was found: each scanline's critical configurations are every "
-            f"isolated solution of a square system (a {scan.paths}-path total-degree homotopy "
-            "per direction at a generic length, its finite solutions followed to each "
-            "scanline, every path ended); a closed curve lying inside one cell of the "
-            "scanlines' grid (its turning points are not computed) is not excluded; "
-            f"{labels}")
+            "every critical curve crossing the box was found, but for a closed curve born and "
+            f"gone within one sweep step ({scan.step:.3g}) of both axes: for each axis held, "
+            "the critical configurations on the box's two edges across it (every isolated "
+            f"solution of a square system: a {scan.paths}-path total-degree homotopy at a "
+            "generic length, its finite solutions followed to each edge, every path ended) "
+            "and, followed from one edge to the other in steps of at most that, wherever a "
+            f"curve turns or enters the box between two steps; {labels}")
     if inexact:
         return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
                       "regions' component counts are lower bounds")

@@ -21,8 +21,9 @@ three-rotor), so the critical values on the scanline are complete when every pat
 the two-degree-of-freedom space is bounded.
 
 A curve of the slice that crosses the scanline meets one of these configurations; the slice
-seeds its tracing from all of them (:class:`ScanDirection`: one homotopy per direction, then a
-parameter homotopy per scanline).
+seeds its tracing from all of them (:class:`ScanDirection`: one homotopy per axis, then a
+parameter homotopy to each edge of the box, and a sweep between them that reports where a
+curve turns or enters the box).
 
 >>> from engine.catalogue.presets import build_preset
 >>> lk = build_preset("four-bar", {"L2": 1.2})
@@ -34,6 +35,7 @@ parameter homotopy per scanline).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,6 +68,11 @@ from engine.space.witnesses import FAR_REACH, REAL_TOL, SINGULAR_IMAG_TOL, _reac
 CRITICAL_RTOL = 1e-6
 #: The same for singular ends (within about ``sqrt(T_END)`` of their solution).
 SINGULAR_RTOL = 1e-3
+#: A sweep's path is bent off the real lengths by this (relative to its span of squared
+#: lengths), and a solution on it within ``SWEEP_REAL_TOL`` (relative) of the reals is real:
+#: off a meeting point of two real solutions by ``d``, a real one is about ``b / sqrt(d)`` off.
+SWEEP_BUMP = 1e-5
+SWEEP_REAL_TOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -214,18 +221,26 @@ class ScanSystem:
 
 
 class _Parameter:
-    """The parameter homotopy ``F(X; w(t)) = 0``, ``w(t) = w_1 + t (w_0 - w_1)``, on the patch
-    ``a . X = 1`` (as :class:`engine.space.homotopy._Homotopy`, with ``H_t = F_w (w_0 - w_1)``)."""
+    """The parameter homotopy ``F(X; w(t)) = 0``, ``w(t) = w_1 + t (w_0 - w_1) + i b t (1 - t)``,
+    on the patch ``a . X = 1`` (as :class:`engine.space.homotopy._Homotopy`, with
+    ``H_t = F_w w'(t)``): a segment, bent off the real line by ``b`` (a sweep along real
+    lengths passes the points where two real solutions meet at a distance, instead of through
+    them)."""
 
-    def __init__(self, system: ScanSystem, w0: complex, w1: float, patch: np.ndarray) -> None:
-        self.system, self.w0, self.w1, self.patch = system, w0, w1, patch
+    def __init__(self, system: ScanSystem, w0: complex, w1: float, patch: np.ndarray,
+                 bump: float = 0.0) -> None:
+        self.system, self.w0, self.w1, self.patch, self.bump = system, w0, w1, patch, bump
+
+    def w(self, t: np.ndarray) -> np.ndarray:
+        return self.w1 + t * (self.w0 - self.w1) + 1j * self.bump * t * (1.0 - t)
 
     def parts(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f, fx = self.system(x, self.w1 + t * (self.w0 - self.w1))
+        f, fx = self.system(x, self.w(t))
         full = np.concatenate([fx, np.broadcast_to(self.patch, (len(x), 1, len(self.patch)))],
                               axis=1)
         value = np.concatenate([f, (x @ self.patch - 1.0)[:, None]], axis=1)
-        return value, full, self.system.dw(x) * (self.w0 - self.w1)
+        rate = (self.w0 - self.w1) + 1j * self.bump * (1.0 - 2.0 * t)
+        return value, full, self.system.dw(x) * rate[:, None]
 
     def velocity(self, x: np.ndarray, t: np.ndarray) -> np.ndarray:
         _, full, ht = self.parts(x, t)
@@ -251,15 +266,22 @@ class _Parameter:
         return x, done, first
 
 
-def _follow(hom: _Parameter, x: np.ndarray, deadline: Deadline, max_steps: int = 4000
+#: ``watch(paths, points, t)``: called with the paths (K,) that took a step, their new points
+#: (K, M + 1) and ``t`` (K,).
+Watch = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+
+
+def _follow(hom: _Parameter, x: np.ndarray, deadline: Deadline, max_steps: int = 4000,
+            h_max: float = H_MAX, watch: Watch | None = None
             ) -> tuple[np.ndarray, np.ndarray, str]:
     """Every path of ``hom`` from ``t = 1`` (the rows of ``x``, on the patch) to 0, as
     :func:`engine.space.homotopy.track` follows its paths (RK4 predictor, Newton corrector,
-    geometric endgame): the ends and their states (``REGULAR``, ``SINGULAR``, ``FAILED``,
-    ``RUNNING`` where the deadline or the step limit stopped them), and what went wrong."""
+    geometric endgame), no step longer than ``h_max``: the ends and their states
+    (``REGULAR``, ``SINGULAR``, ``FAILED``, ``RUNNING`` where the deadline or the step limit
+    stopped them), and what went wrong. ``watch`` sees every step taken."""
     x = np.array(x, dtype=complex)
     p = len(x)
-    t, h = np.ones(p), np.full(p, H_MAX)
+    t, h = np.ones(p), np.full(p, h_max)
     wins = np.zeros(p, dtype=int)
     state = np.full(p, RUNNING)
     endgame = np.zeros(p, dtype=bool)
@@ -278,9 +300,11 @@ def _follow(hom: _Parameter, x: np.ndarray, deadline: Deadline, max_steps: int =
         ok &= (first <= TRUST) & np.isfinite(new).all(axis=1)
         good, bad = act[ok], act[~ok]
         x[good], t[good] = new[ok], (ta - ha)[ok]
+        if watch is not None and len(good):
+            watch(good, x[good], t[good])
         wins[good] += 1
         grow = good[(wins[good] >= 3) & ~endgame[good]]
-        h[grow], wins[grow] = np.minimum(2.0 * h[grow], H_MAX), 0
+        h[grow], wins[grow] = np.minimum(2.0 * h[grow], h_max), 0
         late = good[endgame[good]]
         h[late] = (1.0 - ENDGAME_RATIO) * t[late]
         state[good[t[good] == 0.0]] = REGULAR
@@ -345,47 +369,109 @@ class ScanDirection:
         self.starts = ends / (ends @ self.patch)[:, None]
         self.paths, self.success, self.message = res.ends.shape[0], res.success, res.message
 
-    def at_value(self, value: float, deadline: Deadline = NEVER) -> Scanline:
-        """Every critical configuration with the held bar at ``value``."""
-        m, e = self.cons.n_free, self.cons.n_constraints
-        empty = np.zeros((0, m + e + 2))
-        if not self.success:
-            return Scanline(self.fixed, value, empty, self.paths, False,
-                            f"the generic system: {self.message}")
+    def _ends(self, value: float, deadline: Deadline) -> tuple[np.ndarray, np.ndarray, str]:
+        """Every finite solution at the held length ``value`` (from the generic ones)."""
         hom = _Parameter(self.system, self.w0, value**2, self.patch)
-        ends, state, message = _follow(hom, self.starts, deadline)
+        return _follow(hom, self.starts, deadline)
+
+    def _critical(self, ends: np.ndarray, loose: np.ndarray, held: np.ndarray,
+                  real_tol: float = REAL_TOL) -> tuple[np.ndarray, np.ndarray]:
+        """``(u, sigma, p)`` (K, M + E + 2) of the ends (N, M + 1) that are real (``loose``:
+        within ``SINGULAR_IMAG_TOL``), in reach and critical (``J`` loses rank), the held
+        length of each end ``held`` (N,), and which ends they are (K,)."""
+        m, e = self.cons.n_free, self.cons.n_constraints
         x0 = ends[:, 0]
         y = ends[:, 1:] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
         size = np.linalg.norm(y, axis=1)
         near = np.isfinite(size) & (size <= self.reach) & (np.abs(x0) > 0)
         imag = np.linalg.norm(y.imag, axis=1) / np.maximum(size, 1.0)
-        regular = (state == REGULAR) & near & (imag <= REAL_TOL)
-        singular = (state == SINGULAR) & near & (imag <= SINGULAR_IMAG_TOL)
+        real = near & (imag <= np.where(loose, SINGULAR_IMAG_TOL, real_tol))
         sys_ = self.system
-        starts = []
-        for k in np.flatnonzero(regular | singular):
+        starts, which = [], []
+        for k in np.flatnonzero(real):
             u = sys_.centre + sys_.scale * y[k].real
             jac = self.cons.jacobian(u, sparse=False)  # (E, M)
             left, sv, _ = np.linalg.svd(jac)
-            if sv[-1] > (CRITICAL_RTOL if regular[k] else SINGULAR_RTOL) * max(sv[0], 1e-300):
+            if sv[-1] > (SINGULAR_RTOL if loose[k] else CRITICAL_RTOL) * max(sv[0], 1e-300):
                 continue  # t != 0: not critical
             ends_xy = self.at.positions_of(u)[self.at.ends[self.free_bar]]
             p = np.empty(2)
-            p[self.fixed] = value
+            p[self.fixed] = held[k]
             p[1 - self.fixed] = float(np.linalg.norm(ends_xy[0] - ends_xy[1]))
             starts.append(np.concatenate([u, left[:, -1], p]))
-        out = np.array(starts, dtype=float).reshape(-1, m + e + 2)
+            which.append(k)
+        return np.array(starts, dtype=float).reshape(-1, m + e + 2), np.array(which, dtype=int)
+
+    def at_value(self, value: float, deadline: Deadline = NEVER) -> Scanline:
+        """Every critical configuration with the held bar at ``value``."""
+        m, e = self.cons.n_free, self.cons.n_constraints
+        if not self.success:
+            return Scanline(self.fixed, value, np.zeros((0, m + e + 2)), self.paths, False,
+                            f"the generic system: {self.message}")
+        ends, state, message = self._ends(value, deadline)
+        done = np.isin(state, (REGULAR, SINGULAR))
+        out, _ = self._critical(ends[done], (state == SINGULAR)[done],
+                                np.full(int(done.sum()), value))
         return Scanline(self.fixed, value, out, self.paths, not message,
                         message or "every path ended")
 
+    def sweep(self, lo: float, hi: float, free_lo: float, free_hi: float, step: float,
+              deadline: Deadline = NEVER) -> Scanline:
+        """The critical configurations where a curve of the slice turns between the held
+        lengths ``lo`` and ``hi``, or enters the free range ``[free_lo, free_hi]``: every
+        solution at ``lo`` followed along the real lengths to ``hi`` (bent off them by
+        ``SWEEP_BUMP``) in steps of at most ``step`` of the held length, and the point of each
+        step where a solution turns critical, real and in range, or the last before it stops
+        being so (a curve born, or entering the box, between two steps is caught; one born and
+        gone within one step is not)."""
+        m, e = self.cons.n_free, self.cons.n_constraints
+        empty = np.zeros((0, m + e + 2))
+        if not self.success:
+            return Scanline(self.fixed, lo, empty, self.paths, False,
+                            f"the generic system: {self.message}")
+        ends, state, message = self._ends(lo, deadline)
+        if message:
+            return Scanline(self.fixed, lo, empty, self.paths, False, f"at {lo:.6g}: {message}")
+        x = ends[state == REGULAR]
+        span = abs(hi**2 - lo**2)
+        hom = _Parameter(self.system, lo**2, hi**2, self.patch, SWEEP_BUMP * span)
+        status = self._status(x, np.full(len(x), lo), free_lo, free_hi)
+        last = x.copy()
+        found: list[np.ndarray] = []
 
-def scanline_values(lo: float, hi: float, count: int, offset: float) -> np.ndarray:
-    """The held values of one direction's scanlines: the box's two edges and ``count`` lines
-    inside, one per ``1/count`` of the span at ``offset`` within it (irrational: away from the
-    symmetric lengths on which whole critical lines of symmetric linkages lie), so that no two
-    neighbours are more than ``(hi - lo) / count`` apart."""
-    inner = lo + (hi - lo) * (np.arange(count) + offset) / count
-    return np.concatenate([[lo], inner, [hi]])
+        def watch(paths: np.ndarray, points: np.ndarray, t: np.ndarray) -> None:
+            held = np.sqrt(np.maximum(hom.w(t).real, 0.0))
+            now = self._status(points, held, free_lo, free_hi)
+            born = now & ~status[paths]
+            gone = ~now & status[paths]
+            if born.any():
+                found.append(self._critical(points[born], np.ones(born.sum(), dtype=bool),
+                                            held[born], SWEEP_REAL_TOL)[0])
+            if gone.any():
+                before = np.sqrt(np.maximum(hom.w(self._t[paths[gone]]).real, 0.0))
+                found.append(self._critical(last[paths[gone]], np.ones(gone.sum(), dtype=bool),
+                                            before, SWEEP_REAL_TOL)[0])
+            status[paths] = now
+            last[paths] = points
+            self._t[paths] = t
+
+        self._t = np.ones(len(x))
+        h = step / max(abs(hi - lo), 1e-300) * 2.0 * min(lo, hi) / (lo + hi)
+        _, state, message = _follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
+        out = np.concatenate(found) if found else empty
+        return Scanline(self.fixed, lo, out, self.paths, not message,
+                        message or "every path ended")
+
+    def _status(self, points: np.ndarray, held: np.ndarray, free_lo: float,
+                free_hi: float) -> np.ndarray:
+        """Which points (N, M + 1) are real (within ``SWEEP_REAL_TOL``), in reach, critical and
+        with the free length in ``[free_lo, free_hi]``."""
+        out = np.zeros(len(points), dtype=bool)
+        crit, which = self._critical(points, np.ones(len(points), dtype=bool), held,
+                                     SWEEP_REAL_TOL)
+        free = crit[:, -2 + (1 - self.fixed)]
+        out[which] = (free >= free_lo) & (free <= free_hi)
+        return out
 
 
 @dataclass(frozen=True)
@@ -396,7 +482,7 @@ class Scan:
     planned: int
     paths: int
     message: str
-
+    step: float  # the sweep's longest step in the held length
     @property
     def complete(self) -> bool:
         """Every planned scanline ran, each with every critical configuration."""
@@ -408,6 +494,6 @@ class Scan:
         if not self.paths:
             return f"no scanline solved ({self.message})"
         done = sum(s.success for s in self.lines)
-        return (f"{done} of {self.planned} scanlines solved completely (a {self.paths}-path "
-                "homotopy per direction, its finite solutions followed to each scanline)"
-                + ("" if done == self.planned else f": {self.message}"))
+        return (f"{done} of {self.planned} scanlines (two edges and the sweep between them) "
+                f"solved completely (a {self.paths}-path homotopy, its finite solutions "
+                "followed)" + ("" if done == self.planned else f": {self.message}"))

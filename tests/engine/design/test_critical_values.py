@@ -220,11 +220,10 @@ def test_the_three_rotor_slice_has_its_closed_form_critical_set():
             assert region.components == three_rotor_components(*q), (region, q)
     assert {3, 4} <= {r.components for r in res.regions}
     s = res.search
-    assert s["scanlines_complete"] == s["scanlines"] == 14
-    # the curves crossing the scanlines are proved; a closed curve inside one cell of the
-    # scanlines' grid is not excluded (its turning points are not computed): not complete
+    assert s["scanlines_complete"] == s["scanlines"] == 6  # per axis: two edges, a sweep
+    # every curve but one born and gone within a sweep step: still only searched
     assert not s["complete"] and s["reason"] == "searched"
-    assert "scanlines" in s["argument_detail"]
+    assert "sweep step" in s["argument_detail"]
 
 
 @pytest.mark.slow

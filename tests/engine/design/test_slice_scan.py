@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from engine.catalogue.presets import build_preset
-from engine.design.slice_scan import ScanDirection, scan_paths, scanline_values
+from engine.design.slice_scan import ScanDirection, scan_paths
 from tests.engine.design.slice_references import three_rotor_residual
 
 
@@ -68,7 +68,29 @@ def _circle_points(d1: float) -> list[np.ndarray]:
     return circle_points(P1, d1, P2, R2)
 
 
-def test_the_scanlines_cover_the_box_at_most_a_cell_apart():
-    values = scanline_values(0.6, 1.4, 5, 0.5 + (np.sqrt(2.0) - 1.0) / 10.0)
-    assert values[0] == 0.6 and values[-1] == 1.4
-    assert np.all(np.diff(values) > 0) and np.max(np.diff(values)) <= 0.8 / 5 + 1e-12
+@pytest.mark.slow
+def test_a_sweep_finds_where_the_three_rotor_curves_enter_the_box():
+    """Three-rotor, L1 swept from 0.6 to 1.4 with L2 in [0.6, 1.4]: the curves that enter the
+    box through its bottom or top edge between the two ends (the arc where both dyads are
+    straight enters at L1 = 0.98, the corner curves at 0.717 and 1.283, closed forms below) are
+    each met by a point the sweep reports, and every point it reports is critical (on the
+    closed-form set)."""
+    from tests.engine.design.slice_references import P1, P2, P3, R2, circle_points  # noqa: PLC0415
+
+    lk = build_preset("three-rotor")
+    b = _bars(lk)
+    scan = ScanDirection(lk, b["L2"], b["L1"], 0, 1.0, 1.4)
+    line = scan.sweep(0.6, 1.4, 0.6, 1.4, 0.8 / 48)
+    assert line.success, line.message
+    for l1, l2 in line.starts[:, -2:]:
+        assert three_rotor_residual(l1, l2) < 1e-3, (l1, l2)  # (points of the bent path)
+    # where the bottom edge L2 = 0.6 is critical: |P3 B| = 1.6 or 0.4, L1 = |P1 B| -+ 1
+    entries = []
+    for d3 in (1.6, 0.4):
+        for bp in circle_points(P3, d3, P2, R2):
+            d1 = float(np.linalg.norm(bp - P1))
+            entries += [v for v in (d1 - 1.0, 1.0 - d1, d1 + 1.0) if 0.6 < v < 1.4]
+    assert entries
+    for e in entries:
+        near = np.abs(line.starts[:, -2] - e) <= 2 * 0.8 / 48
+        assert near.any(), (e, line.starts[:, -2:])
