@@ -63,14 +63,16 @@ def main() -> None:
     trees = {"this": ROOT} | ({"against": args.against} if args.against else {})
     rows = []
     for name, setup in MAPS.items():
+        runs: dict[str, list[tuple[float, int, int, bool]]] = {tree: [] for tree in trees}
+        for _ in range(args.repeats):  # the trees in turn: a busy machine's load falls on both
+            for tree, root in trees.items():
+                runs[tree].append(run(root, setup))
         for tree, root in trees.items():
-            runs = []
-            for _ in range(args.repeats):  # (alternating trees would be fairer on a busy box)
-                runs.append(run(root, setup))
-            secs = [r[0] for r in runs]
+            secs = [r[0] for r in runs[tree]]
+            last = runs[tree][-1]
             row = {"benchmark": name, "tree": tree, "root": str(root),
                    "seconds_min": min(secs), "seconds_median": statistics.median(secs),
-                   "curves": runs[-1][1], "regions": runs[-1][2], "complete": runs[-1][3]}
+                   "curves": last[1], "regions": last[2], "complete": last[3]}
             rows.append(row)
             print(f"{name:<80} {tree:<8} min {min(secs):7.2f} s  median "
                   f"{statistics.median(secs):7.2f} s  {row['curves']} curves, "

@@ -437,6 +437,7 @@ class ScanDirection:
         hom = _Parameter(self.system, lo**2, hi**2, self.patch, SWEEP_BUMP * span)
         status = self._status(x, np.full(len(x), lo), free_lo, free_hi)
         last = x.copy()
+        times = np.ones(len(x))  # each path's t at its last step
         found: list[np.ndarray] = []
 
         def watch(paths: np.ndarray, points: np.ndarray, t: np.ndarray) -> None:
@@ -448,14 +449,13 @@ class ScanDirection:
                 found.append(self._critical(points[born], np.ones(born.sum(), dtype=bool),
                                             held[born], SWEEP_REAL_TOL)[0])
             if gone.any():
-                before = np.sqrt(np.maximum(hom.w(self._t[paths[gone]]).real, 0.0))
+                before = np.sqrt(np.maximum(hom.w(times[paths[gone]]).real, 0.0))
                 found.append(self._critical(last[paths[gone]], np.ones(gone.sum(), dtype=bool),
                                             before, SWEEP_REAL_TOL)[0])
             status[paths] = now
             last[paths] = points
-            self._t[paths] = t
+            times[paths] = t
 
-        self._t = np.ones(len(x))
         h = step / max(abs(hi - lo), 1e-300) * 2.0 * min(lo, hi) / (lo + hi)
         _, state, message = _follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
         out = np.concatenate(found) if found else empty
