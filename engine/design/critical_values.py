@@ -24,7 +24,7 @@ curve and explored there: its number of components (0 where empty) and a ``signa
 cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
 
 What is proved is said in the report: a slice is complete only with the closed form's curves
-and every region's count exact; a traced slice names its scanlines and sweeps and its exact
+and every region's count exact; a traced slice names its sweeps and its exact
 regions, and stays ``searched`` (a closed curve born and gone within one sweep step is not
 excluded).
 
@@ -150,8 +150,8 @@ def critical_value_slice(
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
         scan = _scan(tracing, opt.homotopy_paths_max, opt.seed)
-        # Seed lengths only where the scanlines did not all solve: their explorations find what
-        # they find, and add nothing to the scanlines' argument.
+        # Seed lengths only where the sweeps did not all solve: their explorations find what
+        # they find, and add nothing to the sweeps' argument.
         grid = [] if scan.complete else [
             box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
             for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
@@ -203,45 +203,36 @@ def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
     born and gone within one step of both sweeps."""
     box, ax, dl = tracing.box, tracing.ax, tracing.deadline
     paths = scan_paths(tracing.linkage)
-    planned = 6
+    planned = 2
     if paths > paths_max:
         return Scan([], planned, 0,
-                    f"{paths} paths per scanline exceed the bound of {paths_max}", tracing.h_max)
+                    f"{paths} paths per sweep exceed the bound of {paths_max}", tracing.h_max)
     lines: list[Scanline] = []
     for fixed in range(2):
         lo, hi = (float(v) for v in box[fixed])
         if dl.expired():
             tracing.timed_out = True
-            return Scan(lines, planned, paths, "the deadline stopped the scanlines",
-                        tracing.h_max)
+            return Scan(lines, planned, paths, "the deadline stopped the sweeps", tracing.h_max)
+        dl.report(0.3 * fixed, "critical values: sweeping the box")
         direction = ScanDirection(tracing.linkage, ax[1 - fixed].bar, ax[fixed].bar, fixed,
                                   0.5 * (lo + hi), float(box[1 - fixed, 1]), seed=seed + fixed,
                                   deadline=dl)
-        for what in ("lo", "sweep", "hi"):
-            if dl.expired():
-                tracing.timed_out = True
-                return Scan(lines, planned, paths, "the deadline stopped the scanlines",
-                            tracing.h_max)
-            dl.report(0.3 * len(lines) / planned, "critical values: solving the scanlines")
-            if what == "sweep":
-                line = direction.sweep(lo, hi, float(box[1 - fixed, 0]),
-                                       float(box[1 - fixed, 1]), tracing.h_max, dl)
-            else:
-                line = direction.at_value(lo if what == "lo" else hi, dl)
-            lines.append(line)
-            tracing.take([line.starts])
-    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]} from {s.value:.6g}: {s.message}"
+        line = direction.sweep(lo, hi, float(box[1 - fixed, 0]), float(box[1 - fixed, 1]),
+                               tracing.h_max, dl)
+        lines.append(line)
+        tracing.take([line.starts])
+    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]}: {s.message}"
               for s in lines if not s.success]
     return Scan(lines, planned, paths, "; ".join(failed), tracing.h_max)
 
 
 def _scan_details(scan: Scan | None) -> dict[str, object]:
-    """The scanlines in the search report (none for a closed form)."""
+    """The sweeps in the search report (none for a closed form)."""
     if scan is None:
         return {}
-    return {"scanlines": scan.planned,
-            "scanlines_complete": sum(s.success for s in scan.lines),
-            "scanline_paths": scan.paths,
+    return {"sweeps": scan.planned,
+            "sweeps_complete": sum(s.success for s in scan.lines),
+            "sweep_paths": scan.paths,
             "sweep_step": scan.step}
 
 
@@ -251,7 +242,7 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
     """A slice is complete when its curves are every critical curve in the box (the closed
     form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
     count is exact (its exploration complete, with an argument). A traced slice says what is
-    proved so far: which curves the scanlines guarantee, how many regions are exact."""
+    proved so far: which curves the sweeps guarantee, how many regions are exact."""
     inexact = sum(r.argument is None for r in regions)
     if lines is None:
         labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "

@@ -227,7 +227,7 @@ class _Parameter:
     lengths passes the points where two real solutions meet at a distance, instead of through
     them)."""
 
-    def __init__(self, system: ScanSystem, w0: complex, w1: float, patch: np.ndarray,
+    def __init__(self, system: ScanSystem, w0: complex, w1: complex, patch: np.ndarray,
                  bump: float = 0.0) -> None:
         self.system, self.w0, self.w1, self.patch, self.bump = system, w0, w1, patch, bump
 
@@ -369,9 +369,9 @@ class ScanDirection:
         self.starts = ends / (ends @ self.patch)[:, None]
         self.paths, self.success, self.message = res.ends.shape[0], res.success, res.message
 
-    def _ends(self, value: float, deadline: Deadline) -> tuple[np.ndarray, np.ndarray, str]:
-        """Every finite solution at the held length ``value`` (from the generic ones)."""
-        hom = _Parameter(self.system, self.w0, value**2, self.patch)
+    def _ends(self, w: complex, deadline: Deadline) -> tuple[np.ndarray, np.ndarray, str]:
+        """Every finite solution at the held squared length ``w`` (from the generic ones)."""
+        hom = _Parameter(self.system, self.w0, w, self.patch)
         return _follow(hom, self.starts, deadline)
 
     def _critical(self, ends: np.ndarray, loose: np.ndarray, held: np.ndarray,
@@ -408,7 +408,7 @@ class ScanDirection:
         if not self.success:
             return Scanline(self.fixed, value, np.zeros((0, m + e + 2)), self.paths, False,
                             f"the generic system: {self.message}")
-        ends, state, message = self._ends(value, deadline)
+        ends, state, message = self._ends(value**2, deadline)
         done = np.isin(state, (REGULAR, SINGULAR))
         out, _ = self._critical(ends[done], (state == SINGULAR)[done],
                                 np.full(int(done.sum()), value))
@@ -423,22 +423,35 @@ class ScanDirection:
         ``SWEEP_BUMP``) in steps of at most ``step`` of the held length, and the point of each
         step where a solution turns critical, real and in range, or the last before it stops
         being so (a curve born, or entering the box, between two steps is caught; one born and
-        gone within one step is not)."""
+        gone within one step is not); with every critical configuration at ``lo`` and at
+        ``hi`` (the edges: :meth:`at_value` there)."""
         m, e = self.cons.n_free, self.cons.n_constraints
         empty = np.zeros((0, m + e + 2))
         if not self.success:
             return Scanline(self.fixed, lo, empty, self.paths, False,
                             f"the generic system: {self.message}")
-        ends, state, message = self._ends(lo, deadline)
+        ends, state, message = self._ends(lo**2, deadline)
         if message:
             return Scanline(self.fixed, lo, empty, self.paths, False, f"at {lo:.6g}: {message}")
-        x = ends[state == REGULAR]
+        done = np.isin(state, (REGULAR, SINGULAR))
+        found = [self._critical(ends[done], (state == SINGULAR)[done],
+                                np.full(int(done.sum()), lo))[0]]
+        # the sweep starts just off the edge, where no two solutions meet (at the edge itself
+        # some may: a singular end cannot be followed on)
         span = abs(hi**2 - lo**2)
-        hom = _Parameter(self.system, lo**2, hi**2, self.patch, SWEEP_BUMP * span)
+        start = lo**2 + 1j * SWEEP_BUMP * span
+        x, state, message = self._ends(start, deadline)
+        stuck = (state == SINGULAR) & self._rank_deficient(x)
+        if message or stuck.any():
+            return Scanline(self.fixed, lo, np.concatenate(found), self.paths, False,
+                            f"just off {lo:.6g}: " + (message or "a singular critical solution"))
+        # (a singular end where J has full rank is no critical configuration, t != 0: the
+        # critical ones are simple solutions and are followed on their own paths)
+        x = x[state == REGULAR]
+        hom = _Parameter(self.system, start, hi**2, self.patch, SWEEP_BUMP * span)
         status = self._status(x, np.full(len(x), lo), free_lo, free_hi)
         last = x.copy()
         times = np.ones(len(x))  # each path's t at its last step
-        found: list[np.ndarray] = []
 
         def watch(paths: np.ndarray, points: np.ndarray, t: np.ndarray) -> None:
             held = np.sqrt(np.maximum(hom.w(t).real, 0.0))
@@ -457,10 +470,21 @@ class ScanDirection:
             times[paths] = t
 
         h = step / max(abs(hi - lo), 1e-300) * 2.0 * min(lo, hi) / (lo + hi)
-        _, state, message = _follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
-        out = np.concatenate(found) if found else empty
-        return Scanline(self.fixed, lo, out, self.paths, not message,
+        ends, state, swept = _follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
+        done = np.isin(state, (REGULAR, SINGULAR))  # (the path ends on the reals, at hi)
+        found.append(self._critical(ends[done], (state == SINGULAR)[done],
+                                    np.full(int(done.sum()), hi))[0])
+        message = "; ".join(m for m in (message, swept) if m)
+        return Scanline(self.fixed, lo, np.concatenate(found), self.paths, not message,
                         message or "every path ended")
+
+    def _rank_deficient(self, points: np.ndarray) -> np.ndarray:
+        """Which points (N, M + 1), complex, have ``J`` (E, M) of rank below ``E`` (within
+        ``SINGULAR_RTOL``): the critical ones."""
+        sys_ = self.system
+        grads = 2.0 * (sys_._rows @ points.T).T.reshape(len(points), sys_.e, sys_.n + 1)
+        sv = np.linalg.svd(grads[:, :, 1:] / points[:, :1, None], compute_uv=False)
+        return np.asarray(sv[:, -1] <= SINGULAR_RTOL * sv[:, 0])
 
     def _status(self, points: np.ndarray, held: np.ndarray, free_lo: float,
                 free_hi: float) -> np.ndarray:
@@ -476,7 +500,7 @@ class ScanDirection:
 
 @dataclass(frozen=True)
 class Scan:
-    """The scanlines of a slice: which were solved completely, and the starts they give."""
+    """The sweeps of a slice: which were solved completely, and the starts they give."""
 
     lines: list[Scanline]
     planned: int
@@ -485,15 +509,15 @@ class Scan:
     step: float  # the sweep's longest step in the held length
     @property
     def complete(self) -> bool:
-        """Every planned scanline ran, each with every critical configuration."""
+        """Every planned sweep ran, each with every critical configuration it looks for."""
         return bool(self.lines) and len(self.lines) == self.planned and \
             all(s.success for s in self.lines)
 
     def summary(self) -> str:
-        """What the scanlines prove, in a sentence."""
+        """What the sweeps prove, in a sentence."""
         if not self.paths:
             return f"no scanline solved ({self.message})"
         done = sum(s.success for s in self.lines)
-        return (f"{done} of {self.planned} scanlines (two edges and the sweep between them) "
-                f"solved completely (a {self.paths}-path homotopy, its finite solutions "
-                "followed)" + ("" if done == self.planned else f": {self.message}"))
+        return (f"{done} of {self.planned} sweeps (an axis's two edges of the box and the "
+                f"lengths between) solved completely (a {self.paths}-path homotopy, its finite "
+                "solutions followed)" + ("" if done == self.planned else f": {self.message}"))

@@ -220,7 +220,7 @@ def test_the_three_rotor_slice_has_its_closed_form_critical_set():
             assert region.components == three_rotor_components(*q), (region, q)
     assert {3, 4} <= {r.components for r in res.regions}
     s = res.search
-    assert s["scanlines_complete"] == s["scanlines"] == 6  # per axis: two edges, a sweep
+    assert s["sweeps_complete"] == s["sweeps"] == 2  # per axis: two edges and between them
     # every curve but one born and gone within a sweep step: still only searched
     assert not s["complete"] and s["reason"] == "searched"
     assert "sweep step" in s["argument_detail"]

@@ -268,7 +268,7 @@ def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
     from engine.design.critical_values import _CurveTracing
 
     lk = build_preset(name, params)
-    # (no homotopy: the seed lengths' path, which slices take where the scanlines cannot run)
+    # (no homotopy: the seed lengths' path, which slices take where the sweeps cannot run)
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4, homotopy_paths_max=0)
     fast = critical_value_slice(lk, axes, resolution=16, options=opt, method=method)
     batches: list[int] = []
