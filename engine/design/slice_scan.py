@@ -35,7 +35,6 @@ curve turns or enters the box).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,22 +44,8 @@ from scipy.sparse.csgraph import connected_components
 from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
-from engine.space.homotopy import (
-    ENDGAME_RATIO,
-    FAILED,
-    H_MAX,
-    H_MIN,
-    NEWTON_LOOSE,
-    NEWTON_TOL,
-    REGULAR,
-    RUNNING,
-    SINGULAR,
-    T_END,
-    TRUST,
-    _jumped,
-    _solve,
-    track,
-)
+from engine.space.homotopy import H_MAX, REGULAR, SINGULAR, track
+from engine.space.parameter_homotopy import Parameter, follow
 from engine.space.witnesses import FAR_REACH, REAL_TOL, SINGULAR_IMAG_TOL, _reach
 
 #: ``sigma_min / sigma_max`` of ``J`` below which a real regular solution is a critical
@@ -220,109 +205,6 @@ class ScanSystem:
         return values, jac
 
 
-class _Parameter:
-    """The parameter homotopy ``F(X; w(t)) = 0``, ``w(t) = w_1 + t (w_0 - w_1) + i b t (1 - t)``,
-    on the patch ``a . X = 1`` (as :class:`engine.space.homotopy._Homotopy`, with
-    ``H_t = F_w w'(t)``): a segment, bent off the real line by ``b`` (a sweep along real
-    lengths passes the points where two real solutions meet at a distance, instead of through
-    them)."""
-
-    def __init__(self, system: ScanSystem, w0: complex, w1: complex, patch: np.ndarray,
-                 bump: float = 0.0) -> None:
-        self.system, self.w0, self.w1, self.patch, self.bump = system, w0, w1, patch, bump
-
-    def w(self, t: np.ndarray) -> np.ndarray:
-        return self.w1 + t * (self.w0 - self.w1) + 1j * self.bump * t * (1.0 - t)
-
-    def parts(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f, fx = self.system(x, self.w(t))
-        full = np.concatenate([fx, np.broadcast_to(self.patch, (len(x), 1, len(self.patch)))],
-                              axis=1)
-        value = np.concatenate([f, (x @ self.patch - 1.0)[:, None]], axis=1)
-        rate = (self.w0 - self.w1) + 1j * self.bump * (1.0 - 2.0 * t)
-        return value, full, self.system.dw(x) * rate[:, None]
-
-    def velocity(self, x: np.ndarray, t: np.ndarray) -> np.ndarray:
-        _, full, ht = self.parts(x, t)
-        return -_solve(full, np.concatenate([ht, np.zeros((len(x), 1))], axis=1))
-
-    def newton(self, x: np.ndarray, t: np.ndarray, iterations: int = 3
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """As :meth:`engine.space.homotopy._Homotopy.newton`."""
-        first = np.zeros(len(x))
-        done = np.zeros(len(x), dtype=bool)
-        before = np.full(len(x), np.inf)
-        for k in range(iterations):
-            value, full, _ = self.parts(x, t)
-            dx = -_solve(full, value)
-            size = np.linalg.norm(dx, axis=1) / np.maximum(np.linalg.norm(x, axis=1), 1.0)
-            if k == 0:
-                first = size
-            x = x + dx
-            done = (size <= NEWTON_TOL) | ((size <= NEWTON_LOOSE) & (size <= 0.25 * before))
-            before = size
-            if done.all():
-                break
-        return x, done, first
-
-
-#: ``watch(paths, points, t)``: called with the paths (K,) that took a step, their new points
-#: (K, M + 1) and ``t`` (K,).
-Watch = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
-
-
-def _follow(hom: _Parameter, x: np.ndarray, deadline: Deadline, max_steps: int = 4000,
-            h_max: float = H_MAX, watch: Watch | None = None
-            ) -> tuple[np.ndarray, np.ndarray, str]:
-    """Every path of ``hom`` from ``t = 1`` (the rows of ``x``, on the patch) to 0, as
-    :func:`engine.space.homotopy.track` follows its paths (RK4 predictor, Newton corrector,
-    geometric endgame), no step longer than ``h_max``: the ends and their states
-    (``REGULAR``, ``SINGULAR``, ``FAILED``, ``RUNNING`` where the deadline or the step limit
-    stopped them), and what went wrong. ``watch`` sees every step taken."""
-    x = np.array(x, dtype=complex)
-    p = len(x)
-    t, h = np.ones(p), np.full(p, h_max)
-    wins = np.zeros(p, dtype=int)
-    state = np.full(p, RUNNING)
-    endgame = np.zeros(p, dtype=bool)
-    for _ in range(max_steps):
-        if not (state == RUNNING).any() or deadline.expired():
-            break
-        act = np.flatnonzero(state == RUNNING)
-        xa, ta = x[act], t[act]
-        ha = np.minimum(h[act], ta)
-        k1 = hom.velocity(xa, ta)
-        k2 = hom.velocity(xa - 0.5 * ha[:, None] * k1, ta - 0.5 * ha)
-        k3 = hom.velocity(xa - 0.5 * ha[:, None] * k2, ta - 0.5 * ha)
-        k4 = hom.velocity(xa - ha[:, None] * k3, ta - ha)
-        pred = xa - (ha / 6.0)[:, None] * (k1 + 2 * k2 + 2 * k3 + k4)
-        new, ok, first = hom.newton(pred, ta - ha)
-        ok &= (first <= TRUST) & np.isfinite(new).all(axis=1)
-        good, bad = act[ok], act[~ok]
-        x[good], t[good] = new[ok], (ta - ha)[ok]
-        if watch is not None and len(good):
-            watch(good, x[good], t[good])
-        wins[good] += 1
-        grow = good[(wins[good] >= 3) & ~endgame[good]]
-        h[grow], wins[grow] = np.minimum(2.0 * h[grow], h_max), 0
-        late = good[endgame[good]]
-        h[late] = (1.0 - ENDGAME_RATIO) * t[late]
-        state[good[t[good] == 0.0]] = REGULAR
-        to_zero = ha[~ok] >= ta[~ok]
-        endgame[bad[to_zero]] = True
-        h[bad] = np.where(to_zero, (1.0 - ENDGAME_RATIO) * ta[~ok], 0.5 * ha[~ok])
-        wins[bad] = 0
-        state[act[(t[act] <= T_END) & (state[act] == RUNNING)]] = SINGULAR
-        state[bad[(h[bad] < H_MIN) & (t[bad] > T_END)]] = FAILED
-    running, failed = int((state == RUNNING).sum()), int((state == FAILED).sum())
-    jumped = _jumped(x[state == REGULAR])
-    message = "; ".join(m for m in (
-        f"{running} of {p} paths stopped by the deadline or the step limit" if running else "",
-        f"{failed} of {p} paths failed" if failed else "",
-        f"{jumped} regular ends coincide (a path jumped)" if jumped else "") if m)
-    return x, state, message
-
-
 class ScanDirection:
     """The scanlines of one direction: bar ``free_bar`` free, bar ``held_bar`` held at each
     value. The system is solved once, by the total-degree homotopy, at a random complex
@@ -371,8 +253,8 @@ class ScanDirection:
 
     def _ends(self, w: complex, deadline: Deadline) -> tuple[np.ndarray, np.ndarray, str]:
         """Every finite solution at the held squared length ``w`` (from the generic ones)."""
-        hom = _Parameter(self.system, self.w0, w, self.patch)
-        return _follow(hom, self.starts, deadline)
+        hom = Parameter(self.system, self.w0, w, self.patch)
+        return follow(hom, self.starts, deadline)
 
     def _critical(self, ends: np.ndarray, loose: np.ndarray, held: np.ndarray,
                   real_tol: float = REAL_TOL) -> tuple[np.ndarray, np.ndarray]:
@@ -448,7 +330,7 @@ class ScanDirection:
         # (a singular end where J has full rank is no critical configuration, t != 0: the
         # critical ones are simple solutions and are followed on their own paths)
         x = x[state == REGULAR]
-        hom = _Parameter(self.system, start, hi**2, self.patch, SWEEP_BUMP * span)
+        hom = Parameter(self.system, start, hi**2, self.patch, SWEEP_BUMP * span)
         status = self._status(x, np.full(len(x), lo), free_lo, free_hi)
         last = x.copy()
         times = np.ones(len(x))  # each path's t at its last step
@@ -470,7 +352,7 @@ class ScanDirection:
             times[paths] = t
 
         h = step / max(abs(hi - lo), 1e-300) * 2.0 * min(lo, hi) / (lo + hi)
-        ends, state, swept = _follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
+        ends, state, swept = follow(hom, x, deadline, h_max=min(H_MAX, h), watch=watch)
         done = np.isin(state, (REGULAR, SINGULAR))  # (the path ends on the reals, at hi)
         found.append(self._critical(ends[done], (state == SINGULAR)[done],
                                     np.full(int(done.sum()), hi))[0])
