@@ -293,6 +293,40 @@ def test_dragging_a_joint_and_a_length_redraws_space_and_map(base_url: str, brow
     assert_stayed_local(browser)
 
 
+def test_a_three_rotor_drag_redraws_space_and_map_within_a_second(base_url: str,
+                                                                   browser: Any) -> None:
+    """While the hand moves, the space's search skips its completeness proof and the map's search
+    is short and runs beside it; once the hand rests both are asked again in full."""
+    open_viewer(browser, base_url, "three-rotor")
+    assert data(browser, "space", "complete") == "true"
+    linkage = json.loads(js(browser, "return JSON.stringify(state.linkage);"))
+    pins = {v["id"] for v in linkage["vertices"] if v.get("fixed")}
+    free = [h for h in handles(browser) if h.startswith("vertex:") and h[7:] not in pins]
+    map_draws = int(data(browser, "map", "draws") or 0)
+    browser.get_log("performance")
+    drag(browser, free[-1], 12, 6)
+    wait_for(lambda: int(data(browser, "map", "draws") or 0) > map_draws
+             and data(browser, "space", "complete") == "false", 30, "the quick answers")
+    # from the last move to the space and the map drawn, as the page measured it
+    assert int(data(browser, "space", "latencyMs") or 1e9) < 1000
+    assert int(data(browser, "map", "latencyMs") or 1e9) < 1000
+    assert "completeness not yet proved" in text(browser, "space-caption")
+    # then the full search: the caption of a complete answer, the tangent arrows back
+    wait_for(lambda: data(browser, "space", "complete") == "true"
+             and text(browser, "status") == "ready", 60, "the refined space")
+    assert "not yet proved" not in text(browser, "space-caption")
+    assert int(data(browser, "space", "tangentArrows") or 0) > 0
+    bodies = []
+    for entry in browser.get_log("performance"):
+        message = json.loads(entry["message"])["message"]
+        request = message.get("params", {}).get("request", {})
+        if request.get("url", "").endswith("/v1/analysis/configuration-space"):
+            bodies.append(json.loads(request.get("postData", "{}")))
+    assert bodies[0]["options"] == {"homotopy_paths_max": 0}
+    assert "options" not in bodies[-1]  # the refinement: the service's defaults
+    assert_stayed_local(browser)
+
+
 def test_a_new_linkage_aborts_the_requests_it_supersedes(base_url: str, browser: Any) -> None:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select
@@ -377,14 +411,14 @@ def test_space_has_ticks_legend_tangent_arrows_and_segments(base_url: str, brows
     assert_stayed_local(browser)
 
 
-def element_shot(driver: Any, element_id: str) -> None:
+def element_shot(driver: Any, element_id: str, name: str = "") -> None:
     from selenium.webdriver.common.by import By
 
     ARTIFACTS.mkdir(exist_ok=True)
     driver.set_window_size(1400, 2400)  # the whole panel in the viewport
     element = driver.find_element(By.ID, element_id)
     js(driver, "arguments[0].scrollIntoView();", element)
-    element.screenshot(str(ARTIFACTS / f"panel-{element_id}.png"))
+    element.screenshot(str(ARTIFACTS / f"panel-{name or element_id}.png"))
 
 
 # -- splitting ------------------------------------------------------------------------------------
@@ -506,6 +540,25 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
                " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
                " components: null, signature: null, cells: 0, gated: false})];")
     assert label == ["2 components, tau +-, gated", "? (not explored in time), not gated"]
+    # and the legend names each field the regions carry, with the service's own description
+    # (its OpenAPI RegionOut) where it has one
+    spec = httpx.get(f"{base_url}/openapi.json", trust_env=False).json()
+    docs = spec["components"]["schemas"]["RegionOut"]["properties"]
+    js(browser, "mapView.answer = {regions: [{point: [1, 2], components: 2, signature: 's',"
+       " cells: 4, tau: '+-', gated: true, argument: 'proved'}], curves: []};"
+       " showRegions();")
+    wait_for(lambda: len(browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")) == 3, 10,
+             "the legend of the regions' fields")
+    terms = {dt.text: dt.find_element(By.XPATH, "following-sibling::dd[1]").text
+             for dt in browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")}
+    assert set(terms) == {"tau", "gated", "argument"}
+    for field, meaning in terms.items():
+        described = docs.get(field, {}).get("description", "").replace("``", "")
+        assert meaning.startswith(described or "as the service gives it"), (field, meaning)
+    assert terms["gated"].endswith('(shown as "gated" or "not gated")')
+    assert terms["tau"].endswith('(shown as "tau <value>")')
+    assert js(browser, CONTRAST) == []
+    element_shot(browser, "map-panel", "map-panel-fields")
 
     # the same slice as the service's SVG figure, in a dialog
     browser.find_element(By.CSS_SELECTOR, "[data-figure='critical-values']").click()
@@ -648,4 +701,26 @@ def test_the_numbers_shown_equal_the_apis(base_url: str, browser: Any) -> None:
     assert ("critical" in text(browser, "readout")) == rigidity["critical"]
     for panel in PANELS:
         element_shot(browser, panel)
+
+    # the splitting panel's table: the service's prediction for the same perturbation, row by
+    # row (Delta as shown, the sign, the rays joined)
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    open_viewer(browser, base_url, "four-bar")
+    linkage = json.loads(js(browser, "return document.getElementById('linkage-json').value;"))
+    Select(browser.find_element(By.ID, "split-bar")).select_by_value("L3")
+    field = browser.find_element(By.ID, "split-dl")
+    field.clear()
+    field.send_keys("0.03")
+    browser.find_element(By.ID, "split-run").click()
+    wait_for(lambda: data(browser, "split", "verified") is not None, 60, "the re-trace")
+    split = post(base_url, "/v1/analysis/splitting",
+                 {"linkage": linkage, "perturbation": {"L3": 0.03}})
+    rows = [[td.text for td in r.find_elements(By.TAG_NAME, "td")]
+            for r in browser.find_elements(By.CSS_SELECTOR, "#split-table tr[data-branch-point]")]
+    assert rows and [r[:4] for r in rows] == [
+        [f"#{b['index']}", f"{short(b['delta'])}".removesuffix(".0"),
+         "+1" if b["sign"] > 0 else "−1", ", ".join(f"{p}–{q}" for p, q in b["connects"])]
+        for b in split["branch_points"]]
     assert_stayed_local(browser)
