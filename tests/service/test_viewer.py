@@ -602,6 +602,31 @@ def test_3d_view_rotates_and_picks(base_url: str, browser: Any) -> None:
     wait_for(lambda: f"component {point[2]}, point" in text(browser, "linkage-caption"), 5,
              "the picked configuration")
     element_shot(browser, "view3d-panel")
+
+    # the points drawn are the API's: every point of every component, each at its three rotor
+    # angles (wrapped to [-pi, pi), over pi) turned by yaw about the vertical and pitch about
+    # the horizontal axis and projected orthographically
+    linkage = json.loads(js(browser, "return JSON.stringify(state.linkage);"))
+    space = post(base_url, "/v1/analysis/configuration-space", {"linkage": linkage})
+    drawn = js(browser, "const c = document.getElementById('view3d');"
+               "return [c.width, c.height, view3.yaw, view3.pitch,"
+               " view3.projected.map((p) => [p.component, p.index, p.x, p.y])];")
+    width, height, yaw, pitch, points = drawn
+    assert len(points) == sum(len(c["angles"]["r1"]) for c in space["components"])
+    scale = 0.32 * min(width, height)
+    cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch)
+
+    def drawn_at(angles: tuple[float, ...]) -> list[tuple[float, float]]:
+        """Where a point can be drawn: -pi and pi are one angle, so at either end of an axis."""
+        ends = [[u] if abs(abs(u) - 1) > 1e-9 else [-1.0, 1.0] for u in angles]
+        return [(width / 2 + scale * (cy * a + sy * c),
+                 height / 2 - scale * (sp * sy * a + cp * b - sp * cy * c))
+                for a in ends[0] for b in ends[1] for c in ends[2]]
+
+    for k, i, x, y in points[:: max(1, len(points) // 50)]:
+        angles = tuple(((space["components"][k]["angles"][r][i] + math.pi) % math.tau - math.pi)
+                       / math.pi for r in ("r1", "r2", "r3"))
+        assert min(math.dist((x, y), p) for p in drawn_at(angles)) < 1e-6, (k, i)
     assert_stayed_local(browser)
 
 
