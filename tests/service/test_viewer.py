@@ -302,15 +302,22 @@ def test_a_three_rotor_drag_redraws_space_and_map_within_a_second(base_url: str,
     linkage = json.loads(js(browser, "return JSON.stringify(state.linkage);"))
     pins = {v["id"] for v in linkage["vertices"] if v.get("fixed")}
     free = [h for h in handles(browser) if h.startswith("vertex:") and h[7:] not in pins]
-    map_draws = int(data(browser, "map", "draws") or 0)
     browser.get_log("performance")
-    drag(browser, free[-1], 12, 6)
-    wait_for(lambda: int(data(browser, "map", "draws") or 0) > map_draws
-             and data(browser, "space", "complete") == "false", 30, "the quick answers")
-    # from the last move to the space and the map drawn, as the page measured it
-    assert int(data(browser, "space", "latencyMs") or 1e9) < 1000
-    assert int(data(browser, "map", "latencyMs") or 1e9) < 1000
-    assert "completeness not yet proved" in text(browser, "space-caption")
+    # from the last move to the space and the map drawn, as the page measured it; the median of
+    # three drags (the machine running the tests is shared: one drag can be slowed by others)
+    latencies = []
+    for step in (1, -1, 1):
+        map_draws = int(data(browser, "map", "draws") or 0)
+        js(browser, "delete document.getElementById('space').dataset.latencyMs;")
+        drag(browser, free[-1], 12 * step, 6 * step)
+        wait_for(lambda drawn=map_draws: int(data(browser, "map", "draws") or 0) > drawn
+                 and data(browser, "space", "latencyMs") is not None
+                 and data(browser, "space", "complete") == "false", 30, "the quick answers")
+        assert "completeness not yet proved" in text(browser, "space-caption")
+        latencies.append((int(data(browser, "space", "latencyMs") or 1e9),
+                          int(data(browser, "map", "latencyMs") or 1e9)))
+    space_ms, map_ms = (sorted(column)[1] for column in zip(*latencies, strict=True))
+    assert space_ms < 1000 and map_ms < 1000, latencies
     # then the full search: the caption of a complete answer, the tangent arrows back
     wait_for(lambda: data(browser, "space", "complete") == "true"
              and text(browser, "status") == "ready", 60, "the refined space")
@@ -323,7 +330,7 @@ def test_a_three_rotor_drag_redraws_space_and_map_within_a_second(base_url: str,
         if request.get("url", "").endswith("/v1/analysis/configuration-space"):
             bodies.append(json.loads(request.get("postData", "{}")))
     assert bodies[0]["options"] == {"homotopy_paths_max": 0}
-    assert "options" not in bodies[-1]  # the refinement: the service's defaults
+    assert len(bodies) >= 4 and "options" not in bodies[-1]  # the refinement: the defaults
     assert_stayed_local(browser)
 
 
