@@ -8,7 +8,6 @@
 const REGION_BASE = new Set(["point", "components", "signature", "cells"]);
 const mapView = { answer: null, margin: null, frame: null, request: null };
 const QUICK_S = 0.4; // seconds a search of the map may take while a drag goes on
-const REFINE_AFTER_MS = 400; // then, without a new move, the map is asked again in full
 
 function mapAxesChoice(linkage) {
   // Bars that can change length: not both ends pinned.
@@ -158,9 +157,46 @@ function star(ctx, x, y) {
   ctx.fill(); ctx.stroke();
 }
 
+/** What each field of a region means, from the service's own OpenAPI document (RegionOut). */
+let regionFieldDocs = null;
+async function loadRegionFieldDocs() {
+  if (regionFieldDocs) return regionFieldDocs;
+  try {
+    const spec = await request("openapi.json", undefined, "json");
+    const props = spec.components.schemas.RegionOut.properties;
+    regionFieldDocs = Object.fromEntries(Object.entries(props).map(([k, v]) => [k,
+      String(v.description || v.title || "").replace(/``/g, "")]));
+  } catch (err) {
+    regionFieldDocs = {}; // the legend then says "as the service gives it"
+  }
+  return regionFieldDocs;
+}
+
+/** The legend of the labels' extra fields (tau signs, gated, argument, ...): each field that a
+ * region of the answer has, with the service's description of it and how the label shows it. */
+async function showRegionFields(answer) {
+  const box = $("region-fields");
+  const fields = [...new Set(answer ? answer.regions.flatMap((r) => Object.keys(r)
+    .filter((k) => !REGION_BASE.has(k) && r[k] !== null && r[k] !== undefined)) : [])];
+  if (!fields.length) { box.replaceChildren(); return; }
+  const docs = await loadRegionFieldDocs();
+  if (mapView.answer !== answer) return;
+  box.replaceChildren(...fields.flatMap((k) => {
+    const dt = document.createElement("dt");
+    dt.textContent = k;
+    dt.dataset.field = k;
+    const dd = document.createElement("dd");
+    const bool = answer.regions.some((r) => typeof r[k] === "boolean");
+    const how = bool ? `shown as "${k}" or "not ${k}"` : `shown as "${k} <value>"`;
+    dd.textContent = `${docs[k] || "as the service gives it"} (${how})`;
+    return [dt, dd];
+  }));
+}
+
 function showRegions() {
   const answer = mapView.answer;
   const list = $("regions");
+  showRegionFields(answer);
   if (!answer) { list.replaceChildren(); return; }
   list.replaceChildren(...answer.regions.map((region, k) => {
     const b = document.createElement("button");
@@ -211,10 +247,11 @@ function mapClick(event) {
   if (best) loadRegion(best.k);
 }
 
-/** Ask for the map and the margin of the linkage shown. While a drag goes on (`quick`) the
- * searches get QUICK_S seconds, so that the map follows the hand; an answer cut short is then
- * asked again with the service's own budget (`refine`), the quick one drawn meanwhile. */
-function loadMap(generation, { quick = false, refine = false } = {}) {
+/** Ask for the map and (unless `margin` is false) the margin of the linkage shown. While a drag
+ * goes on (`quick`) the searches get QUICK_S seconds, so that the map follows the hand; an answer
+ * cut short is then asked again with the service's own budget (`refine`), the quick one drawn
+ * meanwhile. */
+function loadMap(generation, { quick = false, refine = false, margin = true } = {}) {
   const req = refine ? mapView.request : mapRequest();
   mapView.error = "";
   if (!refine) {
@@ -229,16 +266,8 @@ function loadMap(generation, { quick = false, refine = false } = {}) {
   const [x, y] = req.axes.map((a) => a.bar);
   const options = quick ? { options: { time_budget_s: QUICK_S } } : {};
   const again = (search) => quick && search && search.complete === false;
-  const later = () => {
-    if (mapView.refining === req) return; // once for the map and the margin together
-    mapView.refining = req;
-    setTimeout(() => {
-      if (generation === state.generation && mapView.request === req) {
-        loadMap(generation, { refine: true });
-      }
-    }, REFINE_AFTER_MS);
-  };
   if (!refine) $("map-caption").textContent = `${x} × ${y}: computing…`;
+  if (quick) mapView.quick = { req, pending: 2, cut: false }; // the map's and the margin's
   call("v1/analysis/critical-values", { ...req, ...options }, { task: "map", generation })
     .then((answer) => {
       if (generation !== state.generation || mapView.request !== req) return;
@@ -250,14 +279,40 @@ function loadMap(generation, { quick = false, refine = false } = {}) {
         `${answer.curves.length} curves${cut}; the star is the linkage`;
       showRegions();
       drawMap();
-      $("map").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
-      if (again(answer.search)) later();
+      // from the change to the first map drawn (and, apart, to the refined one)
+      const ms = String(Math.round(performance.now() - state.changed));
+      $("map").dataset[refine ? "refinedMs" : "latencyMs"] = ms;
+      if (quick) quickDone(generation, req, again(answer.search));
     }).catch((err) => {
       if (err.superseded || generation !== state.generation) return;
+      if (quick) quickDone(generation, req, false);
       $("map-caption").textContent = `${x} × ${y}: no map`;
       mapView.error = err.message;
       drawMap();
     });
+  if (margin) loadMargin(generation, req, { quick, refine });
+}
+
+/** One of the map's and the margin's quick answers is in (or failed): once both are, and either
+ * was cut short, both are asked again in full REFINE_AFTER_MS later (a refinement started sooner
+ * would abort the margin's quick request). */
+function quickDone(generation, req, cut) {
+  const q = mapView.quick;
+  if (!q || q.req !== req) return;
+  q.cut = q.cut || cut;
+  q.pending -= 1;
+  if (q.pending > 0 || !q.cut) return;
+  setTimeout(() => {
+    if (generation === state.generation && mapView.request === req) {
+      loadMap(generation, { refine: true });
+    }
+  }, REFINE_AFTER_MS);
+}
+
+/** Ask for the robustness margin in the map's two lengths (QUICK_S seconds if `quick`). */
+function loadMargin(generation, req, { quick = false, refine = false } = {}) {
+  const [x, y] = req.axes.map((a) => a.bar);
+  const options = quick ? { options: { time_budget_s: QUICK_S } } : {};
   const body = { linkage: req.linkage, adjustable: [x, y], ...options };
   call("v1/analysis/robustness", body, { task: "margin", generation }).then((answer) => {
     if (generation !== state.generation || mapView.request !== req) return;
@@ -267,10 +322,13 @@ function loadMap(generation, { quick = false, refine = false } = {}) {
         `${answer.guarantee}); the disc has this radius`
       : `no critical value found within the search (${answer.message})`;
     $("map").dataset.margin = typeof answer.margin === "number" ? fmt(answer.margin, 6) : "";
+    const ms = String(Math.round(performance.now() - state.changed));
+    $("map").dataset[refine ? "marginRefinedMs" : "marginLatencyMs"] = ms;
     drawMap();
-    if (again(answer.search)) later();
+    if (quick) quickDone(generation, req, answer.search && answer.search.complete === false);
   }).catch((err) => {
     if (err.superseded || generation !== state.generation) return;
+    if (quick) quickDone(generation, req, false);
     $("margin").textContent = "no margin (see the status line)";
   });
 }
@@ -281,8 +339,10 @@ function startMap() {
     $(id).addEventListener("change", () => { if (state.linkage) loadMap(state.generation); });
   }
   state.listeners.push((generation, what) => {
-    // The map waits for the configuration space, which the other panels need first: on two
-    // workers the two searches side by side would each take twice as long.
+    // The map waits for the configuration space, which the other panels need first (on two
+    // workers two full searches side by side would each take twice as long), except during a
+    // drag: then the map's search is short (QUICK_S) and runs beside the space's quick search,
+    // the margin's after it, so that both follow the hand.
     if (what === "linkage") {
       mapAxesChoice(state.linkage);
       mapView.request = null;
@@ -292,8 +352,14 @@ function startMap() {
       $("margin").textContent = "";
       showRegions();
       drawMap();
+      // (after the space's request is sent: the workers take requests in order)
+      if (state.quick) {
+        setTimeout(() => generation === state.generation &&
+          loadMap(generation, { quick: true, margin: false }), 0);
+      }
     } else if ((what === "space" || what === "space-failed") && state.drawable) {
-      loadMap(generation, { quick: state.quick });
+      if (!state.quick) loadMap(generation);
+      else if (mapView.request) loadMargin(generation, mapView.request, { quick: true });
     } else if (what === "cleared") {
       mapView.request = null; mapView.answer = null; mapView.margin = null;
       $("map-caption").textContent = "no map";

@@ -264,6 +264,46 @@ async function loadArrows(generation) {
   drawSpace();
 }
 
+// -- answers of the space search: quick (during a drag), then refined -------------------------
+
+/** Draw an answer of /v1/analysis/configuration-space for the linkage shown; `quick` is an
+ * answer without the completeness proof (during a drag). */
+function showSpace(answer, linkage, quick) {
+  state.space = answer;
+  state.spaceQuick = quick;
+  state.at = nearestPoint(answer, linkage);
+  $("animate").disabled = !state.at;
+  $("space-caption").textContent = quick ? quickCaption(answer) : spaceCaption(answer);
+  $("space").dataset.complete = String(!quick && (answer.search || {}).complete !== false);
+  drawSpace();
+  drawLinkage();
+}
+
+/** After a drag: the same linkage's full search (with the completeness proof) replaces the
+ * quick answer; the listeners hear "space-refined" (the map has its own refinement). */
+function refineSpace(generation) {
+  const linkage = state.linkage;
+  call("v1/analysis/configuration-space", { linkage }, { task: "configuration space", generation })
+    .then((answer) => {
+      if (generation !== state.generation || !state.drawable) return;
+      showSpace(answer, linkage, false);
+      $("space").dataset.refinedMs = String(Math.round(performance.now() - state.changed));
+      for (const f of state.listeners) f(generation, "space-refined");
+    })
+    .catch(() => { /* the status line says it; the quick answer stays drawn */ });
+}
+
+/** The caption of an answer found without the completeness proof. */
+function quickCaption(answer) {
+  const plural = (k, word) => `${k} ${word}${k === 1 ? "" : "s"}`;
+  const total = (answer.search || {}).components_total;
+  const comps = Number.isInteger(total) && total > answer.components.length
+    ? `${answer.components.length} of ${total} components traced`
+    : plural(answer.components.length, "component");
+  return `${comps}, ${plural(answer.critical_points.length, "critical point")} found ` +
+    "(completeness not yet proved: the full search follows the drag)";
+}
+
 // -- segments between critical points --------------------------------------------------------
 
 function flat(conf, ids) {
@@ -406,11 +446,15 @@ function startSpace() {
       delete canvas.dataset.selectedSegment;
       canvas.dataset.tangentArrows = "0";
       showSegments();
-    } else if (what === "space") {
+    } else if (what === "space" || what === "space-refined") {
       space.pieces = segmentPieces(state.space, state.linkage);
       canvas.dataset.segments = String(space.pieces.filter((p) => p).length);
       showSegments();
-      loadArrows(generation).catch(() => { /* the status line says it */ });
+      // a drag's quick answer gets no arrows (their requests would hold the workers the map
+      // needs): the refined answer gets them
+      if (what === "space-refined" || !state.quick) {
+        loadArrows(generation).catch(() => { /* the status line says it */ });
+      }
     }
   });
 }

@@ -9,6 +9,7 @@ const COLOURS = ["#1f77b4", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf
                  "#bcbd22", "#7f7f7f"];
 const KINDS = { branch: "#d62728", rigid: "#111111", degenerate: "#b34700" };
 const DEBOUNCE_MS = 60; // between the last move of a drag and the request it makes
+const REFINE_AFTER_MS = 400; // then, without a new move, quick answers are asked again in full
 const $ = (id) => document.getElementById(id);
 
 const state = {
@@ -290,18 +291,20 @@ function useLinkage(linkage, source, quick = false) {
     $("linkage-caption").textContent = `${source}: cannot be drawn as given`;
   }
   drawSpace();
-  call("v1/analysis/configuration-space", { linkage }, { task: "configuration space", generation })
+  // While a drag goes on the search skips the homotopy that proves it complete (about half of a
+  // three-rotor's search); the full search follows once the hand rests (refineSpace).
+  const body = quick ? { linkage, options: { homotopy_paths_max: 0 } } : { linkage };
+  call("v1/analysis/configuration-space", body, { task: "configuration space", generation })
     .then((answer) => {
       if (generation !== state.generation) return;
       if (!state.drawable) return;
-      state.space = answer;
-      state.at = nearestPoint(answer, linkage);
-      $("animate").disabled = !state.at;
-      $("space-caption").textContent = spaceCaption(answer);
-      drawSpace();
-      drawLinkage();
+      showSpace(answer, linkage, quick);
       $("space").dataset.latencyMs = String(Math.round(performance.now() - state.changed));
       for (const f of state.listeners) f(generation, "space");
+      if (quick) {
+        setTimeout(() => { if (generation === state.generation) refineSpace(generation); },
+                   REFINE_AFTER_MS);
+      }
     })
     .catch((err) => {
       if (err.superseded || generation !== state.generation) return;
@@ -443,8 +446,12 @@ async function start() {
     button.addEventListener("click", () => showFigure(button.dataset.figure));
   }
   state.listeners.push((generation, what) => {
-    if (what === "at" || what === "space") loadReadout(generation);
-    else $("readout").textContent = "";
+    // a drag's quick answer gets no readout: the refined one does (a worker stays free)
+    if (what === "at" || what === "space-refined" || (what === "space" && !state.quick)) {
+      loadReadout(generation);
+    } else {
+      $("readout").textContent = "";
+    }
   });
   startSpace();
   startMap();

@@ -68,7 +68,10 @@ def browser(request: pytest.FixtureRequest) -> Iterator[Any]:
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1400,1000", "--no-first-run", "--disable-extensions",
                 "--disable-background-networking", "--disable-component-update",
-                "--disable-sync", "--disable-default-apps", "--no-proxy-server"):
+                "--disable-sync", "--disable-default-apps",
+                # the network limited to the service: every address but loopback goes to a
+                # proxy that is not there (port 9, discard), loopback is reached directly
+                f"--proxy-server=http://{HOST}:9", "--proxy-bypass-list=127.0.0.1;localhost"):
         options.add_argument(arg)
     # The page's console and its network requests, read back after each step.
     options.set_capability("goog:loggingPrefs", {"browser": "ALL", "performance": "ALL"})
@@ -276,3 +279,19 @@ def test_docs_prefill_the_schemas_example(base_url: str, browser: Any) -> None:
     assert shown == spec["components"]["schemas"]["AnalysisRequest"]["examples"][0]
     assert shown["tolerances"]["residual_atol"] == 1e-9
     assert console_errors(browser) == []
+
+
+def test_the_browser_reaches_only_the_machine(base_url: str, browser: Any) -> None:
+    """The tests' browser has no way out: the service answers, an outside address does not (the
+    page-level checks that no request left are backed by a network that has no exit)."""
+    from selenium.common.exceptions import WebDriverException
+
+    with pytest.raises(WebDriverException, match="ERR_PROXY_CONNECTION_FAILED"):
+        browser.get("http://example.com/")
+    browser.get(f"{base_url}/health")
+    assert "ok" in browser.page_source.lower()
+    outcome = browser.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        "fetch('http://93.184.215.14/', {mode: 'no-cors'}).then(() => done('reached'),"
+        " (e) => done('failed: ' + e.message));")
+    assert outcome.startswith("failed"), outcome

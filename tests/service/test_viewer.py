@@ -293,6 +293,47 @@ def test_dragging_a_joint_and_a_length_redraws_space_and_map(base_url: str, brow
     assert_stayed_local(browser)
 
 
+def test_a_three_rotor_drag_redraws_space_and_map_within_a_second(base_url: str,
+                                                                   browser: Any) -> None:
+    """While the hand moves, the space's search skips its completeness proof and the map's search
+    is short and runs beside it; once the hand rests both are asked again in full."""
+    open_viewer(browser, base_url, "three-rotor")
+    assert data(browser, "space", "complete") == "true"
+    linkage = json.loads(js(browser, "return JSON.stringify(state.linkage);"))
+    pins = {v["id"] for v in linkage["vertices"] if v.get("fixed")}
+    free = [h for h in handles(browser) if h.startswith("vertex:") and h[7:] not in pins]
+    browser.get_log("performance")
+    # from the last move to the space and the map drawn, as the page measured it; the median of
+    # three drags (the machine running the tests is shared: one drag can be slowed by others)
+    latencies = []
+    for step in (1, -1, 1):
+        map_draws = int(data(browser, "map", "draws") or 0)
+        js(browser, "delete document.getElementById('space').dataset.latencyMs;")
+        drag(browser, free[-1], 12 * step, 6 * step)
+        wait_for(lambda drawn=map_draws: int(data(browser, "map", "draws") or 0) > drawn
+                 and data(browser, "space", "latencyMs") is not None
+                 and data(browser, "space", "complete") == "false", 30, "the quick answers")
+        assert "completeness not yet proved" in text(browser, "space-caption")
+        latencies.append((int(data(browser, "space", "latencyMs") or 1e9),
+                          int(data(browser, "map", "latencyMs") or 1e9)))
+    space_ms, map_ms = (sorted(column)[1] for column in zip(*latencies, strict=True))
+    assert space_ms < 1000 and map_ms < 1000, latencies
+    # then the full search: the caption of a complete answer, the tangent arrows back
+    wait_for(lambda: data(browser, "space", "complete") == "true"
+             and text(browser, "status") == "ready", 60, "the refined space")
+    assert "not yet proved" not in text(browser, "space-caption")
+    assert int(data(browser, "space", "tangentArrows") or 0) > 0
+    bodies = []
+    for entry in browser.get_log("performance"):
+        message = json.loads(entry["message"])["message"]
+        request = message.get("params", {}).get("request", {})
+        if request.get("url", "").endswith("/v1/analysis/configuration-space"):
+            bodies.append(json.loads(request.get("postData", "{}")))
+    assert bodies[0]["options"] == {"homotopy_paths_max": 0}
+    assert len(bodies) >= 4 and "options" not in bodies[-1]  # the refinement: the defaults
+    assert_stayed_local(browser)
+
+
 def test_a_new_linkage_aborts_the_requests_it_supersedes(base_url: str, browser: Any) -> None:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select
@@ -377,14 +418,14 @@ def test_space_has_ticks_legend_tangent_arrows_and_segments(base_url: str, brows
     assert_stayed_local(browser)
 
 
-def element_shot(driver: Any, element_id: str) -> None:
+def element_shot(driver: Any, element_id: str, name: str = "") -> None:
     from selenium.webdriver.common.by import By
 
     ARTIFACTS.mkdir(exist_ok=True)
     driver.set_window_size(1400, 2400)  # the whole panel in the viewport
     element = driver.find_element(By.ID, element_id)
     js(driver, "arguments[0].scrollIntoView();", element)
-    element.screenshot(str(ARTIFACTS / f"panel-{element_id}.png"))
+    element.screenshot(str(ARTIFACTS / f"panel-{name or element_id}.png"))
 
 
 # -- splitting ------------------------------------------------------------------------------------
@@ -506,6 +547,25 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
                " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
                " components: null, signature: null, cells: 0, gated: false})];")
     assert label == ["2 components, tau +-, gated", "? (not explored in time), not gated"]
+    # and the legend names each field the regions carry, with the service's own description
+    # (its OpenAPI RegionOut) where it has one
+    spec = httpx.get(f"{base_url}/openapi.json", trust_env=False).json()
+    docs = spec["components"]["schemas"]["RegionOut"]["properties"]
+    js(browser, "mapView.answer = {regions: [{point: [1, 2], components: 2, signature: 's',"
+       " cells: 4, tau: '+-', gated: true, argument: 'proved'}], curves: []};"
+       " showRegions();")
+    wait_for(lambda: len(browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")) == 3, 10,
+             "the legend of the regions' fields")
+    terms = {dt.text: dt.find_element(By.XPATH, "following-sibling::dd[1]").text
+             for dt in browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")}
+    assert set(terms) == {"tau", "gated", "argument"}
+    for field, meaning in terms.items():
+        described = docs.get(field, {}).get("description", "").replace("``", "")
+        assert meaning.startswith(described or "as the service gives it"), (field, meaning)
+    assert terms["gated"].endswith('(shown as "gated" or "not gated")')
+    assert terms["tau"].endswith('(shown as "tau <value>")')
+    assert js(browser, CONTRAST) == []
+    element_shot(browser, "map-panel", "map-panel-fields")
 
     # the same slice as the service's SVG figure, in a dialog
     browser.find_element(By.CSS_SELECTOR, "[data-figure='critical-values']").click()
@@ -549,6 +609,31 @@ def test_3d_view_rotates_and_picks(base_url: str, browser: Any) -> None:
     wait_for(lambda: f"component {point[2]}, point" in text(browser, "linkage-caption"), 5,
              "the picked configuration")
     element_shot(browser, "view3d-panel")
+
+    # the points drawn are the API's: every point of every component, each at its three rotor
+    # angles (wrapped to [-pi, pi), over pi) turned by yaw about the vertical and pitch about
+    # the horizontal axis and projected orthographically
+    linkage = json.loads(js(browser, "return JSON.stringify(state.linkage);"))
+    space = post(base_url, "/v1/analysis/configuration-space", {"linkage": linkage})
+    drawn = js(browser, "const c = document.getElementById('view3d');"
+               "return [c.width, c.height, view3.yaw, view3.pitch,"
+               " view3.projected.map((p) => [p.component, p.index, p.x, p.y])];")
+    width, height, yaw, pitch, points = drawn
+    assert len(points) == sum(len(c["angles"]["r1"]) for c in space["components"])
+    scale = 0.32 * min(width, height)
+    cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch)
+
+    def drawn_at(angles: tuple[float, ...]) -> list[tuple[float, float]]:
+        """Where a point can be drawn: -pi and pi are one angle, so at either end of an axis."""
+        ends = [[u] if abs(abs(u) - 1) > 1e-9 else [-1.0, 1.0] for u in angles]
+        return [(width / 2 + scale * (cy * a + sy * c),
+                 height / 2 - scale * (sp * sy * a + cp * b - sp * cy * c))
+                for a in ends[0] for b in ends[1] for c in ends[2]]
+
+    for k, i, x, y in points[:: max(1, len(points) // 50)]:
+        angles = tuple(((space["components"][k]["angles"][r][i] + math.pi) % math.tau - math.pi)
+                       / math.pi for r in ("r1", "r2", "r3"))
+        assert min(math.dist((x, y), p) for p in drawn_at(angles)) < 1e-6, (k, i)
     assert_stayed_local(browser)
 
 
@@ -648,4 +733,26 @@ def test_the_numbers_shown_equal_the_apis(base_url: str, browser: Any) -> None:
     assert ("critical" in text(browser, "readout")) == rigidity["critical"]
     for panel in PANELS:
         element_shot(browser, panel)
+
+    # the splitting panel's table: the service's prediction for the same perturbation, row by
+    # row (Delta as shown, the sign, the rays joined)
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    open_viewer(browser, base_url, "four-bar")
+    linkage = json.loads(js(browser, "return document.getElementById('linkage-json').value;"))
+    Select(browser.find_element(By.ID, "split-bar")).select_by_value("L3")
+    field = browser.find_element(By.ID, "split-dl")
+    field.clear()
+    field.send_keys("0.03")
+    browser.find_element(By.ID, "split-run").click()
+    wait_for(lambda: data(browser, "split", "verified") is not None, 60, "the re-trace")
+    split = post(base_url, "/v1/analysis/splitting",
+                 {"linkage": linkage, "perturbation": {"L3": 0.03}})
+    rows = [[td.text for td in r.find_elements(By.TAG_NAME, "td")]
+            for r in browser.find_elements(By.CSS_SELECTOR, "#split-table tr[data-branch-point]")]
+    assert rows and [r[:4] for r in rows] == [
+        [f"#{b['index']}", f"{short(b['delta'])}".removesuffix(".0"),
+         "+1" if b["sign"] > 0 else "−1", ", ".join(f"{p}–{q}" for p, q in b["connects"])]
+        for b in split["branch_points"]]
     assert_stayed_local(browser)
