@@ -73,6 +73,9 @@ log = logging.getLogger("service.workers")
 LIGHT_MAX_VERTICES = 64
 LIGHT_MAX_BARS = 512
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Seconds the workers may take to answer once at start-up: the first start after an install
+#: compiles the tracer's kernel into numba's cache (78 s measured on a loaded 2-core machine).
+START_TIMEOUT_S = 600.0
 #: Seconds between two looks of the watchdog for a broken pool.
 WATCH_INTERVAL_S = 0.5
 
@@ -190,7 +193,9 @@ class EnginePool:
         for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
             os.environ.setdefault(name, "1")
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["service.jobs"])
+        # the forkserver imports the engine and loads the compiled kernels once (service.warm):
+        # each worker forked from it, a replacement too, starts with them
+        ctx.set_forkserver_preload(["service.jobs", "service.warm"])
         limit = None if self.memory_mb is None else self.memory_mb * 2**20
         return pebble.ProcessPool(max_workers=self.workers, context=ctx,
                                   initializer=_limit_memory, initargs=(limit,))
@@ -240,7 +245,7 @@ class EnginePool:
     def _warm_all(self) -> None:
         pool = self._ensure()
         for future in [pool.schedule(_warm) for _ in range(self.workers)]:
-            future.result(timeout=120)
+            future.result(timeout=START_TIMEOUT_S)
 
     def _watch(self) -> None:
         """Replace a broken pool without waiting for a request, and warm its workers."""
@@ -375,19 +380,22 @@ def engine_pool(request: Request) -> EnginePool:
 
 
 def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings,
-             spill: str | None = None) -> bytes | int:
+             spill: str | None = None, kernel: bool = True) -> bytes | int:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop). The tracer's compiled
     kernel is loaded first (once per worker: from numba's on-disk cache about a second,
     compiled where the cache is cold), so that every answer of a worker traces on one path (the
     Python loop's points agree with the kernel's to rounding, not bit for bit); inside the task,
-    so that a worker dying meanwhile fails this request like any other.
+    so that a worker dying meanwhile fails this request like any other. Not with ``kernel``
+    False: the small requests answered in the service's process trace nothing, and that
+    process loads no kernel.
 
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer."""
-    trace_kernel.prepare()
+    if kernel:
+        trace_kernel.prepare()
     parts = serialise.dumps_parts(fn(body, settings))
     if spill is not None:
         size = sum(len(part) for part in parts)
@@ -414,7 +422,7 @@ async def engine_call(request: Request, settings: Settings,
     if light:
         pool = engine_pool(request)
         with pool.light_lane(settings.time_limit_s):
-            answer = await run_in_threadpool(_as_json, fn, body, settings)
+            answer = await run_in_threadpool(_as_json, fn, body, settings, None, False)
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:

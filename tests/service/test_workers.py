@@ -22,7 +22,7 @@ import pytest
 from bench.bench_memory import floppy_chain
 from service.config import Settings, default_worker_memory_mb, machine_memory_mb
 from service.main import create_app
-from service.workers import EnginePool, MemoryLimit
+from service.workers import EnginePool, MemoryLimit, WorkerFailed
 from tests.service.test_hardening import assert_problem, client_for
 
 # An application with its own worker process per test: seconds each.
@@ -137,6 +137,38 @@ def test_a_floppy_chain_within_the_limits_is_answered(four_bar):
 
 def _allocate(n_bytes: int) -> int:
     return int(np.ones(n_bytes // 8).size)
+
+
+def _kernels_in_this_process() -> tuple[bool, bool, int]:
+    """Whether the tracer's and the closed form's compiled kernels are loaded here, without
+    loading them (the modules' state, read before anything calls ``prepare``)."""
+    from engine.space import trace_kernel
+    from engine.space.dyads import kernel as dyads_kernel
+
+    return (trace_kernel._kernel is not None, dyads_kernel._module is not None, os.getpid())
+
+
+def test_workers_and_their_replacements_start_with_the_kernels_loaded():
+    """The forkserver loads the kernels (service.warm) and each worker forked from it,
+    a replacement of a killed one too, has them before its first task (issue 28: half a
+    second of a core per worker at start-up, which the start-up no longer waits for)."""
+    pool = EnginePool(1, 4, watch_interval_s=None)
+    try:
+        pool.start()
+        tracer, dyads, first = asyncio.run(pool.run(30, _kernels_in_this_process))
+        assert tracer and dyads
+        kill([first])
+        deadline = time.monotonic() + 30
+        while True:  # the next task is served by a replacement
+            try:
+                tracer, dyads, pid = asyncio.run(pool.run(30, _kernels_in_this_process))
+                break
+            except WorkerFailed:
+                assert time.monotonic() < deadline
+                time.sleep(0.1)
+        assert pid != first and tracer and dyads
+    finally:
+        pool.close()
 
 
 def test_a_memory_error_in_a_worker_is_a_422_and_the_worker_keeps_serving():
