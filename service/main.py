@@ -1,5 +1,11 @@
 """ASGI app: ``service.main:app``."""
 
+# The engine workers' forkserver imports the engine while this process imports the rest
+# (service.forkserver): on two cores, start-up takes the longer of the two, not their sum.
+from service import forkserver
+
+forkserver.start()
+
 import asyncio
 import logging
 import time
