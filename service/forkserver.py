@@ -33,6 +33,13 @@ def context() -> ForkServerContext:
 
 def start() -> None:
     """Launch the forkserver now, without waiting for its imports (it is one per process:
-    nothing happens when it runs already). The first worker asked for waits for them."""
+    nothing happens when it runs already). The first worker asked for waits for them.
+
+    Not in a child process of ``multiprocessing`` (a worker importing its parent's main
+    script, where that script imports ``service.main``): a process may start none while it
+    bootstraps, and a worker needs none."""
+    bootstrapping = getattr(multiprocessing.current_process(), "_inheriting", False)
+    if bootstrapping or multiprocessing.parent_process() is not None:
+        return
     context()
     forkserver.ensure_running()

@@ -407,3 +407,29 @@ def test_small_requests_have_a_lane_of_their_own():
     assert pool.light_admitted == 0
     with pool.light_lane(30):  # free again
         assert pool.light_admitted == 1
+
+
+def test_a_script_importing_the_app_starts_workers(tmp_path):
+    """A script whose ``__main__`` imports ``service.main`` (benchmarks, examples) has its
+    workers import that script again while they bootstrap: the app's early start of the
+    forkserver must do nothing there (it failed the workers, replaced for ever, before)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "script.py"
+    script.write_text(
+        "import asyncio, os\n"
+        "import service.main\n"
+        "from service.workers import EnginePool\n"
+        "if __name__ == '__main__':\n"
+        "    pool = EnginePool(1, 2, watch_interval_s=None)\n"
+        "    pool.start()\n"
+        "    print('worker', asyncio.run(pool.run(60, os.getpid)) != os.getpid(),\n"
+        "          pool.replacements)\n"
+        "    pool.close()\n")
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, str(script)], cwd=root, capture_output=True,
+                         text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(root)})
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[-3:] == ["worker", "True", "0"], out.stdout
+    assert "RuntimeError" not in out.stderr, out.stderr[-2000:]
