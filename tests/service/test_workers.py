@@ -22,7 +22,7 @@ import pytest
 from bench.bench_memory import floppy_chain
 from service.config import Settings, default_worker_memory_mb, machine_memory_mb
 from service.main import create_app
-from service.workers import EnginePool, MemoryLimit, WorkerFailed
+from service.workers import WORKER_NICE, EnginePool, MemoryLimit, WorkerFailed
 from tests.service.test_hardening import assert_problem, client_for
 
 # An application with its own worker process per test: seconds each.
@@ -157,6 +157,9 @@ def test_workers_and_their_replacements_start_with_the_kernels_loaded():
         pool.start()
         tracer, dyads, first = asyncio.run(pool.run(30, _kernels_in_this_process))
         assert tracer and dyads
+        # and below the service's priority, so that its event loop comes first
+        assert (os.getpriority(os.PRIO_PROCESS, first)
+                == os.getpriority(os.PRIO_PROCESS, 0) + WORKER_NICE)
         kill([first])
         deadline = time.monotonic() + 30
         while True:  # the next task is served by a replacement
