@@ -142,8 +142,9 @@ class Settings:
 
     ``LINKAGE_MAX_VERTICES`` (50000), ``LINKAGE_MAX_BARS`` (200000), ``LINKAGE_MAX_POINTS``
     (points in one configuration-space answer, 200000), ``LINKAGE_MAX_BODY_BYTES`` (request
-    bodies, 5 MB), ``LINKAGE_MAX_ANSWER_MB`` (a first-order answer estimated larger is refused
-    before any work, 256), ``LINKAGE_TIME_LIMIT_S`` (engine time per request, 30 s),
+    bodies, 5 MB), ``LINKAGE_MAX_ANSWER_MB`` (an answer estimated larger is refused before it
+    is built, see ``service.answers``, 256), ``LINKAGE_TIME_LIMIT_S`` (engine time per request,
+    30 s),
     ``LINKAGE_SEARCH_TIME_S`` (default time a search may take before it answers with what it
     found, marked incomplete: 4 s; a request may ask for more with ``options.time_budget_s``, up
     to three quarters of the time limit),

@@ -10,6 +10,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from engine.model.errors import (
     EngineError,
@@ -126,13 +127,45 @@ async def _fault(request: Request, exc: Exception) -> JSONResponse:
     return problem(exc.status, exc.kind, exc.title, exc.detail, headers=headers)
 
 
+def _route_methods(routes: Sequence[Any], scope: dict[str, Any]) -> set[str]:
+    """The methods of the routes among ``routes`` (and the routers included in them) whose
+    path matches ``scope``'s."""
+    methods: set[str] = set()
+    for route in routes:
+        included = getattr(route, "original_router", None)  # FastAPI's include_router
+        if included is not None:
+            prefix = getattr(getattr(route, "include_context", None), "prefix", "") or ""
+            if scope["path"].startswith(prefix):
+                methods |= _route_methods(included.routes,
+                                          {**scope, "path": scope["path"][len(prefix):]})
+            continue
+        route_methods = getattr(route, "methods", None)
+        if route_methods and route.matches(scope)[0] is not Match.NONE:
+            methods |= set(route_methods)
+    return methods
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route takes at this request's path. Starlette's 405 names only the
+    methods of the first route that matches the path, and a path served by several routes
+    (``GET`` and ``DELETE /v1/jobs/{job_id}``, ``GET`` and ``POST /v1/jobs``) would list one."""
+    scope = {**request.scope, "method": ""}  # no route takes it: a path match is PARTIAL
+    return sorted(_route_methods(request.app.router.routes, scope))
+
+
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     title = {404: "Not found", 405: "Method not allowed"}.get(exc.status_code, "HTTP error")
     # a 400 is a body the JSON parser refused (undecodable, nested too deep)
     errors = [{"loc": ["body"], "msg": str(exc.detail)}] if exc.status_code == 400 else []
+    headers = dict(exc.headers or {})
+    if exc.status_code == 405:
+        methods = allowed_methods(request)
+        if methods:
+            headers = {key: value for key, value in headers.items() if key.lower() != "allow"}
+            headers["allow"] = ", ".join(methods)
     return problem(exc.status_code, f"http-{exc.status_code}", title, str(exc.detail), errors,
-                   headers=exc.headers)
+                   headers=headers or None)
 
 
 async def _unhandled(request: Request, exc: Exception) -> JSONResponse:

@@ -16,12 +16,12 @@ from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
 from engine.model.budget import Deadline
 from engine.model.constraints import ProjectionResult, on_constraints
-from engine.model.errors import InvalidRequest, LimitExceeded
+from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances
 from engine.space.configuration_space import explore, find_critical_points
 from engine.space.surfaces.explore import explore_surfaces
-from service import mappers
+from service import answers, mappers
 from service.config import Settings
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
 from service.schemas.common import AnalysisRequest
@@ -51,40 +51,10 @@ def is_light(body: AnalysisRequest) -> bool:
             and len(body.linkage.bars) <= LIGHT_MAX_BARS)
 
 
-#: Bytes a number of a first-order answer takes as JSON, at least as estimated: a float64's
-#: shortest form and its separator, and the bar id or brackets around it (measured: 29-30 bytes
-#: per number on answers of 3 vertices with 300 and 900 bars and of K20, K30 in 3D).
-ANSWER_BYTES_PER_NUMBER = 16
-
-
-def answer_numbers(linkage: EngineLinkage) -> int:
-    """Numbers a first-order answer holds at least, from the sizes alone: ``k M + s E_a`` with
-    ``k >= M - E_a - d(d+1)/2`` nontrivial zero modes of ``M`` coordinates and ``s >= E_a - M``
-    self-stresses of ``E_a`` bars (rank-nullity, whatever the rank)."""
-    m, ea, d = linkage.n_free, int(linkage.active.sum()), linkage.dimension
-    return max(0, m - ea - d * (d + 1) // 2) * m + max(0, ea - m) * ea
-
-
-def check_answer_size(linkage: EngineLinkage, settings: Settings) -> None:
-    """Refuse (422, before any work) a first-order answer estimated beyond
-    ``LINKAGE_MAX_ANSWER_MB``."""
-    numbers = answer_numbers(linkage)
-    size = numbers * ANSWER_BYTES_PER_NUMBER
-    if size > settings.max_answer_mb * 2**20:
-        raise LimitExceeded(
-            f"the answer would hold at least {numbers:,} numbers (M = {linkage.n_free} free "
-            f"coordinates, E = {int(linkage.active.sum())} bars: its zero modes and "
-            f"self-stresses), at least {size / 2**20:,.0f} MB of JSON, more than "
-            f"LINKAGE_MAX_ANSWER_MB = {settings.max_answer_mb}; brace or split the linkage, or "
-            "ask for /v1/analysis/second-order (no self-stress basis)",
-            loc=(),
-        )
-
-
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     plan_first_order(linkage)  # the engine's own limits first: they name the method's bounds
-    check_answer_size(linkage, settings)
+    answers.check_first_order(linkage, settings)
     at, proj = on_constraints(linkage, tol)
     return mappers.rigidity_out(at, first_order(at, tol), proj)
 
@@ -116,6 +86,7 @@ def critical_points(
     at, proj = on_constraints(linkage, tol)
     # The answer holds no components or segments: only the search for critical points runs.
     res = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
+    answers.check_critical(at, len(res.critical_points), len(res.near_misses), settings)
     return mappers.critical_points_out(at, res, proj, tol)
 
 
@@ -138,6 +109,8 @@ def configuration_space(
             f"{settings.max_points}: raise options.step_max or lower options.max_components",
             loc=("options",),
         )
+    compact = body.options is not None and body.options.points == "compact"
+    answers.check_points(at, points, len(res.critical_points), compact, settings)
     return mappers.space_out(at, res, proj, tol,
                              points=body.options.points if body.options else None)
 
@@ -154,7 +127,7 @@ def _surfaces(body: SpaceRequest, settings: Settings, at: EngineLinkage, proj: P
     vertices = int(VERTICES_PER_TRIANGLE * opt.max_triangles) + 7
     numbers = vertices * at.n_vertices * at.dimension + 3 * opt.max_triangles
     if vertices > settings.max_points \
-            or numbers * ANSWER_BYTES_PER_NUMBER > settings.max_answer_mb * 2**20:
+            or numbers * answers.ANSWER_BYTES_PER_NUMBER > settings.max_answer_mb * 2**20:
         raise InvalidRequest(
             f"the surfaces could hold {vertices:,} mesh vertices ({numbers:,} numbers) within "
             f"options.max_triangles = {opt.max_triangles}, more than LINKAGE_MAX_POINTS = "
@@ -207,6 +180,7 @@ def critical_values(
     at, _ = on_constraints(linkage, tol)
     axes, opts = mappers.critical_values_in(body)
     res = critical_value_slice(at, axes, tolerances=tol, deadline=dl, **opts)
+    answers.check_slice(sum(len(c) for c in res.curves), len(res.regions), settings)
     return mappers.critical_values_out(res, tol)
 
 

@@ -1,5 +1,11 @@
 """ASGI app: ``service.main:app``."""
 
+# The engine workers' forkserver imports the engine while this process imports the rest
+# (service.forkserver): on two cores, start-up takes the longer of the two, not their sum.
+from service import forkserver
+
+forkserver.start()
+
 import asyncio
 import logging
 import time
@@ -13,8 +19,6 @@ from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 
 from engine import __version__
-from engine.space import trace_kernel
-from engine.space.dyads import kernel as dyads_kernel
 from service import docs, errors
 from service.config import Settings, get_settings
 from service.metrics import Metrics
@@ -29,19 +33,19 @@ log = logging.getLogger("uvicorn.error")
 
 
 async def _start(pool: EnginePool) -> None:
-    """Load the compiled kernels and start the engine workers, saying so in the log.
+    """Start the engine workers, saying so in the log.
 
-    The tracer's compiled kernel is compiled here once where numba's cache is cold (20-30 s on
-    an idle machine after an install, 78 s on a loaded 2-core one; the Docker image compiles
-    it at build time), so that the workers load it from the cache (about a second)."""
+    The workers' forkserver imports the engine and loads the compiled kernels once
+    (:mod:`service.warm`; compiled there where numba's cache is cold: 20-30 s on an idle machine
+    after an install, 78 s on a loaded 2-core one; the Docker image compiles them at build
+    time), and every worker is forked from it with them loaded. The service process itself
+    loads no kernel: its small requests (first and second order) trace nothing."""
     t0 = time.perf_counter()
     try:
-        log.info("start-up: loading the compiled kernels (compiled now if numba's cache is "
-                 "cold); /health/live answers, /health/ready will when this is done")
-        await run_in_threadpool(trace_kernel.prepare)
-        await run_in_threadpool(dyads_kernel.prepare)  # the closed form's loops, likewise
-        log.info("start-up: kernels loaded in %.1f s; starting %d engine workers",
-                 time.perf_counter() - t0, pool.workers)
+        log.info("start-up: starting %d engine workers (their forkserver imports the engine "
+                 "and loads the compiled kernels, compiled now if numba's cache is cold); "
+                 "/health/live answers, /health/ready will when they have started",
+                 pool.workers)
         # the service process reads and sends the workers' answers: megabytes per request
         tune_malloc()
         await run_in_threadpool(pool.start)

@@ -42,7 +42,6 @@ from __future__ import annotations
 import asyncio
 import ctypes
 import logging
-import multiprocessing
 import os
 import resource
 import threading
@@ -60,7 +59,7 @@ from starlette.responses import Response
 
 from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
-from service import serialise
+from service import forkserver, serialise
 from service.config import Settings
 from service.spill import SPILL_MIN_BYTES, SpillFiles, write_spill
 
@@ -72,11 +71,13 @@ log = logging.getLogger("service.workers")
 #: in-process.
 LIGHT_MAX_VERTICES = 64
 LIGHT_MAX_BARS = 512
-_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-#: Modules the forkserver imports once, so that every worker starts with them: the jobs (the
-#: engine) and the figures (matplotlib: imported in a worker's first figure request otherwise,
-#: 1-3 s of that request on a loaded 2-core machine, paid again by every worker and replacement).
-FORKSERVER_PRELOAD = ("service.jobs", "service.figures")
+#: Niceness added to each engine worker: with every core busy with engine work, the service
+#: process (the event loop, health checks and the small requests' lane) is scheduled first, so
+#: that cheap requests keep their latency while heavy ones saturate the workers.
+WORKER_NICE = 10
+#: Seconds the workers may take to answer once at start-up: the first start after an install
+#: compiles the tracer's kernel into numba's cache (78 s measured on a loaded 2-core machine).
+START_TIMEOUT_S = 600.0
 #: Seconds between two looks of the watchdog for a broken pool.
 WATCH_INTERVAL_S = 0.5
 
@@ -154,8 +155,9 @@ def tune_malloc() -> bool:
 
 def _limit_memory(limit_bytes: int | None) -> None:
     """Worker initializer: cap the memory this worker may allocate (its data segment, which
-    holds the heap and every anonymous mapping, numpy's arrays included), and let its
-    ``malloc`` reuse freed memory (:func:`tune_malloc`)."""
+    holds the heap and every anonymous mapping, numpy's arrays included), let its ``malloc``
+    reuse freed memory (:func:`tune_malloc`), and lower its CPU priority by ``WORKER_NICE``."""
+    os.nice(WORKER_NICE)
     tune_malloc()
     if limit_bytes is not None:
         resource.setrlimit(resource.RLIMIT_DATA, (limit_bytes, limit_bytes))
@@ -185,16 +187,17 @@ class EnginePool:
         self.spill_files = SpillFiles(keep=workers)
         self._pool: pebble.ProcessPool | None = None
         self._started = False
+        #: True while a thread forks the workers of a new pool (start-up, a replacement).
+        self.starting = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._watchdog: threading.Thread | None = None
         self._on_event = on_event or (lambda event: None)
 
     def _new_pool(self) -> pebble.ProcessPool:
-        for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
-            os.environ.setdefault(name, "1")
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(list(FORKSERVER_PRELOAD))
+        # the forkserver imports the engine and loads the compiled kernels once (service.warm):
+        # each worker forked from it, a replacement too, starts with them
+        ctx = forkserver.context()
         limit = None if self.memory_mb is None else self.memory_mb * 2**20
         return pebble.ProcessPool(max_workers=self.workers, context=ctx,
                                   initializer=_limit_memory, initargs=(limit,))
@@ -222,15 +225,18 @@ class EnginePool:
 
     @property
     def broken(self) -> bool:
-        """True when the current pool can take no task (it will be replaced)."""
+        """True when the current pool can take no task (it will be replaced). Never waits:
+        while a thread forks a new pool's workers (:attr:`starting`) the pool is not looked
+        at, since pebble's ``active`` would wait for that start under its lock (seconds at
+        start-up, with the event loop that asked waiting too: /health/live stalled 6 s)."""
         with self._lock:
-            pool = self._pool
-        return pool is not None and not pool.active
+            pool, starting = self._pool, self.starting
+        return pool is not None and not starting and not pool.active
 
     @property
     def ready(self) -> bool:
-        """Started (every worker answered once) and not broken."""
-        return self._started and not self.broken
+        """Started (every worker answered once), not starting a new pool, and not broken."""
+        return self._started and not self.starting and not self.broken
 
     def start(self) -> None:
         """Start the workers, wait until each has answered once, and start the watchdog."""
@@ -242,9 +248,13 @@ class EnginePool:
             self._watchdog.start()
 
     def _warm_all(self) -> None:
-        pool = self._ensure()
-        for future in [pool.schedule(_warm) for _ in range(self.workers)]:
-            future.result(timeout=120)
+        self.starting = True
+        try:
+            pool = self._ensure()
+            for future in [pool.schedule(_warm) for _ in range(self.workers)]:
+                future.result(timeout=START_TIMEOUT_S)
+        finally:
+            self.starting = False
 
     def _watch(self) -> None:
         """Replace a broken pool without waiting for a request, and warm its workers."""
@@ -321,7 +331,10 @@ class EnginePool:
             )
         self.admitted += 1
         try:
-            future = self._schedule(fn, args, time_limit)
+            if self.ready:
+                future = self._schedule(fn, args, time_limit)
+            else:  # a pool being started (or replaced) would hold the event loop meanwhile
+                future = await run_in_threadpool(self._schedule, fn, args, time_limit)
             try:
                 return await asyncio.wrap_future(future)
             except FutureTimeout:
@@ -379,19 +392,22 @@ def engine_pool(request: Request) -> EnginePool:
 
 
 def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings,
-             spill: str | None = None) -> bytes | int:
+             spill: str | None = None, kernel: bool = True) -> bytes | int:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop). The tracer's compiled
     kernel is loaded first (once per worker: from numba's on-disk cache about a second,
     compiled where the cache is cold), so that every answer of a worker traces on one path (the
     Python loop's points agree with the kernel's to rounding, not bit for bit); inside the task,
-    so that a worker dying meanwhile fails this request like any other.
+    so that a worker dying meanwhile fails this request like any other. Not with ``kernel``
+    False: the small requests answered in the service's process trace nothing, and that
+    process loads no kernel.
 
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer."""
-    trace_kernel.prepare()
+    if kernel:
+        trace_kernel.prepare()
     parts = serialise.dumps_parts(fn(body, settings))
     if spill is not None:
         size = sum(len(part) for part in parts)
@@ -418,7 +434,7 @@ async def engine_call(request: Request, settings: Settings,
     if light:
         pool = engine_pool(request)
         with pool.light_lane(settings.time_limit_s):
-            answer = await run_in_threadpool(_as_json, fn, body, settings)
+            answer = await run_in_threadpool(_as_json, fn, body, settings, None, False)
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:

@@ -102,3 +102,30 @@ def nearest_solution(linkage: Linkage, u0: np.ndarray, starts: int = 8) -> np.nd
             best = res.x
     assert best is not None, "the reference SLSQP found no feasible point"
     return best
+
+
+@st.composite
+def one_dof_linkage_bodies(draw: st.DrawFn, max_dyads: int = 3) -> dict[str, object]:
+    """A valid one-degree-of-freedom planar linkage as the service takes it (JSON): two pins,
+    a rotor on the first, then ``1..max_dyads`` dyads (a free vertex on two bars to earlier
+    vertices, the first one to the second pin, which closes a four-bar), at generic random
+    positions; the lengths are the distances as drawn, so the configuration is on the
+    constraints. Rank-nullity gives one degree of freedom at a generic configuration: every
+    dyad adds two coordinates and two bars."""
+    dyads = draw(st.integers(1, max_dyads))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(-2.0, 2.0, size=(3 + dyads, 2))
+    pos[1] = pos[0] + [draw(st.floats(1.0, 3.0)), 0.0]  # the ground, a generic length
+    ids = ["p0", "p1", "a"] + [f"d{k}" for k in range(dyads)]
+    bars = [("r", "p0", "a")]
+    for k in range(dyads):
+        first = "a" if k == 0 else ids[3 + int(rng.integers(0, k))]  # an earlier moving vertex
+        second = "p1" if k == 0 else ids[int(rng.integers(0, 3 + k))]
+        if second == first:
+            second = "p0"
+        bars += [(f"b{k}a", first, ids[3 + k]), (f"b{k}b", second, ids[3 + k])]
+    vertices = [{"id": i, "position": [float(x), float(y)], "fixed": i in ("p0", "p1")}
+                for i, (x, y) in zip(ids, pos, strict=True)]
+    return {"dimension": 2, "vertices": vertices,
+            "bars": [{"id": b, "ends": [i, j]} for b, i, j in bars]}

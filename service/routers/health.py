@@ -34,7 +34,7 @@ async def ready(request: Request) -> Response | Readiness:
     pool: EnginePool = request.app.state.engine_pool
     if pool.ready:
         return Readiness(status="ready", version=__version__, workers=len(pool.worker_pids()))
-    if pool.broken:
+    if pool.broken or (pool.replacements and pool.starting):
         detail = "an engine worker died and the worker pool is being replaced"
     else:
         detail = "starting: the compiled kernels and the engine workers are not loaded yet"

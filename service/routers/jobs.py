@@ -5,7 +5,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Request, Response
 from fastapi.exceptions import RequestValidationError
 
-from service import mappers, serialise, tasks
+from service import answers, mappers, serialise, tasks
 from service.bodies import JsonBodyRoute
 from service.config import SettingsDep
 from service.errors import problem_responses
@@ -134,4 +134,5 @@ def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) ->
     """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
     result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""
     sweep = mappers.sweep_in(body, settings.limits)
+    answers.check_sweep(len(sweep.points), len(sweep.names), len(sweep.compute), settings)
     return _accepted(manager, manager.submit_sweep(sweep, sweep.names))

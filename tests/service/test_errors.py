@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -433,6 +434,23 @@ def test_get_on_post_route(client: Any, url: str) -> None:
 def test_wrong_method_on_get_route(client: Any, method: str) -> None:
     r = client.request(method, "/v1/presets/four-bar")
     expect(client, r, None, status=405)
+
+
+def test_a_405_allows_every_method_of_its_path(client: Any) -> None:
+    """``Allow`` names every method the OpenAPI document gives the path (issue 28: ``OPTIONS
+    /v1/jobs/{id}`` named GET only, ``/v1/jobs`` GET only), not only the first route's."""
+    paths = client.get("/openapi.json").json()["paths"]
+    assert set(paths["/v1/jobs/{job_id}"]) == {"get", "delete"}  # the case of the issue
+    patterns = {t: re.compile(re.sub(r"\\\{[^}]+\\\}", "[^/]+", re.escape(t)) + "$")
+                for t in paths}
+    for template in paths:
+        url = re.sub(r"\{[^}]+\}", "x1", template)
+        # the methods of every template the URL fits (/v1/jobs/operations fits
+        # /v1/jobs/{job_id} too, whose DELETE answers 404 there)
+        methods = {m.upper() for t, p in patterns.items() if p.match(url) for m in paths[t]}
+        r = client.request("OPTIONS", url)
+        expect(client, r, None, status=405)
+        assert r.headers["allow"] == ", ".join(sorted(methods)), url
 
 
 @pytest.mark.parametrize("url", ["/nowhere", "/v1/analysis/nowhere", "/v2/presets"])

@@ -210,7 +210,10 @@ def test_figures_run_under_the_time_limit() -> None:
     c = ApiClient(app)
     try:
         linkage = preset(c, "three-rotor")
-        r = c.post("/v1/figures/configuration-space", json={"linkage": linkage})
+        # a fine step: tens of thousands of points, far beyond 0.05 s whatever the machine (the
+        # default step's figure could finish within it once workers start with the kernels)
+        r = c.post("/v1/figures/configuration-space",
+                   json={"linkage": linkage, "options": {"step_max": 0.0005}})
         assert r.status_code == 504, r.text
         assert r.headers["content-type"].startswith("application/problem+json")
         assert r.json()["type"] == "/problems/time-limit"

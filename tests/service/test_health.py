@@ -91,8 +91,11 @@ def test_the_port_answers_at_once_and_ready_follows_the_kernels(tmp_path):
     finally:
         stop(proc)
     text = log_path.read_text()
-    assert "start-up: loading the compiled kernels" in text
-    assert "start-up: kernels loaded in" in text and "start-up: ready in" in text
+    assert "start-up: starting 1 engine workers" in text
+    assert "start-up: the workers' forkserver" in text  # each step, in the order taken
+    assert text.index("has imported the engine") < text.index("start-up: kernels loaded in") \
+        < text.index("start-up: ready in")
+    assert "tracer compiled" in text and "closed form compiled" in text
     # asked while the kernels compiled (a cold compile takes tens of seconds)
     assert "kernels loaded" not in early_log, early_log
     assert early.status_code == 503 and early.json()["type"] == "/problems/not-ready"

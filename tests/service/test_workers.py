@@ -22,7 +22,7 @@ import pytest
 from bench.bench_memory import floppy_chain
 from service.config import Settings, default_worker_memory_mb, machine_memory_mb
 from service.main import create_app
-from service.workers import EnginePool, MemoryLimit
+from service.workers import WORKER_NICE, EnginePool, MemoryLimit, WorkerFailed
 from tests.service.test_hardening import assert_problem, client_for
 
 # An application with its own worker process per test: seconds each.
@@ -155,6 +155,41 @@ def test_a_worker_starts_with_the_figures_imported():
 
 def _allocate(n_bytes: int) -> int:
     return int(np.ones(n_bytes // 8).size)
+
+
+def _kernels_in_this_process() -> tuple[bool, bool, int]:
+    """Whether the tracer's and the closed form's compiled kernels are loaded here, without
+    loading them (the modules' state, read before anything calls ``prepare``)."""
+    from engine.space import trace_kernel
+    from engine.space.dyads import kernel as dyads_kernel
+
+    return (trace_kernel._kernel is not None, dyads_kernel._module is not None, os.getpid())
+
+
+def test_workers_and_their_replacements_start_with_the_kernels_loaded():
+    """The forkserver loads the kernels (service.warm) and each worker forked from it,
+    a replacement of a killed one too, has them before its first task (issue 28: half a
+    second of a core per worker at start-up, which the start-up no longer waits for)."""
+    pool = EnginePool(1, 4, watch_interval_s=None)
+    try:
+        pool.start()
+        tracer, dyads, first = asyncio.run(pool.run(30, _kernels_in_this_process))
+        assert tracer and dyads
+        # and below the service's priority, so that its event loop comes first
+        assert (os.getpriority(os.PRIO_PROCESS, first)
+                == os.getpriority(os.PRIO_PROCESS, 0) + WORKER_NICE)
+        kill([first])
+        deadline = time.monotonic() + 30
+        while True:  # the next task is served by a replacement
+            try:
+                tracer, dyads, pid = asyncio.run(pool.run(30, _kernels_in_this_process))
+                break
+            except WorkerFailed:
+                assert time.monotonic() < deadline
+                time.sleep(0.1)
+        assert pid != first and tracer and dyads
+    finally:
+        pool.close()
 
 
 def test_a_memory_error_in_a_worker_is_a_422_and_the_worker_keeps_serving():
@@ -393,3 +428,29 @@ def test_small_requests_have_a_lane_of_their_own():
     assert pool.light_admitted == 0
     with pool.light_lane(30):  # free again
         assert pool.light_admitted == 1
+
+
+def test_a_script_importing_the_app_starts_workers(tmp_path):
+    """A script whose ``__main__`` imports ``service.main`` (benchmarks, examples) has its
+    workers import that script again while they bootstrap: the app's early start of the
+    forkserver must do nothing there (it failed the workers, replaced for ever, before)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "script.py"
+    script.write_text(
+        "import asyncio, os\n"
+        "import service.main\n"
+        "from service.workers import EnginePool\n"
+        "if __name__ == '__main__':\n"
+        "    pool = EnginePool(1, 2, watch_interval_s=None)\n"
+        "    pool.start()\n"
+        "    print('worker', asyncio.run(pool.run(60, os.getpid)) != os.getpid(),\n"
+        "          pool.replacements)\n"
+        "    pool.close()\n")
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, str(script)], cwd=root, capture_output=True,
+                         text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(root)})
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[-3:] == ["worker", "True", "0"], out.stdout
+    assert "RuntimeError" not in out.stderr, out.stderr[-2000:]
