@@ -351,7 +351,9 @@ def test_an_idle_worker_killed_beside_a_busy_one(four_bar):
     from service.mappers import linkage_out
 
     chain = linkage_out(build_preset("kl-chain", {"n": 300})).model_dump(mode="json")
-    app = create_app(Settings(workers=2, time_limit_s=4))
+    # an answer limit far above the work's (hundreds of MB): the request must still be running
+    # in its worker at the time limit, not refused for its size
+    app = create_app(Settings(workers=2, time_limit_s=4, max_answer_mb=8192))
     pool = app.state.engine_pool
 
     async def scenario() -> tuple[httpx.Response, list[httpx.Response], int]:
