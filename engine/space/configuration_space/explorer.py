@@ -124,7 +124,8 @@ class Explorer:
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
                argument: tuple[Argument | None, str | None] = (None, None),
-               curves_needed: bool = True, **details: object) -> SearchReport:
+               curves_needed: bool = True, all_found: bool = False,
+               **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
         flags that decide whether it is complete (:class:`engine.model.report.SearchReport`);
         ``agreed`` False: an independent count disagrees with what was traced (unresolved);
@@ -132,13 +133,14 @@ class Explorer:
         (:func:`engine.space.configuration_space.proof.argument`); ``curves_needed`` False: the
         argument does not rest on the traced curves (critical points proved by the homotopy or
         the chain rules), so budgets, open curves and the deadline while tracing do not make
-        the answer incomplete."""
+        the answer incomplete; ``all_found``: an exact count says every component was traced,
+        so the budgets of components and assemblies per angle cut nothing."""
         if argument[0] is not None and not curves_needed:
             return SearchReport({**self.report, **details}, degenerate=degenerate,
                                 time_budget_s=granted(self.deadline), argument=argument[0],
                                 argument_detail=argument[1])
-        budget = bool(self.report.get("component_budget_reached")
-                      or self.report.get("assemblies_truncated")
+        budget = bool(((self.report.get("component_budget_reached")
+                        or self.report.get("assemblies_truncated")) and not all_found)
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
         unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,

@@ -13,7 +13,7 @@ from engine.model.budget import (
 )
 from engine.model.linkage import Linkage
 from engine.model.tolerances import Tolerances
-from engine.space.chain_count import chain_components
+from engine.space.chain_count import exact_components, gate_decision, gated_chain
 from engine.space.configuration_space.closed_form import (
     NO_CANDIDATE,
     closed_form_answer,
@@ -75,15 +75,27 @@ def find_critical_points(
     if opt.critical_closed_form:
         ex.report["method"] = "tracer"
         ex.report.setdefault("closed_form", "off")
-    count = chain_components(linkage)
+    count = exact_components(linkage)
     proof = gather(ex) if count is None else None
     ex.trace_all(start)
     extra = proof.critical_starts if proof is not None else None
     crit, misses, degenerate = critical_points(ex, extra)
+    _gate_details(ex.report, linkage)
     search = ex.finish(degenerate, argument=argument(ex, proof, crit, count, components=False),
                        curves_needed=False, critical_points_found=len(crit), step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
+def _gate_details(report: dict[str, object], linkage: Linkage) -> None:
+    """For a chain with the paper's gate: ``gated`` (no rotor completes a turn on any
+    component), decided from the gate four-bar and the chain's cells whatever was traced
+    (:func:`engine.space.chain_count.gate_decision`), or None, and ``gated_reason``."""
+    if gated_chain(linkage) is None:
+        return
+    decision = gate_decision(linkage)
+    report["gated"] = decision.gated
+    report["gated_reason"] = decision.reason
 
 
 def _seeds_and_isolated(ex: Explorer, proof: Proof | None
@@ -137,7 +149,7 @@ def explore(
     # -- general path ---------------------------------------------------------------------
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
-    count = chain_components(linkage)
+    count = exact_components(linkage)
     proof = gather(ex) if count is None else None
     ex.trace_all(start, *_seeds_and_isolated(ex, proof))
     if count is not None and not near_misses:
@@ -168,8 +180,12 @@ def explore(
         if not agreed:  # a second method disagrees: never a confident count (unresolved)
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives {count.components}")
+    _gate_details(ex.report, linkage)
+    # every component the rules count was traced: the budgets of assemblies and components
+    # cut nothing (the curves' own budgets still count)
+    all_found = count is not None and len(components) == count.components
     search = ex.finish(degenerate, seg_complete, agreed,
-                       argument(ex, proof, crit, count, len(components)),
+                       argument(ex, proof, crit, count, len(components)), all_found=all_found,
                        critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)

@@ -98,9 +98,13 @@ def test_no_count_for_the_gated_chain_or_other_linkages() -> None:
     assert chain_components(build_preset("four-bar")) is None
     crank_rocker = chain_components(build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}))
     assert crank_rocker is not None and crank_rocker.components == 2
+    # the gated chain is counted by the gate's rule: a search cut by its component budget
+    # reports the true total beside what it traced, and is incomplete (a lower bound)
     res = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 2}),
                   options=SpaceOptions(max_components=2))
-    assert "components_total" not in res.search
+    assert res.search["components_total"] == 2 ** 3 * 2 * 2  # D = 2 < 5/2: Grashof gate
+    assert len(res.components) == 2 and not res.search["complete"]
+    assert res.search["reason"] == "budget" and res.search["gated"] is False
 
 
 def test_long_spinner_chain_total() -> None:
