@@ -406,7 +406,7 @@ def gate_decision(linkage: Linkage) -> GateDecision:
                             "the gate's pin: the linkage does not assemble")
     if _apart(parts.sides):
         return GateDecision(None, "does not assemble", "the gate four-bar's longest side "
-                            "exceeds the sum of the other three: no configuration")
+                            "exceeds the sum of the other three: it does not assemble")
     if turns is None:
         return GateDecision(None, kind, "the gate four-bar has critical lengths (a flat "
                             "configuration): its branch point joins the turning and rocking "
