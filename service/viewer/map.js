@@ -68,7 +68,8 @@ function regionLabel(region) {
   for (const [k, v] of Object.entries(region)) {
     if (REGION_BASE.has(k)) continue;
     if (k === "gated" && v === null && region.gated_reason) {
-      parts.push("gate undecided");
+      // (an empty region has nothing to gate: its count says so)
+      if (String(region.components) !== "0") parts.push("gate undecided");
     } else if (v === null || v === undefined) {
       continue;
     } else if (k === "tau_signs") {
@@ -175,7 +176,9 @@ function drawMap(error = "") {
     ctx.font = "10px sans-serif";
     ctx.fillText(`R${k}`, x, y - 13);
     if (region.tau_signs && region.tau_signs.length) {
-      ctx.fillText(signsText(region.tau_signs[0].signs), x, y + 21);
+      // beneath the marker, or above its name where the frame's edge is near
+      const below = y + 24 < f.pad.t + f.h;
+      ctx.fillText(signsText(region.tau_signs[0].signs), x, below ? y + 21 : y - 25);
     }
     ctx.textAlign = "left";
   });
