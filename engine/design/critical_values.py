@@ -179,7 +179,8 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region]
     return ARGUMENT_DERIVED, (
         "every critical curve in the box is a critical hyperplane of the one-dyad chain or of "
         f"the gate four-bar (closed form) met with the plane; every one of the {len(regions)} "
-        "regions' component counts is exact (" + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
+        "regions' component counts is exact ("
+        + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
 
 
 def _closed_form_curves(
