@@ -52,9 +52,12 @@ def winding_patterns(linkage: Linkage, result: SpaceResult) -> tuple[str, ...]:
     return tuple(sorted(patterns))
 
 
-def label_region(linkage: Linkage, result: SpaceResult) -> RegionLabel:
+def label_region(linkage: Linkage, result: SpaceResult, axes: tuple[str, ...] = ()
+                 ) -> RegionLabel:
     """The label of the region whose sample is ``linkage`` (at the sample's lengths), explored
-    as ``result``.
+    as ``result``; with ``axes`` (the map's bars) only the cells those bars are sides of (the
+    others have the same signs in every region of the map: a chain of 20000 rotors would
+    repeat 19999 cells in every region).
 
     Examples
     --------
@@ -76,8 +79,9 @@ def label_region(linkage: Linkage, result: SpaceResult) -> RegionLabel:
     if gated_chain(linkage) is not None:
         decision = gate_decision(linkage)
         gated, reason = decision.gated, decision.reason
-    return RegionLabel(components, exact, traced, rule, tuple(four_bar_cells(linkage)), gated,
-                       reason, winding_patterns(linkage, result))
+    cells = tuple(c for c in four_bar_cells(linkage) if not axes or c.touches(set(axes)))
+    return RegionLabel(components, exact, traced, rule, cells, gated, reason,
+                       winding_patterns(linkage, result))
 
 
 def label_signature(label: RegionLabel, result: SpaceResult

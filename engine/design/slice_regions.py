@@ -36,13 +36,13 @@ class Region:
 
 
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
-               tol: Tolerances, deadline: Deadline = NEVER
+               tol: Tolerances, deadline: Deadline = NEVER, axes: tuple[str, ...] = ()
                ) -> tuple[int, str, Argument | None, RegionLabel]:
     at = linkage.with_lengths(lengths)
     # the components only: no near misses (where the closed form or the chain rules certify
     # that there is no critical point, the critical-point search is then skipped)
     res = explore(at, tol, options, start_on_space=False, near_misses=False, deadline=deadline)
-    label = label_region(at, res)
+    label = label_region(at, res, axes)
     signature, argument = label_signature(label, res)
     return label.components, signature, argument, label
 
@@ -152,6 +152,8 @@ def _regions(
             out.append(Region(where, None, "not explored (time)", int(cells.sum())))
             continue
         deadline.report(0.6 + 0.4 * k / count, "critical values: exploring the regions")
-        comps, sig, argument, label = _signature(linkage, lengths, opt, tol, deadline)
+        comps, sig, argument, label = _signature(linkage, lengths, opt, tol, deadline,
+                                                 (linkage.bar_ids[ax[0].bar],
+                                                  linkage.bar_ids[ax[1].bar]))
         out.append(Region(where, comps, sig, int(cells.sum()), argument, label))
     return out

@@ -53,6 +53,11 @@ class FourBarCell:
     bars: tuple[str, str, str]
     sides: tuple[float, float, float, float]
     signs: tuple[int, int, int]
+    ground: str | None = None  # the ground's bar (the gate's D); None: the pins' spacing
+
+    def touches(self, bars: set[str]) -> bool:
+        """One of ``bars`` is a side of this four-bar (its signs change with that length)."""
+        return bool(bars & {*self.bars, *([self.ground] if self.ground else [])})
 
 
 def four_bar_cells(linkage: Linkage) -> list[FourBarCell]:
@@ -73,10 +78,10 @@ def four_bar_cells(linkage: Linkage) -> list[FourBarCell]:
     parts, gate_bars = gated_chain(linkage), _gate_bars(linkage)
     if parts is not None and gate_bars is not None:
         chain = _without_gate(linkage)
-        l1_bar, l2_bar = gate_bars[1:3]
+        d_bar, l1_bar, l2_bar = gate_bars[:3]
         out.append(FourBarCell("gate", (parts.rotors[parts.gate], linkage.bar_ids[l2_bar],
                                         linkage.bar_ids[l1_bar]),
-                               parts.sides, tau_signs(parts.sides)))
+                               parts.sides, tau_signs(parts.sides), linkage.bar_ids[d_bar]))
     found = _chain_order(chain)
     if found is None:
         return out

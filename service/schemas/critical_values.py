@@ -89,8 +89,9 @@ class RegionOut(BaseModel):
         default=None, description="the rule that counts the components exactly (rotor chains, "
         "chains with the paper's gate); null: no rule applies")
     tau_signs: list[CellSigns] | None = Field(
-        default=None, description="the tau signs of every four-bar cell (the gate four-bar first); "
-        "null: no four-bar cell (or not explored)")
+        default=None, description="the tau signs of every four-bar cell that one of the axes is "
+        "a side of (the gate four-bar first; the other cells' signs are the same in every "
+        "region); null: no such cell (or not explored)")
     gated: bool | None = Field(
         default=None, description="chains with the paper's gate: no rotor completes a turn on any "
         "component, decided from the gate four-bar and the chain's cells (not from what was "

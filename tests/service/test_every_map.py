@@ -85,6 +85,8 @@ def check_region(api: ApiClient, preset: str, linkage: dict[str, Any], axes: lis
     ``complete`` or not)."""
     at = with_lengths(linkage, dict(zip(axes, region["point"], strict=True)))
     signs = [cell_signs(at, cell) for cell in region["tau_signs"] or []]
+    assert all(set(cell["bars"]) & set(axes) or cell["cell"] == "gate"
+               for cell in region["tau_signs"] or []), (preset, axes, region)
     assert [c["signs"] for c in region["tau_signs"] or []] == signs, (preset, axes, region)
     if any(0 in s for s in signs):
         # the sample lies on a critical line of a cell (a curve the map did not find): its
@@ -167,6 +169,8 @@ def test_the_three_rotor_maps_of_the_issue(api: ApiClient, axes: tuple[str, str]
     assert r.status_code == 200, r.text[:500]
     regions = [g for g in r.json()["regions"] if g["components"] is not None]
     assert regions and len(regions) == len(r.json()["regions"])
-    assert all(len(g["tau_signs"]) == 2 for g in regions)
+    # the cells the axes are sides of: the first four-bar for (r1, L1), the second for (L2, r3)
+    assert all([c["bars"] for c in g["tau_signs"]] == [["r1", "L1", "r2"] if "r1" in axes
+                                                      else ["r2", "L2", "r3"]] for g in regions)
     check_region(api, "three-rotor", linkage, list(axes), max(regions, key=lambda g: g["cells"]),
                  r.json()["search"]["complete"])

@@ -101,6 +101,9 @@ def test_labels_say_exact_or_bound():
     signature, argument = label_signature(label, res)
     assert signature.startswith("components=512 (4 traced)") and argument == "derived"
     assert label.gated is None and len(label.cells) == 9
+    # on a map of (r4, l4) only the cells those bars are sides of
+    assert [c.name for c in label_region(lk, res, ("r4", "l4")).cells] == ["r3-l3-r4",
+                                                                           "r4-l4-r5"]
 
     gated = build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0})
     two = explore(gated, options=SpaceOptions(max_components=2), near_misses=False)
@@ -154,7 +157,8 @@ def test_gate_map_reproduces_figure_5b():
         label = region.label
         assert label is not None
         signs = taus(d, 1.5, l2, 2.0)
-        assert label.cells[0].signs == signs
+        # the one cell the axes are sides of: the gate (the chain's cells never change here)
+        assert [c.name for c in label.cells] == ["gate"] and label.cells[0].signs == signs
         components, turns = sampled_gated_chain(3, 1.0, 1.5, 1.5, 1, d, 2.0, l2, samples=2000)
         assert region.components == components and label.components_exact
         if components == 0:
