@@ -34,8 +34,12 @@ NOT_RUN = {
     ("README.md", "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/uvicorn "
      "service.main:app --host 127.0.0.1 --port 8000 --http service.protocol:GuardedH11Protocol"),
     ("README.md", '.venv/bin/python -m pytest -q -m "not slow"'),
-    ("README.md", "openssl req -x509 -newkey rsa:3072 -nodes -days 365 "
-                  '-subj "/CN=linkage-dask-ca" \\'),
+    ("README.md", ".venv/bin/python examples/three_rotor.py --url http://127.0.0.1:8000 "
+                  "--out figures"),
+    ("jobs.md", "openssl req -x509 -newkey rsa:3072 -nodes -days 365 "
+                '-subj "/CN=linkage-dask-ca" \\'),
+    ("examples.md", "pip install ./client                      # the client, into the "
+                    "environment that runs the examples"),
 }
 
 

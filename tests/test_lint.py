@@ -19,7 +19,7 @@ def run(*args: str) -> subprocess.CompletedProcess:
 
 def test_ruff():
     res = run(str(BIN / "ruff"), "check", "engine", "service", "tests", "scripts", "bench",
-              "client")
+              "examples", "client")
     assert res.returncode == 0, res.stdout + res.stderr
 
 

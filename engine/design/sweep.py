@@ -11,6 +11,13 @@ anywhere (the service runs them on Dask); :func:`run_points` runs one chunk and 
 "points done" to a :class:`~engine.model.budget.Deadline`, which also stops it (time, cancellation).
 :func:`summarize` condenses the rows.
 
+What the points share is the chain's cell structure: where the chain rules count a point's
+components (rotor chains, chains with the paper's gate), its row is derived from them
+(:mod:`engine.design.sweep_rules`: the count, the rotor-turn pattern and ``gated``, in a
+few milliseconds a point with the preset's build, no tracing); elsewhere the point is
+explored. Either way a row is complete only with an argument, as a single exploration is, and
+``gated`` never rests on which components happened to be traced (see :class:`PointResult`).
+
 >>> fam = PresetFamily("four-bar", {}, ("L2",))
 >>> pts = grid_points([GridAxis("L2", 0.5, 3.5, 4)])  # L2 = 0.5, 1.5, 2.5, 3.5
 >>> [r.components for r in run_points(fam, pts, ("components",))]
@@ -28,6 +35,7 @@ import numpy as np
 
 from engine.catalogue.presets import build_preset, resolve_parameters
 from engine.design.robustness import robustness
+from engine.design.sweep_rules import DerivedRow, derive
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, Argument, Deadline
 from engine.model.errors import EngineError, InvalidParameter, InvalidRequest, NumericalFailure
 from engine.model.linkage import Linkage, changeable_bar
@@ -141,6 +149,17 @@ class PresetFamily:
         named = [n for n in self.names if n in base.bar_ids]
         return named if len(named) == len(self.names) else None
 
+    def unassembled(self, values: np.ndarray) -> Linkage | None:
+        """Where :meth:`at` finds no assembly: the preset's bars with the point's lengths (off
+        its configuration space, for the chain rules to prove it empty), when every swept name
+        is a bar of the preset; else None."""
+        try:
+            if self.adjustable() is None:
+                return None
+            return BarFamily(build_preset(self.name, self.parameters), self.names).at(values)
+        except (InvalidParameter, InvalidRequest):
+            return None
+
 
 Family = BarFamily | PresetFamily
 
@@ -154,8 +173,11 @@ class PointResult:
     proves it where it is exact: derived or proved), ``critical_points`` the number of
     critical points, ``margin`` the robustness margin over the swept bars (every bar with a
     free end when the swept names are not all bars), ``windings`` the distinct rotor-turn
-    patterns of the components, ``gated`` whether no rotor completes a turn on any component,
-    ``error`` why the point has no answer."""
+    patterns of the components (of the traced ones where the count is a lower bound),
+    ``gated`` whether no rotor completes a turn on any component: from the chain rules where
+    they apply, False where a traced component turns a rotor, True only where every component
+    was traced and none does, else None; ``gated_reason`` says which, ``error`` why the point
+    has no answer."""
 
     values: tuple[float, ...]
     components: int | None = None
@@ -165,18 +187,35 @@ class PointResult:
     margin: float | None = None
     windings: tuple[str, ...] | None = None
     gated: bool | None = None
+    gated_reason: str | None = None
     error: str | None = None
 
 
-def _turns(linkage: Linkage, res: SpaceResult) -> tuple[tuple[str, ...], bool]:
+def _turns(linkage: Linkage, res: SpaceResult, every: bool
+           ) -> tuple[tuple[str, ...], bool | None, str]:
+    """The traced components' rotor-turn patterns and ``gated`` with its reason; ``every``:
+    every component was traced (the count is exact and that many were traced)."""
     patterns: set[str] = set()
-    gated = bool(res.components)
+    turning: set[str] = set()
+    unknown = False
     for comp in res.components:
         angles = rotor_angles(linkage, comp.points)
         turns = {bar: winding(a, comp.closed) for bar, a in angles.items()}
         patterns.add(",".join(f"{b}:{'?' if w is None else abs(w)}" for b, w in turns.items()))
-        gated = gated and all(w == 0 for w in turns.values())
-    return tuple(sorted(patterns)), gated
+        turning.update(b for b, w in turns.items() if w)
+        unknown = unknown or any(w is None for w in turns.values())
+    if turning:
+        return tuple(sorted(patterns)), False, (
+            f"ungated: {', '.join(sorted(turning))} turn on a traced component")
+    if not res.components:
+        return (), None, "no component found: nothing to turn or to gate"
+    if unknown or not every:
+        return tuple(sorted(patterns)), None, (
+            "undecided: no traced component turns a rotor, but " + (
+                "some traced curve did not close" if unknown else
+                "not every component was traced (the count is a lower bound or the trace "
+                "fell short of it): an untraced one could"))
+    return tuple(sorted(patterns)), True, "gated: no rotor turns on any component, all traced"
 
 
 def evaluate(
@@ -202,6 +241,18 @@ def evaluate(
 def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want: set[str],
               tol: Tolerances, opt: SpaceOptions) -> PointResult:
     linkage = family.at(values)
+    if linkage is None and isinstance(family, PresetFamily):
+        off = family.unassembled(values)
+        empty = None if off is None else derive(off)
+        if empty is not None and empty.components == 0:  # the rules prove it empty
+            return PointResult(
+                point,
+                components=0 if "components" in want else None,
+                complete=True if "components" in want else None,
+                argument=ARGUMENT_DERIVED if "components" in want else None,
+                critical_points=0 if "critical" in want else None,
+                windings=() if "windings" in want else None,
+                gated_reason=empty.gated_reason if "windings" in want else None)
     if linkage is None:  # empty configuration space
         return PointResult(
             point,
@@ -210,13 +261,23 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
             complete=False if "components" in want else None,
             critical_points=0 if "critical" in want else None,
             windings=() if "windings" in want else None,
-            gated=False if "windings" in want else None,
+            gated=None, gated_reason=(
+                "no configuration found (the preset assembles at none of its sampled angles)"
+                if "windings" in want else None),
         )
     out: dict[str, Any] = {}
+    rule = derive(linkage) if want & {"components", "windings", "critical"} else None
+    if rule is not None and "components" in want:
+        out.update(components=rule.components, complete=True, argument=ARGUMENT_DERIVED)
+    if rule is not None and "windings" in want and rule.windings is not None:
+        out.update(windings=rule.windings, gated=rule.gated, gated_reason=rule.gated_reason)
+    if rule is not None and "critical" in want and rule.no_critical:
+        out["critical_points"] = 0  # the chain rules prove there is none
     res: SpaceResult | None = None
-    if want & {"components", "windings"} or ("margin" in want and not family.on_space):
+    if (want & {"components", "windings"}) - _derived(rule, out) or (
+            "margin" in want and not family.on_space):
         res = explore(linkage, tol, opt, start_on_space=family.on_space, near_misses=False)
-    if res is not None and "components" in want:
+    if res is not None and "components" in want and rule is None:
         complete = res.search.complete
         total = res.search.get("components_total")
         out["components"] = (len(res.components) if complete or not isinstance(total, int)
@@ -224,14 +285,19 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
         out["complete"] = complete or total is not None
         out["argument"] = res.search.argument if complete else (
             ARGUMENT_DERIVED if total is not None else None)
-    if "critical" in want:
-        if res is not None and "components" in want:
+    if "critical" in want and "critical_points" not in out:
+        if res is not None:  # (its critical search ran: no chain rule proves there is none)
             out["critical_points"] = len(res.critical_points)
         else:
             crit = find_critical_points(linkage, tol, opt, start_on_space=family.on_space)
             out["critical_points"] = len(crit.critical_points)
-    if "windings" in want and res is not None:
-        out["windings"], out["gated"] = _turns(linkage, res)
+    if "windings" in want and "windings" not in out and res is not None:
+        count = rule.components if rule is not None else (
+            len(res.components) if res.search.complete else None)
+        out["windings"], gated, why = _turns(linkage, res, count == len(res.components))
+        if rule is not None and rule.gated is not None:  # decided without the trace
+            gated, why = rule.gated, rule.gated_reason
+        out["gated"], out["gated_reason"] = gated, why
     if "margin" in want:
         on_space: Linkage | None = linkage
         if not family.on_space:  # a point on the configuration space to start from
@@ -243,6 +309,13 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
             m = robustness(on_space, family.adjustable(), tol, opt)
             out["margin"] = float(m.margin) if m.success else None
     return PointResult(point, **out)
+
+
+def _derived(rule: DerivedRow | None, out: dict[str, Any]) -> set[str]:
+    """What the chain rules answered of a row (nothing left to explore for it)."""
+    if rule is None:
+        return set()
+    return {"components"} | ({"windings"} if "windings" in out else set())
 
 
 def run_points(

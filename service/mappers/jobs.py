@@ -103,6 +103,7 @@ def sweep_out(names: tuple[str, ...], rows: list[PointResult],
                 margin=r.margin,
                 windings=None if r.windings is None else list(r.windings),
                 gated=r.gated,
+                gated_reason=r.gated_reason,
                 error=r.error,
             )
             for r in rows
@@ -161,8 +162,8 @@ def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
 
 
 #: Columns of a sweep's CSV after the swept names, in this order.
-SWEEP_CSV_COLUMNS = ("components", "complete", "critical_points", "margin", "gated", "windings",
-                     "error")
+SWEEP_CSV_COLUMNS = ("components", "complete", "argument", "critical_points", "margin", "gated",
+                     "gated_reason", "windings", "error")
 
 
 def sweep_csv(result: dict[str, Any]) -> str:

@@ -71,7 +71,8 @@ class JobSummary(BaseModel):
 class JobOut(JobSummary):
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary; for figures: the SVG as a string); when failed or cancelled: what "
+        "rows and summary; for figures: the SVG as a string, another format as a data: URL, "
+        "base64); when failed or cancelled: what "
         "was finished, if anything (partial)"
     )
 
@@ -154,7 +155,14 @@ class SweepRow(BaseModel):
     critical_points: int | None = None
     margin: float | None = None
     windings: list[str] | None = Field(None, description="distinct rotor-turn patterns")
-    gated: bool | None = Field(None, description="no rotor completes a turn on any component")
+    gated: bool | None = Field(
+        None, description="no rotor completes a turn on any component: from the chain rules "
+        "where they apply (the gate four-bar's Grashof type and the chain's cells), false where "
+        "a traced component turns a rotor, true only where every component was traced; else "
+        "null (see gated_reason)")
+    gated_reason: str | None = Field(
+        None, description="why gated is what it is (the rule, the traced rotors that turn), or "
+        "why it is null")
     error: str | None = None
 
 

@@ -93,11 +93,12 @@ def test_job_result_as_the_operation_model_and_as_csv(jobs: Client) -> None:
 
 
 def slow_sweep(client: Client) -> Job:
-    """Many gated-chain points (tens of ms to 0.5 s each, 2,000 of them): far longer than any
-    test waits."""
+    """Many gated-chain points with their critical points (the tracer's search, about half a
+    second each, 2,000 of them; components and windings alone come from the chain rules in
+    microseconds): far longer than any test waits."""
     return client.create_sweep(preset="gated-kl-chain", parameters=GATED,
                                samples={"D": {"mean": 2.5, "sd": 0.25}}, count=2000, seed=1,
-                               compute=["components", "windings"], options=QUICK)
+                               compute=["components", "critical", "windings"], options=QUICK)
 
 
 def test_timeout_cancels_the_job_and_a_text_bar_draws(jobs: Client) -> None:
@@ -134,7 +135,7 @@ def test_async_job_cancelled_with_its_task(app: TestClient) -> None:
             job = await client.create_sweep(
                 preset="gated-kl-chain", parameters=GATED, samples={"D": {"mean": 2.5,
                                                                            "sd": 0.25}},
-                count=60, seed=2, compute=["components"], options=QUICK)
+                count=60, seed=2, compute=["components", "critical"], options=QUICK)
             waiting = asyncio.create_task(client.wait(job, poll_s=0.1))
             await asyncio.sleep(1.0)
             waiting.cancel()

@@ -1,7 +1,7 @@
 """Dask secure by default (issue 28, item 2), on real clusters on loopback.
 
 The embedded cluster serves no HTTP and accepts only its own certificate; an external cluster
-set up as the README says (mutual TLS with certificates made by ``openssl``, every address on
+set up as docs/jobs.md says (mutual TLS with certificates made by ``openssl``, every address on
 loopback) serves jobs, and when its scheduler is lost jobs are refused with 503 until it is
 back, then served again without restarting the service.
 """
@@ -90,12 +90,12 @@ def refused_without_the_certificate(host: str, port: int) -> None:
             Client(address, timeout=3, security=security, set_as_default=False)
 
 
-# -- an external cluster as the README sets it up ----------------------------------------------
+# -- an external cluster as docs/jobs.md sets it up -----------------------------------------------
 
 
 def readme_openssl() -> str:
-    """The README's ``openssl`` commands (continuation lines joined), as written there."""
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    """The ``openssl`` commands of docs/jobs.md (continuation lines joined), as written there."""
+    readme = (Path(__file__).resolve().parents[2] / "docs" / "jobs.md").read_text()
     block = next(b for b in re.findall(r"```bash\n(.*?)```", readme, re.S)
                  if "openssl req -x509" in b)
     commands = block.replace("\\\n", " ").splitlines()
@@ -106,7 +106,7 @@ def readme_openssl() -> str:
 
 @pytest.fixture(scope="module")
 def certificates(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The README's certificates: a CA and one certificate it signed, made by ``openssl``."""
+    """The certificates of docs/jobs.md: a CA and one certificate it signed, by ``openssl``."""
     folder = tmp_path_factory.mktemp("tls")
     subprocess.run(["bash", "-c", "set -e\n" + readme_openssl()], cwd=folder, check=True,
                    capture_output=True, timeout=120)
@@ -119,7 +119,7 @@ def tls_args(folder: Path) -> list[str]:
 
 
 class External:
-    """``dask scheduler`` and one ``dask worker`` over TLS on loopback, as the README starts
+    """``dask scheduler`` and one ``dask worker`` over TLS on loopback, as docs/jobs.md starts
     them; the scheduler (and its worker) can be stopped and started again on the same port."""
 
     def __init__(self, folder: Path) -> None:
@@ -157,7 +157,7 @@ class External:
                 p.wait(timeout=20)
 
     def client_config(self) -> dict[str, Any]:
-        """The service's side, as the README's environment variables set it."""
+        """The service's side, as the environment variables of docs/jobs.md set it."""
         return {"distributed.comm.tls.ca-file": str(self.folder / "ca.pem"),
                 "distributed.comm.tls.client.cert": str(self.folder / "dask.pem"),
                 "distributed.comm.tls.client.key": str(self.folder / "dask.key"),
@@ -214,7 +214,7 @@ def test_the_readme_external_cluster_listens_on_loopback_only_and_wants_its_cert
     pids = [p.pid for p in external.procs]
     pids += [c.pid for pid in pids for c in psutil.Process(pid).children(recursive=True)]
     addresses = listening(pids)
-    # scheduler, nanny, worker, and the HTTP ports the README binds to loopback
+    # scheduler, nanny, worker, and the HTTP ports docs/jobs.md binds to loopback
     assert len(addresses) >= 3 and {h for h, _ in addresses} == {"127.0.0.1"}, addresses
     with pytest.raises((OSError, TimeoutError)):
         Client(external.address.replace("tls://", "tcp://"), timeout=3, set_as_default=False)

@@ -95,9 +95,13 @@ def four_bar(api: TestClient) -> dict[str, Any]:
     return api.get("/v1/presets/four-bar").json()
 
 
-def gated_sweep(seed: int, count: int) -> dict[str, Any]:
+def gated_sweep(seed: int, count: int, critical: bool = False) -> dict[str, Any]:
+    """Monte Carlo samples of the gated chain's D; its rows come from the chain rules (no
+    trace), unless ``critical`` asks for the critical points, which the tracer searches
+    (about half a second a point: a sweep that runs long enough to be stopped)."""
+    compute = ["components", "critical", "windings"] if critical else ["components", "windings"]
     return {"preset": GATED, "samples": {"D": {"mean": 2.5, "sd": 0.25}}, "count": count,
-            "seed": seed, "compute": ["components", "windings"], "options": QUICK}
+            "seed": seed, "compute": compute, "options": QUICK}
 
 
 def run_sweep(api: TestClient, body: dict[str, Any],
@@ -267,7 +271,7 @@ def executing(api: TestClient) -> int:
 
 def start_slow_sweep(api: TestClient) -> str:
     """A sweep of many gated-chain points (~0.5 s each), returned once it is running."""
-    r = api.post("/v1/sweeps", json=gated_sweep(seed=1, count=60))
+    r = api.post("/v1/sweeps", json=gated_sweep(seed=1, count=60, critical=True))
     assert r.status_code == 202
     location = r.headers["location"]
     job = wait(api, location, until=("running",))
@@ -395,8 +399,8 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
     kept = manager.settings
     manager.settings = kept.replace(job_time_limit_s=1.0, job_ttl_s=1.0)
     try:
-        r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(seed=2,
-                                                                                 count=60)})
+        r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(
+            seed=2, count=60, critical=True)})
         assert r.status_code == 202
         job = wait(api, r.headers["location"])
         assert job["status"] == "failed" and job["error"]["title"] == "Time limit exceeded"
@@ -504,3 +508,34 @@ def test_figure_runs_as_a_job_and_answers_the_endpoints_svg(api):
     ops = {o["operation"] for o in api.get("/v1/jobs/operations").json()}
     assert {"figures/linkage", "figures/configuration-space", "figures/critical-values",
             "figures/splitting"} <= ops
+
+
+def test_a_figure_job_in_another_format_answers_its_bytes(api):
+    """A PNG or DXF figure job: its JSON result a data: URL (RFC 2397), /result the bytes
+    the endpoint answers, with the format's media type."""
+    import base64
+
+    for fmt, media_type in (("png", "image/png"), ("dxf", "image/vnd.dxf")):
+        body = {"linkage": four_bar(api), "format": fmt, "dpi": 40}
+        r = api.post("/v1/jobs", json={"operation": "figures/linkage", "body": body})
+        assert r.status_code == 202, r.text
+        job = wait(api, r.headers["location"])
+        assert job["status"] == "done", job
+        head, data = job["result"].split(",", 1)
+        assert head == f"data:{media_type};base64"
+        result = api.get(f"{r.headers['location']}/result")
+        assert result.headers["content-type"] == media_type
+        assert result.content == base64.b64decode(data)
+        direct = api.post("/v1/figures/linkage", json=body).content
+        if fmt == "png":
+            assert result.content == direct
+        else:  # a DXF carries its time of writing and random GUIDs: the same entities
+            import io
+
+            import ezdxf
+
+            def entities(data: bytes) -> list[tuple[str, str, str]]:
+                msp = ezdxf.read(io.StringIO(data.decode())).modelspace()
+                return sorted((e.dxftype(), e.dxf.layer, str(e.dxfattribs())) for e in msp)
+
+            assert entities(result.content) == entities(direct)

@@ -95,6 +95,7 @@ class SweepRow(Model):
     margin: float | None = None
     windings: list[str] | None = None
     gated: bool | None = None
+    gated_reason: str | None = None
     error: str | None = None
 
 

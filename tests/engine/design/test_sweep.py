@@ -20,6 +20,7 @@ from engine.design.sweep import (
 )
 from engine.model.budget import Deadline
 from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from engine.space.configuration_space import SpaceOptions, explore
 
 
 def grashof(sides: list[float]) -> int:
@@ -112,3 +113,131 @@ def test_a_linkage_of_two_degrees_of_freedom_gives_row_errors():
     rows = run_points(BarFamily(arm, ("L2",)), np.array([[1.0], [1.5]]))
     assert [r.components for r in rows] == [None, None]
     assert all(r.error and "degree" in r.error for r in rows), rows
+
+
+# -- rows against single explorations; gated that does not rest on the trace ---------------
+
+
+def traced_turns(lk, comp) -> dict[str, int]:
+    """Turns of every rotor along a traced component: atan2 of the rotor vectors at its
+    points, unwrapped (computed here from the positions, not by the engine's kinematics)."""
+    pos = np.repeat(lk.positions[None], len(comp.points), axis=0)
+    pos[:, ~lk.fixed] = np.asarray(comp.points)
+    fixed = lk.fixed.all(axis=1)
+    out = {}
+    for k, (i, j) in enumerate(lk.ends):
+        if fixed[i] == fixed[j]:
+            continue
+        pin, tip = (i, j) if fixed[i] else (j, i)
+        vec = pos[:, tip] - pos[:, pin]
+        angle = np.unwrap(np.arctan2(vec[:, 1], vec[:, 0]))
+        out[lk.bar_ids[k]] = abs(int(np.rint((angle[-1] - angle[0]) / (2 * np.pi))))
+    return out
+
+
+@pytest.mark.slow
+def test_gated_rows_equal_single_explorations_across_the_critical_line():
+    """The 3-rotor gated chain at L2 = 2 on both sides of D = 5/2 (ungated 16 components,
+    gated 8), at a Grashof double rocker (L2 = 1: gated, 16) and on the line itself (no rule:
+    the row is the exploration's, its count a lower bound unless an argument proves it): the
+    sweep's rows against explorations of the same points (every component traced there)."""
+    fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D"))
+    pts = np.array([[2.0, 2.3], [2.0, 2.7], [1.0, 2.0], [2.0, 2.5]])
+    rows = run_points(fam, pts, ("components", "windings"))
+    for row, values in zip(rows, pts, strict=True):
+        lk = fam.at(values)
+        res = explore(lk, near_misses=False)
+        turning = [traced_turns(lk, c) for c in res.components]
+        assert all(c.closed for c in res.components)
+        if tuple(values) != (2.0, 2.5):  # derived: the trace finds exactly the rule's count
+            assert row.complete and row.argument == "derived"
+            assert row.components == len(res.components)
+            assert row.gated is all(not any(t.values()) for t in turning)
+            assert set(row.windings) == {",".join(f"{b}:{w}" for b, w in t.items())
+                                         for t in turning}
+            if res.search.complete:
+                assert res.search.argument == row.argument
+        else:  # no rule on the critical line: the row is the exploration's
+            assert row.complete is res.search.complete
+            assert row.argument == res.search.argument
+            assert row.components == len(res.components)
+            turns_any = any(any(t.values()) for t in turning)
+            assert row.gated is (False if turns_any else (True if row.complete else None))
+    assert [(r.components, r.gated) for r in rows[:3]] == [(16, False), (8, True), (16, True)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("D,gated,count", [(2.0, False, 16), (3.0, True, 8)])
+def test_gated_is_right_where_the_tracer_stops_short(D, gated, count):
+    """A component budget of 2 stops the tracer far below the count (asked for the critical
+    points, the point is explored): ``gated`` and the count still come from the rules."""
+    fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1}, ("D",))
+    opt = SpaceOptions(max_components=2)
+    (row,) = run_points(fam, np.array([[D]]), ("components", "critical", "windings"),
+                        options=opt)
+    assert row.error is None and row.critical_points == 0
+    assert (row.components, row.complete, row.gated) == (count, True, gated)
+
+
+@pytest.mark.slow
+def test_without_a_rule_a_cut_trace_never_says_gated():
+    """A gated chain whose cells are not driven from the gate rotor (r = 0.6, l = 1.2): no rule
+    decides; with one component traced the row may say False (a traced rotor turns) or None
+    (undecided), never True, and its count is a lower bound."""
+    fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1, "r": 0.6, "l": 1.2, "L1": 1.0,
+                                          "L2": 1.0, "D": 1.0}, ("D",))
+    (row,) = run_points(fam, np.array([[1.0]]), ("components", "windings"),
+                        options=SpaceOptions(max_components=1))
+    assert row.error is None and row.complete is False and row.argument is None
+    assert row.gated is not True and row.gated_reason
+    if row.gated is None:
+        assert row.gated_reason.startswith("undecided")
+
+
+def test_a_gated_grid_is_derived_wherever_it_assembles():
+    """A 20 x 20 gated 10-rotor grid with windings: every row that assembles is derived."""
+    fam = PresetFamily("gated-kl-chain", {}, ("L2", "D"))
+    pts = grid_points([GridAxis("L2", 0.5, 5.0, 20), GridAxis("D", 0.5, 5.0, 20)])
+    rows = run_points(fam, pts, ("components", "windings"))
+    for row in rows:
+        if row.components:
+            assert row.argument == "derived" and row.components in (1024, 2048)
+            assert row.gated is (row.windings == ((",".join(
+                f"r{k}:0" for k in range(10)) + ",D:0"),))
+
+
+@pytest.mark.parametrize("name,params,names,values", [
+    ("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D"), (0.5, 4.5)),  # 4.5 > 0.5 + 1.5 + 2
+    ("four-bar", {}, ("L2",), (3.5,)),  # 3.5 > 1 + 1 + 1
+])
+def test_a_point_whose_four_bar_cannot_close_is_proved_empty(name, params, names, values):
+    """The preset assembles nowhere, and its bars at these lengths include a four-bar whose
+    longest side exceeds the other three together: 0 components, derived, nothing gated."""
+    (row,) = run_points(PresetFamily(name, params, names), np.array([values]),
+                        ("components", "windings"))
+    assert (row.components, row.complete, row.argument) == (0, True, "derived")
+    assert row.windings == () and row.gated is None and "no configuration" in row.gated_reason
+
+
+def test_an_empty_point_without_a_rule_stays_a_lower_bound():
+    """Swept parameters that are not bars (the chain's rotor length r): no rule sees the
+    lengths, and a preset that assembles at none of its sampled angles is a search, not a
+    proof."""
+    fam = PresetFamily("gated-kl-chain", {"n": 3, "gate": 1, "D": 4.5, "L2": 0.5}, ("r",))
+    (row,) = run_points(fam, np.array([[1.5]]), ("components", "windings"))
+    assert (row.components, row.complete, row.argument, row.gated) == (0, False, None, None)
+
+
+def test_bars_and_preset_families_give_the_same_derived_rows():
+    """The gated chain's (L2, D) grid as the preset rebuilt and as its bars re-lengthened (off
+    the configuration space): the rules see the same cells, so the rows agree."""
+    lk = build_preset("gated-kl-chain", {"n": 3, "gate": 1})
+    pts = grid_points([GridAxis("L2", 0.5, 5.0, 6), GridAxis("D", 0.5, 5.0, 6)])
+    want = ("components", "windings")
+    by_preset = run_points(PresetFamily("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D")),
+                           pts, want)
+    by_bars = run_points(BarFamily(lk, ("L2", "D")), pts, want)
+    for a, b in zip(by_preset, by_bars, strict=True):
+        assert (a.components, a.complete, a.windings, a.gated) == \
+            (b.components, b.complete, b.windings, b.gated), (a, b)
+        assert a.argument == b.argument == "derived"

@@ -1,0 +1,197 @@
+"""Sweep rows derived from the chain rules, without tracing: the work a sweep shares between
+its points is the chain's cell structure (only the lengths change from point to point).
+
+Where :mod:`engine.space.chain_count` counts the components of a rotor chain (the driver rule,
+or one generic four-bar) or of a chain with the paper's gate, the row's count is that number
+(``argument`` derived), and the rotor-turn pattern and ``gated`` follow from the same cells:
+
+* on every component of a chain driven from rotor ``m``, rotor ``k + 1`` is placed from rotor
+  ``k`` as ``theta_{k+1} = arg(T_k - P_{k+1}) +- alpha`` with the triangle's angle ``alpha``
+  strictly inside ``(0, pi)`` (the driver rule keeps ``|T_k - P_{k+1}|`` strictly between
+  ``|l_k - r_{k+1}|`` and ``l_k + r_{k+1}``). Along a closed walk ``alpha`` comes back, so
+  rotor ``k + 1`` turns as often as ``T_k`` winds about ``P_{k+1}``: as often as rotor ``k``
+  when ``P_{k+1}`` lies inside the circle of ``T_k`` (``r_k > a_k``), never when outside
+  (``r_k < a_k``; the rule excludes ``r_k = a_k``). Outwards to the left alike.
+* the driver itself turns once on every component of a rotor chain (each is a graph over its
+  angle); in a gated chain it is the gate rotor, which turns once on every component where it
+  is a crank of the gate four-bar and never where it rocks (:func:`gate_decision`); the bar
+  ``D`` to the slider never turns (the slider has at most two places).
+* one generic four-bar (``n = 2``): in each of the two circuits of a Grashof four-bar a rotor
+  turns once iff it or the ground is the shortest side; no rotor turns in a non-Grashof one.
+
+Every component then has the same pattern, so the row's ``windings`` is that one pattern.
+A four-bar of the chain (the gate four-bar, or the single four-bar) whose longest side is
+longer than the other three together closes nowhere: the linkage then has no configuration
+(0 components, derived). Anything else (other linkages, critical lengths, a chain not driven
+from its gate) gets None here and the sweep explores the point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.model.linkage import Linkage
+from engine.space.assembly import rotors
+from engine.space.chain_count import (
+    GENERIC_RTOL,
+    ChainCount,
+    GatedChain,
+    chain_components,
+    gate_decision,
+    gated_chain,
+    gated_chain_components,
+)
+
+
+@dataclass(frozen=True)
+class DerivedRow:
+    """What the chain rules give at one point: ``components`` (exact) and the ``rule`` that
+    counts them; ``turns`` the number of turns (absolute) of every rotor on every component,
+    by bar id in the order of :func:`engine.space.kinematics.rotor_angles` (None: not
+    derived); ``gated`` and ``gated_reason``; ``no_critical`` the rule also proves that there
+    is no critical point."""
+
+    components: int
+    rule: str
+    turns: dict[str, int] | None
+    gated: bool | None
+    gated_reason: str
+    no_critical: bool
+
+    @property
+    def windings(self) -> tuple[str, ...] | None:
+        """The rotor-turn patterns of the components, as a traced sweep row writes them."""
+        if self.turns is None:
+            return None
+        if not self.components:
+            return ()
+        return (",".join(f"{b}:{w}" for b, w in self.turns.items()),)
+
+
+def _cells(linkage: Linkage, chain_rotors: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Rotor lengths ``r`` (n,) and pin distances ``a`` (n - 1,) of the rotors in chain order."""
+    full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
+    pos = np.asarray(linkage.positions, dtype=float)
+    r, pins = [], []
+    for bar in chain_rotors:
+        k = linkage.bar_ids.index(bar)
+        i, j = (int(x) for x in linkage.ends[k])
+        pins.append(pos[i] if full[i] else pos[j])
+        r.append(float(linkage.lengths[k]))
+    p = np.array(pins)
+    return np.array(r), np.linalg.norm(np.diff(p, axis=0), axis=1)
+
+
+def _chain_turns(r: np.ndarray, a: np.ndarray, driver: int, driver_turns: int) -> list[int]:
+    """Turns of each rotor of a chain driven from rotor ``driver`` (see the module docstring):
+    cell ``k`` passes the turns of its driving rotor on iff that rotor is longer than ``a_k``."""
+    turns = [0] * len(r)
+    turns[driver] = driver_turns
+    for k in range(driver, len(r) - 1):  # rightwards: rotor k drives rotor k + 1
+        turns[k + 1] = turns[k] if r[k] > a[k] else 0
+    for k in range(driver - 1, -1, -1):  # leftwards: rotor k + 1 drives rotor k
+        turns[k] = turns[k + 1] if r[k + 1] > a[k] else 0
+    return turns
+
+
+def _four_bar_turns(r: np.ndarray, a: np.ndarray, coupler: float) -> list[int]:
+    sides = [float(a[0]), float(r[0]), coupler, float(r[1])]
+    srt = sorted(sides)
+    if srt[0] + srt[3] > srt[1] + srt[2]:  # non-Grashof: every rotor rocks
+        return [0, 0]
+    shortest = int(np.argmin(sides))
+    return [int(shortest in (0, 1)), int(shortest in (0, 3))]
+
+
+def _closes(sides: list[float] | tuple[float, ...]) -> bool:
+    """A four-bar with these sides assembles somewhere: its longest side is shorter than the
+    other three together (the rules count the components of one that does; a linkage given
+    with new lengths, off its configuration space, need not)."""
+    return 2 * max(sides) < sum(sides)
+
+
+def _never_closes(sides: list[float] | tuple[float, ...], what: str) -> DerivedRow | None:
+    """The empty row of a linkage with a four-bar that closes nowhere (its longest side longer
+    than the other three together, beyond rounding), or None."""
+    longest = max(sides)
+    if longest - (sum(sides) - longest) <= GENERIC_RTOL * longest:
+        return None
+    return DerivedRow(0, f"{what} closes nowhere: its longest side {longest:g} exceeds the "
+                      f"other three together ({sum(sides) - longest:g})", {}, None,
+                      "no configuration: nothing turns and nothing is gated", True)
+
+
+def _ordered(linkage: Linkage, turns: dict[str, int]) -> dict[str, int] | None:
+    """``turns`` in the order of the rotor bars, or None when a rotor has no entry."""
+    ids = [linkage.bar_ids[k] for k in rotors(linkage)]
+    if set(ids) != set(turns):
+        return None
+    return {b: turns[b] for b in ids}
+
+
+def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
+    r, a = _cells(linkage, count.rotors)
+    if count.driver is not None:  # (driven cells assemble at every angle of the driver)
+        turns = _chain_turns(r, a, count.driver, 1)
+    else:  # one generic four-bar: its coupler is the bar between the two tips
+        tips = {int(v) for b in count.rotors for v in linkage.ends[linkage.bar_ids.index(b)]
+                if not linkage.fixed[v].all()}
+        coupler = next(float(linkage.lengths[k]) for k, (i, j) in enumerate(linkage.ends)
+                       if {int(i), int(j)} == tips)
+        sides = [float(a[0]), float(r[0]), coupler, float(r[1])]
+        if not _closes(sides):
+            return _never_closes(sides, "the four-bar")
+        turns = _four_bar_turns(r, a, coupler)
+    by_bar = _ordered(linkage, dict(zip(count.rotors, turns, strict=True)))
+    if by_bar is None:
+        return DerivedRow(count.components, count.rule, None, None,
+                          "a rotor outside the chain (an inert bar between pins)", True)
+    turning = any(by_bar.values())
+    return DerivedRow(count.components, count.rule, by_bar, not turning,
+                      "ungated: " + ", ".join(b for b, w in by_bar.items() if w) + " turn"
+                      if turning else "gated: every rotor rocks (Grashof type of each cell)",
+                      True)
+
+
+def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
+    if not _closes(parts.sides):
+        return _never_closes(parts.sides, "the gate four-bar (D, r, L2, L1)")
+    count = gated_chain_components(linkage)
+    if count is None:
+        return None
+    decision = gate_decision(linkage)
+    if decision.gated is None:
+        return None
+    r, a = _cells(linkage, parts.rotors)
+    turns: dict[str, int] = dict(zip(
+        parts.rotors, _chain_turns(r, a, parts.gate, 0 if decision.gated else 1), strict=True))
+    others = [linkage.bar_ids[k] for k in rotors(linkage)
+              if linkage.bar_ids[k] not in turns]
+    if len(others) != 1:  # the bar D to the slider, and nothing else
+        return None
+    turns[others[0]] = 0  # the slider has at most two places: bar D never turns
+    by_bar = _ordered(linkage, turns)
+    return DerivedRow(count.components, count.rule, by_bar, decision.gated, decision.reason,
+                      False)
+
+
+def derive(linkage: Linkage) -> DerivedRow | None:
+    """The row the chain rules give for ``linkage`` (see the module docstring), or None where
+    none applies.
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> row = derive(build_preset("gated-kl-chain", {"n": 3, "gate": 1, "D": 3.0}))
+    >>> row.components, row.gated, row.windings
+    (8, True, ('r0:0,r1:0,r2:0,D:0',))
+    >>> derive(build_preset("gated-kl-chain", {"n": 3, "gate": 1})).windings
+    ('r0:1,r1:1,r2:1,D:0',)
+    """
+    count = chain_components(linkage)
+    if count is not None:
+        return _rotor_chain(linkage, count)
+    parts = gated_chain(linkage)
+    return None if parts is None else _gated(linkage, parts)
