@@ -268,8 +268,8 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
                                   ls="none", label=label))
     if labelled:
         handles.append(Line2D([], [], ls="none", label="i–j: segment between critical points"))
-    n, m = len(ans.components), len(ans.critical_points)
-    ax.set_title(f"Configuration space: {n} component{'s' * (n != 1)}, "
+    m = len(ans.critical_points)
+    ax.set_title(f"Configuration space: {_components_text(ans)}, "
                  f"{m} critical point{'s' * (m != 1)}"
                  + ("" if ans.search.complete else f" (search incomplete: {ans.search.reason})"))
     if handles:
@@ -277,7 +277,48 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
     return fig
 
 
+def _components_text(ans: space.SpaceResponse) -> str:
+    """The count as it is known: the rules' exact total beside the traced ones where they
+    differ, ``>= n`` where the search is incomplete without a total (a lower bound)."""
+    n = len(ans.components)
+    total = (ans.search.model_extra or {}).get("components_total")
+    if total is not None and str(total) != str(n):
+        return f"{total} components ({n} traced)"
+    if total is None and not ans.search.complete:
+        return f">= {n} component{'s' * (n != 1)}"
+    return f"{n} component{'s' * (n != 1)}"
+
+
+def _signs_text(signs: Sequence[int]) -> str:
+    return "(" + ",".join("+" if x > 0 else "-" if x < 0 else "0" for x in signs) + ")"
+
+
+def region_text(r: cv_schemas.RegionOut) -> str:
+    """A region's label on the map: its count (``>=`` a lower bound), the tau signs of its
+    first four-bar cell (the gate's on a gated chain, as Fig. 5b) and gated or not."""
+    if r.components is None:
+        return "?"
+    lines = [("" if r.components_exact is not False else ">=") + str(r.components)]
+    if r.tau_signs:
+        lines.append(_signs_text(r.tau_signs[0].signs))
+    if r.gated is not None:
+        lines.append("gated" if r.gated else "ungated")
+    return "\n".join(lines)
+
+
+#: Shades of gated and ungated regions (the paper's Fig. 5b: blue gated, red ungated).
+GATED_SHADES = {True: "#cfe3f5", False: "#f6d0d8", None: "#e6e6e6"}
+
+
 # -- critical values ---------------------------------------------------------------------------
+
+
+def _legend_text(kind: str) -> str:
+    if not kind.isdigit():
+        return {"gated": "gated: no rotor completes a turn",
+                "ungated": "ungated: the rotors turn fully"}.get(kind, "gated undecided")
+    m = int(kind)
+    return f"{m} component{'s' * (m != 1)}" + (" (empty)" if m == 0 else "")
 
 
 def _region_raster(box: np.ndarray, curves: list[np.ndarray], n: int) -> np.ndarray:
@@ -309,9 +350,20 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
     curves = [np.asarray(cv, dtype=float).reshape(-1, 2) for cv in ans.curves]
     n = 240
     labels = _region_raster(box, [cv for cv in curves if len(cv) >= 2], n)
-    counts = sorted({r.components for r in ans.regions if r.components is not None})
+    gate_map = any(r.gated is not None for r in ans.regions)
+    # a region's class: gated or not on a gate's map (the paper's colours), else its count
+    def kind(r: cv_schemas.RegionOut) -> str:
+        if gate_map and r.components not in (0, "0"):
+            return {True: "gated", False: "ungated", None: "undecided"}[r.gated]
+        return str(r.components)
+
+    counts = sorted({kind(r) for r in ans.regions if r.components is not None},
+                    key=lambda c: (not c.isdigit(), int(c) if c.isdigit() else 0, c))
     shades = ["#f2f2f2", "#cfe3f5", "#f7d9b9", "#d5ecd0", "#e8d5f0", "#f6d0d8"]
-    colour_of = {m: shades[min(m, len(shades) - 1)] for m in counts}
+    colour_of = {m: (GATED_SHADES[{"gated": True, "ungated": False}.get(m)]
+                     if not m.isdigit() else "#f2f2f2" if m == "0"
+                     else shades[min(k + 1, len(shades) - 1)])
+                 for k, m in enumerate(counts)}
     cell = np.full((n, n), -1, dtype=int)  # index into counts, -1: no region sampled here
     span = box[:, 1] - box[:, 0]
     spots = []  # where each region's label goes: its drawn cell farthest from its edges
@@ -319,7 +371,7 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
         i, j = np.clip(((np.asarray(r.point) - box[:, 0]) / span * n).astype(int), 0, n - 1)
         mine = labels == labels[i, j]
         if r.components is not None:  # (None: not explored in time, left white)
-            cell[mine] = counts.index(r.components)
+            cell[mine] = counts.index(kind(r))
         depth = ndimage.distance_transform_edt(np.pad(mine, 1))[1:-1, 1:-1]
         ij = np.unravel_index(int(np.argmax(depth)), depth.shape)
         spots.append(box[:, 0] + span * (np.array(ij) + 0.5) / n)
@@ -331,11 +383,12 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
     for k, cv in enumerate(curves):
         ax.plot(cv[:, 0], cv[:, 1], color="#111111", lw=1.6, gid=f"cv-curve-{k}")
     for k, r in enumerate(ans.regions):
-        label = "?" if r.components is None else str(r.components)
-        ax.annotate(label, spots[k], ha="center", va="center", fontsize=10,
+        label = region_text(r)
+        ax.annotate(label, spots[k], ha="center", va="center",
+                    fontsize=10 if "\n" not in label else 7,
                     fontweight="bold", gid=f"region-{k}-{r.components}",
-                    bbox={"boxstyle": "circle,pad=0.25", "fc": "white", "ec": "#888888",
-                          "lw": 0.6})
+                    bbox={"boxstyle": "circle,pad=0.25" if "\n" not in label
+                          else "round,pad=0.25", "fc": "white", "ec": "#888888", "lw": 0.6})
     bars = {b.id: b for b in body.linkage.bars}
     here = [_bar_length(body.linkage, bars[a.bar]) for a in body.axes if a.bar in bars]
     handles: list[object] = [Line2D([], [], color="#111111", lw=1.6,
@@ -345,14 +398,19 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
                 gid="current-lengths")
         handles.append(Line2D([], [], marker="*", mfc="#ffd92f", mec="#111111", ms=11,
                               ls="none", label="the linkage's lengths"))
-    handles += [Patch(fc=colour_of[m], ec="#888888",
-                      label=f"{m} component{'s' * (m != 1)}" + (" (empty)" if m == 0 else ""))
-                for m in counts]
+    handles += [Patch(fc=colour_of[m], ec="#888888", label=_legend_text(m)) for m in counts]
+    if any(r.tau_signs for r in ans.regions):
+        first = next(r.tau_signs[0] for r in ans.regions if r.tau_signs)
+        handles.append(Line2D([], [], ls="none", label=f"(tau1,tau2,tau3) of the {first.cell} "
+                              "four-bar" if first.cell == "gate" else
+                              f"(tau1,tau2,tau3) of the four-bar {first.cell}"))
+    if any(r.components_exact is False for r in ans.regions):
+        handles.append(Line2D([], [], ls="none", label=">= n: a lower bound (n traced)"))
     ax.set_xlim(*box[0])
     ax.set_ylim(*box[1])
     ax.set_title(f"Critical values: {len(curves)} curve{'s' * (len(curves) != 1)}, "
                  f"{len(ans.regions)} region{'s' * (len(ans.regions) != 1)}")
-    fig.legend(handles=handles, loc="outside lower center", ncols=3)
+    fig.legend(handles=handles, loc="outside lower center", ncols=2 if gate_map else 3)
     return fig
 
 

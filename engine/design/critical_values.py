@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.design.dyad_margin import critical_planes
+from engine.design.dyad_margin import critical_planes, gate_planes
 from engine.design.slice_curves import Axis, _continue, _onto_solutions_batch, _System, _tangent
 from engine.design.slice_regions import (
     THIN_REFINE,
@@ -267,9 +267,10 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
                       f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
                       "may be missing (a finer resolution resolves it)")
     return ARGUMENT_DERIVED, (
-        "every critical curve in the box is a critical hyperplane of the one-dyad chain (closed "
-        f"form) met with the plane; every one of the {len(regions)} regions' component counts "
-        "is exact (" + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
+        "every critical curve in the box is a critical hyperplane of the one-dyad chain or of "
+        f"the gate four-bar (closed form) met with the plane; every one of the {len(regions)} "
+        "regions' component counts is exact ("
+        + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
 
 
 def _closed_form_curves(
@@ -282,9 +283,9 @@ def _closed_form_curves(
     least the shortest critical bar) sampled at most ``step`` apart. None when the linkage is
     not such a chain or an axis is none of its three bars."""
     found = critical_planes(linkage)
-    if found is None:
+    pl = found[1] if found is not None else gate_planes(linkage)
+    if pl is None:
         return None
-    _, pl = found
     cols = [np.flatnonzero(pl.bars == a.bar) for a in ax]
     if any(len(c) != 1 for c in cols):
         return None

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.model.linkage import Linkage
+from engine.space.chain_count import GENERIC_RTOL, gated_chain
 from engine.space.dyads import Chain, chain_of
 
 
@@ -94,6 +95,34 @@ def critical_planes(linkage: Linkage) -> tuple[Chain, CriticalPlanes] | None:
         signs_r = (0.0,)
     normals = np.array(list(itertools.product(signs_r, (1.0, -1.0), (1.0, -1.0))))
     return ch, CriticalPlanes(bars, normals, dist)
+
+
+def gate_planes(linkage: Linkage) -> CriticalPlanes | None:
+    """The critical hyperplanes of a rotor chain with the paper's gate in the lengths of the
+    gate's bars ``(D, L2, L1)``: ``+-D +-L2 +-L1 = r_g`` (the gate four-bar flat), or None
+    where that is not the whole critical value set in those lengths: not such a chain, the
+    chain not driven from the gate rotor (its cells then have critical configurations of their
+    own) or the slider's line off the gate's pin (the slider's two positions meet at
+    ``D`` = its offset).
+
+    With the chain driven from the gate rotor every other tip is balanced only with no stress
+    on its bars (its two bars are never on one line), tip by tip inwards, so a self-stress
+    lives on the gate rotor and the gate four-bar alone: that four-bar is flat (see
+    :mod:`engine.space.chain_count`).
+
+    >>> from engine.catalogue.presets import build_preset
+    >>> pl = gate_planes(build_preset("gated-kl-chain", {"n": 3, "gate": 1}))
+    >>> pl.normals.shape, pl.dist
+    ((8, 3), 1.5)
+    """
+    parts = gated_chain(linkage)
+    if parts is None or not parts.chain_driven or \
+            parts.slider_offset > GENERIC_RTOL * max(parts.sides):
+        return None
+    ids = {b: k for k, b in enumerate(linkage.bar_ids)}
+    bars = np.array([ids[b] for b in parts.gate_bars])  # D, L2, L1
+    normals = np.array(list(itertools.product((1.0, -1.0), repeat=3)))
+    return CriticalPlanes(bars, normals, parts.sides[1])
 
 
 def project_on_plane(

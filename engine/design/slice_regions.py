@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from engine.design.region_labels import RegionLabel, label_region, label_signature
 from engine.design.slice_curves import Axis
 from engine.model.budget import NEVER, Argument, Deadline
 from engine.model.linkage import Linkage
 from engine.model.tolerances import CELL_EDGE_TOL, NORM_FLOOR, Tolerances
-from engine.space.configuration_space import SpaceOptions, explore, rotor_angles, winding
+from engine.space.configuration_space import SpaceOptions, explore
 
 
 @dataclass(frozen=True)
@@ -30,24 +31,20 @@ class Region:
     #: what proves ``components`` exact (the exploration's argument: "derived" or "proved");
     #: None: a lower bound (or not explored)
     argument: Argument | None = None
+    #: tau signs of the four-bar cells, gated, winding patterns (:mod:`.region_labels`)
+    label: RegionLabel | None = None
 
 
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
-               tol: Tolerances, deadline: Deadline = NEVER) -> tuple[int, str, Argument | None]:
+               tol: Tolerances, deadline: Deadline = NEVER, axes: tuple[str, ...] = ()
+               ) -> tuple[int, str, Argument | None, RegionLabel]:
     at = linkage.with_lengths(lengths)
     # the components only: no near misses (where the closed form or the chain rules certify
     # that there is no critical point, the critical-point search is then skipped)
     res = explore(at, tol, options, start_on_space=False, near_misses=False, deadline=deadline)
-    patterns = set()
-    for comp in res.components:
-        angles = rotor_angles(at, comp.points)
-        patterns.add(",".join(f"{b}:{abs(w) if (w := winding(a, comp.closed)) is not None else '?'}"
-                              for b, a in angles.items()))
-    count = len(res.components)
-    complete = res.search.complete
-    shown = f"{count}" if complete else f">={count} (incomplete: {res.search.reason})"
-    return (count, f"components={shown}; turns={'|'.join(sorted(patterns))}",
-            res.search.argument if complete else None)
+    label = label_region(at, res, axes)
+    signature, argument = label_signature(label, res)
+    return label.components, signature, argument, label
 
 
 def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
@@ -290,6 +287,8 @@ def _regions(
             continue
         deadline.report(0.6 + 0.4 * (k + 1) / len(samples),
                         "critical values: exploring the regions")
-        comps, sig, argument = _signature(linkage, lengths, opt, tol, deadline)
-        out.append(Region(where, comps, sig, size, argument))
+        comps, sig, argument, label = _signature(linkage, lengths, opt, tol, deadline,
+                                                 (linkage.bar_ids[ax[0].bar],
+                                                  linkage.bar_ids[ax[1].bar]))
+        out.append(Region(where, comps, sig, size, argument, label))
     return out, unresolved

@@ -150,10 +150,28 @@ def chain_components(linkage: Linkage) -> ChainCount | None:
         if np.min(np.abs(sums)) <= GENERIC_RTOL * scale:
             return None  # a flat configuration exists: not generic
         srt = np.sort(sides)
+        if srt[3] > srt[0] + srt[1] + srt[2]:
+            return ChainCount(0, ids, None, "four-bar: its longest side exceeds the sum of the "
+                              "other three: it does not assemble")
         grashof = srt[0] + srt[3] < srt[1] + srt[2]
         return ChainCount(2 if grashof else 1, ids, None,
                           "four-bar: Grashof (2 components) or not (1)")
     return None
+
+
+def exact_components(linkage: Linkage) -> ChainCount | None:
+    """The exact number of components of a rotor chain (:func:`chain_components`) or of a
+    rotor chain with the paper's gate (:func:`gated_chain_components`), None where neither
+    rule applies (the count is then what a search traced: a lower bound unless its argument
+    proves it). Where it is not None the rules also prove there is no critical point.
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> exact_components(build_preset("gated-kl-chain", {"n": 4, "gate": 1})).components
+    32
+    """
+    return chain_components(linkage) or gated_chain_components(linkage)
 
 
 # -- chains with the paper's gate ------------------------------------------------------------
@@ -175,6 +193,8 @@ class GatedChain:
     sides: tuple[float, float, float, float]  # (D, r_g, L2, L1)
     slider_positions: int
     chain_driven: bool  # the driver rule holds with the gate rotor as driver
+    slider_offset: float = 0.0  # distance from P_g to the slider's line
+    gate_bars: tuple[str, str, str] = ("", "", "")  # the bar ids of D, L2, L1
 
 
 @dataclass(frozen=True)
@@ -205,10 +225,17 @@ def _gate_type(sides: tuple[float, float, float, float], scale: float) -> tuple[
     return kind, shortest in (0, 1)
 
 
-def gated_chain(linkage: Linkage) -> GatedChain | None:
-    """The gated chain's parts, or None when ``linkage`` is not a planar rotor chain with the
-    paper's gate (one slider vertex, held by one bar to a pin of the chain, and one free vertex
-    joined to it and to that pin's tip)."""
+def _apart(sides: tuple[float, float, float, float]) -> bool:
+    """The four-bar's longest side exceeds the sum of the others (beyond the flat margin): it
+    does not assemble."""
+    srt = sorted(sides)
+    return srt[3] > srt[0] + srt[1] + srt[2] + GENERIC_RTOL * srt[3]
+
+
+def _gate_bars(linkage: Linkage) -> tuple[int, int, int, int, int, int, int] | None:
+    """The gate's bars ``(D, L1, L2)`` and vertices ``(G, R, P_g, T_g)`` as indices, or None
+    when ``linkage`` has no gate (one slider vertex held by one bar to a pin and by a rocker
+    to a free vertex joined to one more vertex)."""
     if linkage.dimension != 2:
         return None
     fixed = np.asarray(linkage.fixed, dtype=bool)
@@ -231,6 +258,16 @@ def gated_chain(linkage: Linkage) -> GatedChain | None:
         return None
     l2_bar = int(at_r[0] if at_r[1] == l1_bar else at_r[1])
     tip = int(ends[l2_bar, 1] if ends[l2_bar, 0] == rocker else ends[l2_bar, 0])
+    return int(d_bar), int(l1_bar), l2_bar, g, rocker, pin, tip
+
+
+def _strip_gate(linkage: Linkage, bars: tuple[int, int, int, int, int, int, int]
+                ) -> tuple[Linkage, np.ndarray]:
+    """The linkage without the gate's bars and its vertices ``G``, ``R``, and the new index
+    of every old vertex."""
+    d_bar, l1_bar, l2_bar, g, rocker = bars[:5]
+    fixed = np.asarray(linkage.fixed, dtype=bool)
+    ends = np.asarray(linkage.ends)
     keep_v = np.ones(linkage.n_vertices, dtype=bool)
     keep_v[[g, rocker]] = False
     keep_b = ~np.isin(np.arange(linkage.n_bars), [d_bar, l1_bar, l2_bar])
@@ -239,6 +276,25 @@ def gated_chain(linkage: Linkage) -> GatedChain | None:
                     np.asarray(linkage.positions)[keep_v], fixed[keep_v],
                     tuple(b for b, k in zip(linkage.bar_ids, keep_b, strict=True) if k),
                     new_index[ends[keep_b]], np.asarray(linkage.lengths)[keep_b])
+    return chain, new_index
+
+
+def _without_gate(linkage: Linkage) -> Linkage:
+    """``linkage`` less its gate (itself when it has none)."""
+    bars = _gate_bars(linkage)
+    return linkage if bars is None else _strip_gate(linkage, bars)[0]
+
+
+def gated_chain(linkage: Linkage) -> GatedChain | None:
+    """The gated chain's parts, or None when ``linkage`` is not a planar rotor chain with the
+    paper's gate (one slider vertex, held by one bar to a pin of the chain, and one free vertex
+    joined to it and to that pin's tip)."""
+    bars = _gate_bars(linkage)
+    if bars is None:
+        return None
+    d_bar, l1_bar, l2_bar, g, rocker, pin, tip = bars
+    fixed = np.asarray(linkage.fixed, dtype=bool)
+    chain, new_index = _strip_gate(linkage, bars)
     found = _chain_order(chain)
     if found is None or int(new_index[tip]) not in found[0]:
         return None
@@ -260,7 +316,8 @@ def gated_chain(linkage: Linkage) -> GatedChain | None:
     positions = 2 if perp < sides[0] - GENERIC_RTOL * scale else (
         1 if perp <= sides[0] + GENERIC_RTOL * scale else 0)
     return GatedChain(tuple(chain.bar_ids[b] for b in rotor_bars), gate, sides, positions,
-                      _driven_from(chain, found, gate))
+                      _driven_from(chain, found, gate), perp,
+                      (linkage.bar_ids[d_bar], linkage.bar_ids[l2_bar], linkage.bar_ids[l1_bar]))
 
 
 def _driven_from(chain: Linkage, found: tuple[list[int], list[int], list[int]], m: int) -> bool:
@@ -307,13 +364,16 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
     parts = gated_chain(linkage)
     if parts is None or not parts.chain_driven or parts.slider_positions != 2:
         return None
+    n = len(parts.rotors)
+    if _apart(parts.sides):
+        return ChainCount(0, parts.rotors, parts.gate, "gated chain: the gate four-bar's "
+                          "longest side exceeds the sum of the other three: it does not assemble")
     _, turns = _gate_type(parts.sides, max(parts.sides))
     if turns is None:
         return None
     d, r, l2, l1 = parts.sides
     srt = sorted(parts.sides)
     gate_components = 2 if srt[0] + srt[3] < srt[1] + srt[2] else 1
-    n = len(parts.rotors)
     return ChainCount(2 ** (n - 1) * gate_components * 2, parts.rotors, parts.gate,
                       f"gated chain: 2^{n - 1} chain components (driven from the gate rotor) x "
                       f"{gate_components} of the gate four-bar (D {d:g}, r {r:g}, L2 {l2:g}, "
@@ -344,6 +404,9 @@ def gate_decision(linkage: Linkage) -> GateDecision:
     if parts.slider_positions == 0:
         return GateDecision(None, kind, "the slider's line does not reach distance D from "
                             "the gate's pin: the linkage does not assemble")
+    if _apart(parts.sides):
+        return GateDecision(None, "does not assemble", "the gate four-bar's longest side "
+                            "exceeds the sum of the other three: it does not assemble")
     if turns is None:
         return GateDecision(None, kind, "the gate four-bar has critical lengths (a flat "
                             "configuration): its branch point joins the turning and rocking "

@@ -10,13 +10,14 @@ import numpy as np
 from engine.design.critical_values import Slice
 from engine.design.design import Check, DesignResult, Target
 from engine.design.robustness import Margin
+from engine.design.slice_regions import Region
 from engine.design.splitting import Split
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
-from service.mappers.common import DEFAULT_MARGIN, positions_out, tolerances_out
+from service.mappers.common import DEFAULT_MARGIN, json_int, positions_out, tolerances_out
 from service.mappers.space import search_out
 from service.schemas import common as c
 from service.schemas import critical_values as cv_schemas
@@ -154,11 +155,25 @@ def robustness_out(
 def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.CriticalValuesResponse:
     return cv_schemas.CriticalValuesResponse(
         curves=[c.tolist() for c in res.curves],
-        regions=[
-            cv_schemas.RegionOut(point=list(r.point), components=r.components,
-                                 signature=r.signature, cells=r.cells, argument=r.argument)
-            for r in res.regions
-        ],
+        regions=[region_out(r) for r in res.regions],
         search=cv_schemas.SliceSearch.model_validate(search_out(res.search)),
         tolerances=tolerances_out(tol),
     )
+
+
+def region_out(r: Region) -> cv_schemas.RegionOut:
+    """A map's region with its label (:mod:`engine.design.region_labels`) where it was
+    explored."""
+    lab = r.label
+    if lab is None:
+        return cv_schemas.RegionOut(point=list(r.point), components=r.components,
+                                    signature=r.signature, cells=r.cells, argument=r.argument)
+    return cv_schemas.RegionOut(
+        point=list(r.point), components=None if r.components is None else json_int(r.components),
+        signature=r.signature, cells=r.cells,
+        argument=r.argument, components_exact=lab.components_exact,
+        components_traced=lab.traced, components_rule=lab.components_rule,
+        tau_signs=[cv_schemas.CellSigns.model_validate(
+            {"cell": c.name, "bars": list(c.bars), "sides": list(c.sides),
+             "signs": list(c.signs)}) for c in lab.cells] or None,
+        gated=lab.gated, gated_reason=lab.gated_reason, windings=list(lab.windings))

@@ -52,17 +52,54 @@ class CriticalValuesRequest(Strict):
     tolerances: Tolerances | None = None
 
 
+class CellSigns(BaseModel):
+    """The tau signs of one four-bar cell (the paper's Eq. 16, after McCarthy)."""
+
+    cell: str = Field(description="``gate`` (the gate four-bar of a gated chain, the cell the "
+                      "paper's Fig. 5b labels) or the chain's cell ``r0-l0-r1``")
+    bars: list[str] = Field(description="the cell's input rotor, coupler and output rotor")
+    sides: list[float] = Field(description="(a, L1, L2, L3): ground, input, coupler, output")
+    signs: list[Literal[-1, 0, 1]] = Field(
+        description="signs of tau_1 = a - L1 + L2 - L3, tau_2 = a - L1 - L2 + L3, "
+        "tau_3 = L2 + L3 - a - L1 (0: critical lengths); the input rotor turns fully iff "
+        "(+,+,+) or (-,-,+)")
+
+
 class RegionOut(BaseModel):
     point: list[float]
-    components: int | None = Field(
-        description="components of the configuration space at the point (null: not explored "
-        "within the time budget; search.complete is then false)"
+    components: int | str | None = Field(
+        description="components of the configuration space at the point: exact where "
+        "``components_exact``, else the number traced (a lower bound); beyond 2^53 - 1 (a "
+        "chain the rules count) a decimal string; null: not explored within the time budget "
+        "(search.complete is then false)"
     )
     signature: str
     cells: int = Field(description="raster cells of the region")
     argument: Literal["derived", "proved"] | None = Field(
         None, description="what proves ``components`` exact (the exploration's "
-        "search.argument); null: a lower bound, or not explored")
+        "search.argument, or derived from the chain rules); null: a lower bound, or not "
+        "explored")
+    components_exact: bool | None = Field(
+        default=None, description="``components`` is the exact count (false: a lower bound, the "
+        "components traced); null: not explored")
+    components_traced: int | None = Field(
+        default=None, description="components traced at the point (fewer than ``components`` where "
+        "the chain rules count more than the search's budget traced)")
+    components_rule: str | None = Field(
+        default=None, description="the rule that counts the components exactly (rotor chains, "
+        "chains with the paper's gate); null: no rule applies")
+    tau_signs: list[CellSigns] | None = Field(
+        default=None, description="the tau signs of every four-bar cell that one of the axes is "
+        "a side of (the gate four-bar first; the other cells' signs are the same in every "
+        "region); null: no such cell (or not explored)")
+    gated: bool | None = Field(
+        default=None, description="chains with the paper's gate: no rotor completes a turn on any "
+        "component, decided from the gate four-bar and the chain's cells (not from what was "
+        "traced); null: no gate, or undecided (``gated_reason`` says why)")
+    gated_reason: str | None = Field(default=None, description="why ``gated`` is what it is")
+    windings: list[str] | None = Field(
+        default=None, description="the distinct patterns of the rotors' full turns on the traced "
+        "components, e.g. ``r0:1,r1:1,D:0``")
 
 
 class SliceSearch(SearchReport):

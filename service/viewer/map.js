@@ -5,7 +5,11 @@
 // linkage at the region's sample lengths.
 "use strict";
 
-const REGION_BASE = new Set(["point", "components", "signature", "cells"]);
+// the fields of a region shown by their own rules (the rest as given, by name)
+const REGION_BASE = new Set(["point", "components", "signature", "cells", "argument",
+  "components_exact", "components_traced", "components_rule", "gated_reason"]);
+// shades of gated and ungated regions' markers (the paper's Fig. 5b: blue gated, red ungated)
+const GATED_FILL = { true: "#cfe3f5", false: "#f6d0d8" };
 const mapView = { answer: null, margin: null, frame: null, request: null };
 const QUICK_S = 0.4; // seconds a search of the map may take while a drag goes on
 
@@ -42,17 +46,52 @@ function fmt(x, digits = 4) {
   return typeof x === "number" ? Number(x.toPrecision(digits)).toString() : String(x);
 }
 
-function regionLabel(region) {
+/** Signs as the paper writes them: (+,+,-). */
+function signsText(signs) {
+  return `(${signs.map((x) => (x > 0 ? "+" : x < 0 ? "-" : "0")).join(",")})`;
+}
+
+/** A region's count as it is known: exact, exact beside fewer traced, or a lower bound. */
+function countText(region) {
   const n = region.components;
-  const parts = [n === null || n === undefined ? "? (not explored in time)"
-    : `${n} component${n === 1 ? "" : "s"}`];
+  if (n === null || n === undefined) return "? (not explored in time)";
+  const noun = `component${String(n) === "1" ? "" : "s"}`;
+  if (region.components_exact === false) return `≥${n} ${noun} (a lower bound: traced)`;
+  const traced = region.components_traced;
+  return traced !== null && traced !== undefined && String(traced) !== String(n)
+    ? `${n} ${noun} (${traced} traced)` : `${n} ${noun}`;
+}
+
+function regionLabel(region) {
+  const parts = [countText(region)];
   for (const [k, v] of Object.entries(region)) {
-    if (!REGION_BASE.has(k) && v !== null && v !== undefined) {
+    if (REGION_BASE.has(k)) continue;
+    if (k === "gated" && v === null && region.gated_reason) {
+      // (an empty region has nothing to gate: its count says so)
+      if (String(region.components) !== "0") parts.push("gate undecided");
+    } else if (v === null || v === undefined) {
+      continue;
+    } else if (k === "tau_signs") {
+      const shown = v.slice(0, 3).map((c) => `τ ${c.cell} ${signsText(c.signs)}`);
+      if (v.length > 3) shown.push(`+${v.length - 3} cells`);
+      parts.push(...shown);
+    } else if (k === "gated") {
+      parts.push(v ? "gated" : "ungated");
+    } else if (k === "windings") {
+      if (v.length) parts.push(`turns ${v.join(" | ")}`);
+    } else {
       parts.push(typeof v === "boolean" ? (v ? k : `not ${k}`)
         : `${k} ${typeof v === "object" ? JSON.stringify(v) : fmt(v)}`);
     }
   }
   return parts.join(", ");
+}
+
+/** The short label of a region's marker: its count (≥ a lower bound). */
+function markerText(region) {
+  const n = region.components;
+  if (n === null || n === undefined) return "?";
+  return `${region.components_exact === false ? "≥" : ""}${n}`;
 }
 
 function mapFrame(canvas, axes) {
@@ -128,14 +167,21 @@ function drawMap(error = "") {
   ctx.restore();
   answer.regions.forEach((region, k) => {
     const [x, y] = f.to(region.point);
-    ctx.fillStyle = "#fff"; ctx.strokeStyle = "#222"; ctx.lineWidth = 1.5;
+    ctx.fillStyle = GATED_FILL[region.gated] || "#fff"; ctx.strokeStyle = "#222";
+    ctx.lineWidth = 1.5;
     ctx.beginPath(); ctx.arc(x, y, 9, 0, TAU); ctx.fill(); ctx.stroke();
     ctx.fillStyle = "#111"; ctx.font = "bold 11px sans-serif"; ctx.textAlign = "center";
-    ctx.fillText(region.components ?? "?", x, y + 4);
+    ctx.fillText(markerText(region), x, y + 4);
     ctx.font = "10px sans-serif";
     ctx.fillText(`R${k}`, x, y - 13);
+    if (region.tau_signs && region.tau_signs.length) {
+      // beneath the marker, or above its name where the frame's edge is near
+      const below = y + 24 < f.pad.t + f.h;
+      ctx.fillText(signsText(region.tau_signs[0].signs), x, below ? y + 21 : y - 25);
+    }
     ctx.textAlign = "left";
   });
+  mapLegend(ctx, f, answer);
   // where each region's marker is in CSS pixels (for tests and assistive tools)
   const k = canvas.getBoundingClientRect().width / canvas.width;
   canvas.dataset.markers = JSON.stringify(answer.regions.map((r) => f.to(r.point).map((v) =>
@@ -143,6 +189,37 @@ function drawMap(error = "") {
   canvas.dataset.regions = String(answer.regions.length);
   canvas.dataset.curves = String(answer.curves.length);
   canvas.dataset.draws = String(Number(canvas.dataset.draws || 0) + 1);
+}
+
+/** The map's legend, top left inside the frame: what the markers' fill and signs mean. */
+function mapLegend(ctx, f, answer) {
+  const rows = [];
+  if (answer.regions.some((r) => r.gated === true || r.gated === false)) {
+    rows.push([GATED_FILL.true, "gated: no rotor completes a turn"],
+              [GATED_FILL.false, "ungated: the rotors turn fully"]);
+  }
+  const cell = answer.regions.find((r) => r.tau_signs && r.tau_signs.length);
+  if (cell) rows.push([null, `(τ1,τ2,τ3) of the ${cell.tau_signs[0].cell} four-bar`]);
+  if (answer.regions.some((r) => r.components_exact === false)) {
+    rows.push([null, "≥n: a lower bound (n traced)"]);
+  }
+  if (!rows.length) return;
+  ctx.font = "11px sans-serif";
+  const width = Math.max(...rows.map(([, t]) => ctx.measureText(t).width)) + 30;
+  const [x0, y0] = [f.pad.l + 6, f.pad.t + 6];
+  ctx.fillStyle = "rgba(255, 255, 255, 0.88)"; ctx.strokeStyle = "#888"; ctx.lineWidth = 1;
+  ctx.fillRect(x0, y0, width, 16 * rows.length + 6);
+  ctx.strokeRect(x0, y0, width, 16 * rows.length + 6);
+  rows.forEach(([fill, t], i) => {
+    const y = y0 + 14 + 16 * i;
+    if (fill) {
+      ctx.fillStyle = fill; ctx.strokeStyle = "#222";
+      ctx.beginPath(); ctx.arc(x0 + 11, y - 4, 5, 0, TAU); ctx.fill(); ctx.stroke();
+    }
+    ctx.fillStyle = "#111"; ctx.textAlign = "left";
+    ctx.fillText(t, x0 + 22, y);
+  });
+  $("map").dataset.legend = JSON.stringify(rows.map(([, t]) => t));
 }
 
 function star(ctx, x, y) {
@@ -187,7 +264,10 @@ async function showRegionFields(answer) {
     dt.dataset.field = k;
     const dd = document.createElement("dd");
     const bool = answer.regions.some((r) => typeof r[k] === "boolean");
-    const how = bool ? `shown as "${k}" or "not ${k}"` : `shown as "${k} <value>"`;
+    const how = k === "gated" ? 'shown as "gated" or "ungated"'
+      : k === "tau_signs" ? 'shown as "τ <cell> <signs>"'
+      : k === "windings" ? 'shown as "turns <pattern>"'
+      : bool ? `shown as "${k}" or "not ${k}"` : `shown as "${k} <value>"`;
     dd.textContent = `${docs[k] || "as the service gives it"} (${how})`;
     return [dt, dd];
   }));
@@ -204,6 +284,9 @@ function showRegions() {
     b.className = "region";
     b.dataset.region = String(k);
     b.dataset.components = String(region.components ?? "");
+    b.dataset.gated = String(region.gated ?? "");
+    b.dataset.tau = region.tau_signs && region.tau_signs.length
+      ? signsText(region.tau_signs[0].signs) : "";
     b.textContent = `R${k}: ${regionLabel(region)} at (${fmt(region.point[0])}, ` +
       `${fmt(region.point[1])})`;
     b.title = region.signature || "";

@@ -333,20 +333,25 @@ function spaceCaption(answer) {
   const search = answer.search || {};
   const total = search.components_total;
   const plural = (k, word) => `${k} ${word}${k === 1 ? "" : "s"}`;
+  // a count beyond 2^53 - 1 comes as a decimal string
+  const known = Number.isInteger(total) || (typeof total === "string" && /^\d+$/.test(total));
   let comps;
-  if (Number.isInteger(total) && total > n) {
+  if (known && BigInt(total) > BigInt(n)) {
     comps = `${n} of ${total} components traced (${total} by ${search.components_total_rule ||
       "the chain count"})`;
-  } else if (Number.isInteger(total)) {
-    comps = plural(total, "component");
+  } else if (known) {
+    comps = plural(Number(total), "component");
   } else if (search.complete === false) {
     comps = `at least ${plural(n, "component")} (search cut short: ${search.reason})`;
   } else {
     comps = plural(n, "component");
   }
-  const crit = search.complete === false && !Number.isInteger(total)
+  const crit = search.complete === false && !known
     ? `at least ${plural(m, "critical point")}` : plural(m, "critical point");
-  return `${comps}, ${crit}`;
+  // a chain with the paper's gate: decided from the gate four-bar, not from what was traced
+  const gate = !("gated" in search) ? ""
+    : search.gated === null ? ", gate undecided" : search.gated ? ", gated" : ", ungated";
+  return `${comps}, ${crit}${gate}`;
 }
 
 // -- animation --------------------------------------------------------------------------------

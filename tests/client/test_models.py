@@ -26,7 +26,7 @@ MODELS = {
     "SegmentOut": models.Segment, "SpaceResponse": models.SpaceResult,
     "BranchSplitOut": models.BranchSplit, "SplittingResponse": models.SplittingResult,
     "RobustnessSearch": models.RobustnessSearch, "RobustnessResponse": models.RobustnessResult,
-    "RegionOut": models.Region, "SliceSearch": models.SliceSearch,
+    "RegionOut": models.Region, "CellSigns": models.CellSigns, "SliceSearch": models.SliceSearch,
     "CriticalValuesResponse": models.CriticalValuesResult, "PredictedOut": models.Predicted,
     "ConflictOut": models.Conflict, "DesignResponse": models.DesignResult,
     "Progress": models.Progress, "JobError": models.JobError, "JobOut": models.Job,

@@ -150,6 +150,35 @@ def test_critical_values_figure_draws_every_curve_and_region(client: Any) -> Non
     assert "current-lengths" in ids  # (1, 1) lies in the box
 
 
+def test_gate_map_figure_labels_regions_as_figure_5b(client: Any) -> None:
+    """The gated chain's (L2, D) map: every region drawn with its count, the gate's tau signs
+    (Eq. 16 at its sample, computed here) and gated or not; a configuration-space figure's
+    title gives the rules' total beside the components traced."""
+    from service.figure_drawing import _components_text, region_text
+    from service.schemas.critical_values import RegionOut
+    from service.schemas.space import SpaceResponse
+
+    body = {"linkage": preset(client, "gated-kl-chain", n=3, gate=1),
+            "axes": [{"bar": "L2", "min": 0.5, "max": 5.0}, {"bar": "D", "min": 0.5, "max": 5.0}],
+            "options": {"resolution": 16}}
+    ids = svg_ids(client.post("/v1/figures/critical-values", json=body))
+    answer = client.post("/v1/analysis/critical-values", json=body).json()
+    drawn = Counter(int(i.rsplit("-", 1)[1]) for i in with_prefix(ids, "region-"))
+    assert drawn == Counter(r["components"] for r in answer["regions"])
+    for r in answer["regions"]:
+        l2, d = r["point"]
+        taus = (d - 1.5 + l2 - 2.0, d - 1.5 - l2 + 2.0, l2 + 2.0 - d - 1.5)
+        signs = "(" + ",".join("+" if t > 0 else "-" for t in taus) + ")"
+        gate = "" if r["components"] == 0 else \
+            "\nungated" if signs in ("(+,+,+)", "(-,-,+)") else "\ngated"
+        assert region_text(RegionOut.model_validate(r)) == f"{r['components']}\n{signs}{gate}"
+    chain = preset(client, "kl-chain", n=10)
+    space = client.post("/v1/analysis/configuration-space", json={"linkage": chain}).json()
+    traced = len(space["components"])
+    assert traced < 512 and _components_text(SpaceResponse.model_validate(space)) == \
+        f"512 components ({traced} traced)"
+
+
 def test_splitting_figure_joins_the_rays_the_answer_says(client: Any) -> None:
     body = {"linkage": preset(client, "four-bar"), "perturbation": {"L2": 0.01}}
     ids = svg_ids(client.post("/v1/figures/splitting", json=body))

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 
 from tests.service.test_browser import (
@@ -225,11 +226,16 @@ def test_capped_component_counts_are_shown_as_bounds(base_url: str, browser: Any
     caption = text(browser, "space-caption")
     assert caption.startswith(f"{traced} of 512 components traced")
 
+    # the gated chain's rule counts it too (2^9 chain components x 2 of its Grashof gate x 2
+    # slider positions), and the caption says ungated: D = 2a < 5a/2
     open_viewer(browser, base_url, "gated-kl-chain")
     linkage = httpx.get(f"{base_url}/v1/presets/gated-kl-chain", trust_env=False).json()
     search = post(base_url, "/v1/analysis/configuration-space", {"linkage": linkage})["search"]
-    assert search["complete"] is False and "components_total" not in search
-    assert text(browser, "space-caption").startswith("at least ")
+    assert search["components_total"] == 2 ** 11 and search["gated"] is False
+    traced = int(data(browser, "space", "components") or 0)
+    caption = text(browser, "space-caption")
+    assert caption.startswith(f"{traced} of 2048 components traced") and traced < 2048
+    assert caption.endswith(", ungated")
     assert_stayed_local(browser)
 
 
@@ -493,7 +499,7 @@ def region_numbers(driver: Any) -> list[tuple[int, float, float]]:
 
     out = []
     for b in driver.find_elements(By.CSS_SELECTOR, "#regions button"):
-        m = re.match(r"R\d+: (\d+) components?\b.*at \(([-\d.e]+), ([-\d.e]+)\)", b.text)
+        m = re.match(r"R\d+: ≥?(\d+) components?\b.*at \(([-\d.e]+), ([-\d.e]+)\)", b.text)
         assert m, b.text
         out.append((int(m[1]), float(m[2]), float(m[3])))
     return out
@@ -546,7 +552,7 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
     label = js(browser, "return [regionLabel({point: [1, 2], components: 2, signature: 's',"
                " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
                " components: null, signature: null, cells: 0, gated: false})];")
-    assert label == ["2 components, tau +-, gated", "? (not explored in time), not gated"]
+    assert label == ["2 components, tau +-, gated", "? (not explored in time), ungated"]
     # and the legend names each field the regions carry, with the service's own description
     # (its OpenAPI RegionOut) where it has one
     spec = httpx.get(f"{base_url}/openapi.json", trust_env=False).json()
@@ -562,7 +568,7 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
     for field, meaning in terms.items():
         described = docs.get(field, {}).get("description", "").replace("``", "")
         assert meaning.startswith(described or "as the service gives it"), (field, meaning)
-    assert terms["gated"].endswith('(shown as "gated" or "not gated")')
+    assert terms["gated"].endswith('(shown as "gated" or "ungated")')
     assert terms["tau"].endswith('(shown as "tau <value>")')
     assert js(browser, CONTRAST) == []
     element_shot(browser, "map-panel", "map-panel-fields")
@@ -574,6 +580,74 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
     wait_for(lambda: js(browser, "return arguments[0].naturalWidth;", img) > 100, 10,
              "the figure loaded")
     assert js(browser, "return document.getElementById('figure-dialog').open;")
+    assert_stayed_local(browser)
+
+
+def eq16(d: float, r: float, l2: float, l1: float) -> str:
+    """The gate four-bar's tau signs (the paper's Eq. 16: ground D, input r, coupler L2,
+    output L1) as the viewer writes them."""
+    values = (d - r + l2 - l1, d - r - l2 + l1, l2 + l1 - d - r)
+    return "(" + ",".join("+" if v > 0 else "-" for v in values) + ")"
+
+
+def test_gate_map_labels_regions_as_figure_5b(base_url: str, browser: Any) -> None:
+    """A real gated chain (3 rotors, the paper's lengths) mapped in (L2, D): every region's
+    button and marker say its count, the gate's tau signs (Eq. 16 at its sample, computed
+    here) and gated or not as the sampled configuration space says (blue gated, red ungated,
+    the paper's colours), the legend says what they mean, and the labels are the API's."""
+    from selenium.webdriver.common.by import By
+
+    from tests.gated_reference import sampled_gated_chain
+
+    open_viewer(browser, base_url, "gated-kl-chain")
+    set_param(browser, "gate", 1)  # (first: the gate must stay below n)
+    wait_for(lambda: text(browser, "status") == "ready", 90, "the gate moved")
+    set_param(browser, "n", 3)
+    wait_for(lambda: data(browser, "space", "components") == "16"
+             and text(browser, "status") == "ready", 90, "the 3-rotor gated chain")
+    js(browser, "for (const [id, v] of [['axis-x', 'L2'], ['axis-y', 'D']]) {"
+       "const s = document.getElementById(id); s.value = v;"
+       "s.dispatchEvent(new Event('change')); }")
+    wait_for(lambda: "L2 × D:" in text(browser, "map-caption")
+             and "regions" in text(browser, "map-caption")
+             and "cut short" not in text(browser, "map-caption"), 180, "the gate map")
+    request = js(browser, "return mapRequest();")
+    assert [a["bar"] for a in request["axes"]] == ["L2", "D"]
+    answer = post(base_url, "/v1/analysis/critical-values", request)
+    buttons = browser.find_elements(By.CSS_SELECTOR, "#regions button")
+    assert len(buttons) == len(answer["regions"]) >= 6
+    fills = js(browser, """
+        const ctx = document.getElementById('map').getContext('2d');
+        return mapView.answer.regions.map((r) => {
+          const [x, y] = mapView.frame.to(r.point);
+          return Array.from(ctx.getImageData(Math.round(x - 5), Math.round(y + 5), 1, 1).data);
+        });""")
+    seen = {}
+    for k, (button, region) in enumerate(zip(buttons, answer["regions"], strict=True)):
+        l2, d = region["point"]
+        signs = eq16(d, 1.5, l2, 2.0)
+        count, turns = sampled_gated_chain(3, 1.0, 1.5, 1.5, 1, d, 2.0, l2, samples=2000)
+        label = button.text
+        assert label.startswith(f"R{k}: {count} component"), label
+        assert f"τ gate {signs}" in label and button.get_attribute("data-tau") == signs
+        if count == 0:  # the gate does not assemble there
+            assert region["gated"] is None and "gated" not in label
+            continue
+        gated = not turns
+        seen[signs] = gated
+        assert region["gated"] is gated and button.get_attribute("data-gated") == str(gated).lower()
+        assert (", gated" in label) is gated and (", ungated" in label) is (not gated)
+        # the marker's fill: blue gated, red ungated (within the canvas' smoothing)
+        blue, red = np.array([0xcf, 0xe3, 0xf5]), np.array([0xf6, 0xd0, 0xd8])
+        near = np.abs(np.array(fills[k][:3]) - (blue if gated else red)).max()
+        assert near <= 12 < np.abs(blue - red).max(), fills[k]
+    # the paper's text: (+,+,+) and (-,-,+) ungated, the other regions of Fig. 5b gated
+    assert {s for s, g in seen.items() if not g} == {"(+,+,+)", "(-,-,+)"}
+    assert len(seen) >= 5
+    legend = json.loads(data(browser, "map", "legend") or "[]")
+    assert legend[:3] == ["gated: no rotor completes a turn", "ungated: the rotors turn fully",
+                          "(τ1,τ2,τ3) of the gate four-bar"]
+    element_shot(browser, "map-panel")
     assert_stayed_local(browser)
 
 

@@ -12,6 +12,7 @@ and design operations, ``jobs`` the jobs, the sweeps and the result model of eac
 
 from linkage_client.models.analysis import (
     BranchSplit,
+    CellSigns,
     Component,
     Conflict,
     CriticalPoint,
@@ -61,7 +62,8 @@ from linkage_client.models.linkage import (
 )
 
 __all__ = [
-    "FINISHED", "RESULTS", "Bar", "BranchSplit", "Component", "Conflict", "CriticalPoint",
+    "FINISHED", "RESULTS", "Bar", "BranchSplit", "CellSigns", "Component", "Conflict",
+    "CriticalPoint",
     "CriticalPointsResult", "CriticalValuesResult", "DesignResult", "DualCertificate", "Health",
     "Job", "JobError", "JobSummary", "Linkage", "NearMiss", "Operation", "PresetInfo", "Predicted",
     "Progress", "Readiness", "Region", "RigidityResult", "RobustnessResult", "RobustnessSearch",

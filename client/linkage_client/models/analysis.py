@@ -244,12 +244,32 @@ class RobustnessResult(Model):
 
 
 @dataclass(frozen=True)
+class CellSigns(Model):
+    """The paper's tau signs of one four-bar cell (``gate``: the gated chain's gate)."""
+
+    cell: str
+    bars: list[str]
+    sides: list[float]
+    signs: list[int]
+
+
+@dataclass(frozen=True)
 class Region(Model):
+    """A map's region: its count (exact where ``components_exact``, else a lower bound), the
+    tau signs of its four-bar cells, ``gated`` for chains with a gate, the winding patterns."""
+
     point: np.ndarray
-    components: int | None
+    components: int | str | None
     signature: str
     cells: int
     argument: str | None = None
+    components_exact: bool | None = None
+    components_traced: int | None = None
+    components_rule: str | None = None
+    tau_signs: list[CellSigns] | None = None
+    gated: bool | None = None
+    gated_reason: str | None = None
+    windings: list[str] | None = None
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from engine.model.budget import (
 )
 from engine.model.linkage import Linkage
 from engine.model.tolerances import Tolerances
-from engine.space.chain_count import chain_components, gated_chain_components
+from engine.space.chain_count import exact_components, gate_decision, gated_chain
 from engine.space.configuration_space.closed_form import (
     NO_CANDIDATE,
     closed_form_answer,
@@ -70,7 +70,7 @@ def find_critical_points(
     # generic. The curves then serve only the near misses, and the components a budget would
     # trace are an arbitrary few of 2^(n-1) (a 100-rotor chain: 32 of 2^99, the whole default
     # budget): the near misses are those of the component the linkage is on.
-    count = chain_components(linkage) or gated_chain_components(linkage)
+    count = exact_components(linkage)
     sample = start_on_space and count is not None
     ex = Explorer(linkage, tol, opt, deadline or NEVER)
     start = linkage.coordinates() if start_on_space else None
@@ -97,10 +97,22 @@ def find_critical_points(
             f"prove that none of the {count.components} components has a critical point")
     extra = proof.critical_starts if proof is not None else None
     crit, misses, degenerate = critical_points(ex, extra)
+    _gate_details(ex.report, linkage)
     search = ex.finish(degenerate, argument=argument(ex, proof, crit, count, components=False),
                        curves_needed=False, critical_points_found=len(crit), step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
+def _gate_details(report: dict[str, object], linkage: Linkage) -> None:
+    """For a chain with the paper's gate: ``gated`` (no rotor completes a turn on any
+    component), decided from the gate four-bar and the chain's cells whatever was traced
+    (:func:`engine.space.chain_count.gate_decision`), or None, and ``gated_reason``."""
+    if gated_chain(linkage) is None:
+        return
+    decision = gate_decision(linkage)
+    report["gated"] = decision.gated
+    report["gated_reason"] = decision.reason
 
 
 def _seeds_and_isolated(ex: Explorer, proof: Proof | None
@@ -154,9 +166,7 @@ def explore(
     # -- general path ---------------------------------------------------------------------
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
-    # (a gated chain driven from its gate: see find_critical_points for why it has no critical
-    # point; engine.space.chain_count for its count)
-    count = chain_components(linkage) or gated_chain_components(linkage)
+    count = exact_components(linkage)
     proof = gather(ex) if count is None else None
     ex.trace_all(start, *_seeds_and_isolated(ex, proof))
     if count is not None and not near_misses:
@@ -188,6 +198,7 @@ def explore(
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives {count.components}")
     why = argument(ex, proof, crit, count, len(components))
+    _gate_details(ex.report, linkage)
     search = ex.finish(degenerate, seg_complete, agreed, why,
                        seeds_needed=count is None or why[0] is None,
                        critical_points_found=len(crit),

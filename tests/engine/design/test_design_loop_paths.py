@@ -241,7 +241,7 @@ def test_unknown_refine_method():
 
 
 SEEDED = [
-    ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], "auto"),
+    ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], "traced"),
     ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], "auto"),
     ("four-bar", {"L1": 0.5, "L2": 1.3, "L3": 0.9}, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)],
      "traced"),

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from engine.catalogue.presets import build_preset, circle_intersection
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 from engine.space.chain_count import chain_components, gate_decision, gated_chain_components
 from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
+from tests.gated_reference import sampled_gated_chain
 
 
 def chain(a: list[float], r: list[float], lc: list[float], side: float = 1.0) -> Linkage | None:
@@ -98,11 +97,14 @@ def test_no_count_for_the_gated_chain_or_other_linkages() -> None:
     assert chain_components(build_preset("four-bar")) is None
     crank_rocker = chain_components(build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0}))
     assert crank_rocker is not None and crank_rocker.components == 2
-    # the gated chain's count is gated_chain_components' (below): an exploration cut by its
-    # component budget reports it and is incomplete; at the gate's critical lengths there is none
+    # the gated chain is counted by the gate's rule: a search cut by its component budget
+    # reports the true total beside what it traced, and is incomplete (a lower bound)
     res = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 2}),
                   options=SpaceOptions(max_components=2))
-    assert res.search["components_total"] == 32 and res.search["reason"] == "budget"
+    assert res.search["components_total"] == 2 ** 3 * 2 * 2  # D = 2 < 5/2: Grashof gate
+    assert len(res.components) == 2 and not res.search["complete"]
+    assert res.search["reason"] == "budget" and res.search["gated"] is False
+    # at the gate's critical lengths (D = 1.5 = r + L2 - L1) there is no count
     res = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 2, "D": 1.5}),
                   options=SpaceOptions(max_components=2))
     assert "components_total" not in res.search
@@ -140,105 +142,20 @@ def test_search_skipped_where_the_rules_prove_smoothness(n: int) -> None:
     assert len(fast.components) == len(full.components) == 2 ** (n - 1)
     assert sorted(len(c.points) for c in fast.components) == \
         sorted(len(c.points) for c in full.components)
-    # never skipped where the rules give no count (a gated chain whose gate four-bar has
-    # critical lengths: D = r + L2 - L1, a flat configuration)
+    # never skipped where the rules give no count (the gated chain at critical lengths, D =
+    # 5a/2); skipped where they do (D = 2a)
+    gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 2.5}),
+                    near_misses=False, options=SpaceOptions(max_components=2))
+    assert "critical_search" not in gated.search
+    gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1}), near_misses=False,
+                    options=SpaceOptions(max_components=2))
+    assert gated.search["critical_search"].startswith("skipped: gated chain")
     gated = explore(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 1.5}),
                     near_misses=False, options=SpaceOptions(max_components=2))
     assert "critical_search" not in gated.search
 
 
 # -- gated chains against dense sampling --------------------------------------------------------
-
-def _meet(c0: np.ndarray, r0: float, c1: np.ndarray, r1: float, side: float) -> np.ndarray:
-    """Closed-form intersection of circles (c0, r0) and (c1, r1), (N, 2) centres, on ``side``
-    of the line from c0 to c1 (NaN where they do not meet)."""
-    d = c1 - c0
-    dist = np.hypot(d[:, 0], d[:, 1])
-    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
-    with np.errstate(invalid="ignore"):
-        h = np.sqrt(r0**2 - along**2)
-    unit = d / dist[:, None]
-    normal = np.column_stack([-unit[:, 1], unit[:, 0]])
-    return c0 + along[:, None] * unit + side * h[:, None] * normal
-
-
-def sampled_gated_chain(n: int, a: float, r: float, coupler: float, gate: int, d: float, l1: float,
-                        l2: float, samples: int = 3000) -> tuple[int, bool]:
-    """Components of the gated chain and whether any rotor completes a turn on one, by dense
-    sampling: the gate angle at ``samples`` values, every other vertex by closed-form circle
-    intersections (the slider at ``P_g + (0, -+D)``, ``R`` and every tip outwards on either side
-    of its centre line), one node per sample and choice of sides that exists. Nodes of the same
-    choices at neighbouring samples are joined; where one intersection stops existing between
-    two samples (a fold) the two sides of that intersection are joined at the last sample.
-    Windings: each rotor's angle is unwound along a spanning tree of each component; an edge
-    that closes a loop with a 2 pi jump is a full turn."""
-    theta = 2 * np.pi * np.arange(samples) / samples
-    pins = [np.array([k * a, 0.0]) for k in range(n)]
-    tip_g = pins[gate] + r * np.column_stack([np.cos(theta), np.sin(theta)])
-    right, left = list(range(gate + 1, n)), list(range(gate - 1, -1, -1))
-    steps = 2 + len(right) + len(left)  # slider, R, then the chain outwards
-    labels = 2 ** steps
-    exists = np.zeros((samples, labels), dtype=bool)
-    step_ok = np.zeros((steps, samples, labels), dtype=bool)
-    angles = np.zeros((n, samples, labels))
-    full = np.ones(samples, dtype=bool)
-    for lab in range(labels):
-        bits = [(lab >> s) & 1 for s in range(steps)]
-        sign = [1.0 if b else -1.0 for b in bits]
-        g = np.tile(pins[gate] + np.array([0.0, sign[0] * d]), (samples, 1))
-        ok = full.copy()
-        step_ok[0, :, lab] = ok
-        rk = _meet(tip_g, l2, g, l1, sign[1])
-        ok = ok & ~np.isnan(rk[:, 0])
-        step_ok[1, :, lab] = ok
-        tips = {gate: tip_g}
-        for s, (k, prev) in enumerate([(k, k - 1) for k in right] + [(k, k + 1) for k in left]):
-            tip = _meet(tips[prev], coupler, np.tile(pins[k], (samples, 1)), r,
-                        sign[2 + s] * (1.0 if k > gate else -1.0))
-            ok = ok & ~np.isnan(tip[:, 0])
-            step_ok[2 + s, :, lab] = ok
-            tips[k] = tip
-        exists[:, lab] = ok
-        for k in range(n):
-            v = tips[k] - pins[k]
-            angles[k, :, lab] = np.arctan2(v[:, 1], v[:, 0])
-    node = np.arange(samples * labels).reshape(samples, labels)
-    rows, cols = [], []
-    nxt = np.roll(np.arange(samples), -1)
-    both = exists & exists[nxt]
-    rows.append(node[both])
-    cols.append(node[nxt][both])
-    for s in range(1, steps):  # folds of step s: it exists here, upstream exists next door
-        bit = 1 << s
-        lab = np.array([x for x in range(labels) if not x & bit])
-        for other in (nxt, np.roll(np.arange(samples), 1)):
-            upstream = step_ok[s - 1][other][:, lab]
-            fold = step_ok[s][:, lab] & upstream & ~step_ok[s][other][:, lab]
-            fold &= exists[:, lab] & exists[:, lab | bit]
-            rows.append(node[:, lab][fold])
-            cols.append(node[:, lab | bit][fold])
-    r_idx, c_idx = np.concatenate(rows), np.concatenate(cols)
-    graph = coo_matrix((np.ones(len(r_idx)), (r_idx, c_idx)),
-                       shape=(samples * labels,) * 2).tocsr()
-    count, comp = connected_components(graph, directed=False)
-    live = exists.ravel()
-    components = len(np.unique(comp[live]))
-    flat = angles.reshape(n, -1)
-    pot = np.zeros_like(flat)
-    seen = np.zeros(samples * labels, dtype=bool)
-    for root in np.flatnonzero(live):
-        if seen[root]:
-            continue
-        order, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
-        seen[order] = True
-        pot[:, root] = flat[:, root]
-        for v in order[1:]:
-            u = pred[v]
-            pot[:, v] = pot[:, u] + np.angle(np.exp(1j * (flat[:, v] - flat[:, u])))
-    inc = np.angle(np.exp(1j * (flat[:, c_idx] - flat[:, r_idx])))
-    jump = np.round((pot[:, c_idx] - pot[:, r_idx] - inc) / (2 * np.pi))
-    return components, bool(np.any(jump != 0))
-
 
 GATED = [  # (n, a, r, l, gate, D, L1, L2): the gate four-bar's critical D are 1.5, 2.5, 5.5
     (3, 1.0, 1.5, 1.5, 1, 1.2, 2.0, 2.0),   # Grashof double crank: ungated
@@ -386,3 +303,25 @@ def test_the_components_of_a_gated_chain_are_derived_from_its_count():
         assert len(along) == 1 and 0 not in next(iter(along))
         signatures |= along
     assert len(signatures) == 32
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("d", "total", "gated"), [(2.0, 16, False), (3.0, 8, True)])
+def test_gated_chain_searches_are_complete_and_gated_whatever_was_traced(d, total, gated):
+    """The 3-rotor gated chain (the paper's lengths, either side of D = 5a/2): a search that
+    traced all the rule's components is complete (derived; the assembly budget then cut
+    nothing); one cut to 3 components keeps the same total and the same ``gated`` (decided from
+    the gate four-bar, not the traced components) and is incomplete; the critical-point
+    search is complete with none. The total against the dense sampling."""
+    lk = build_preset("gated-kl-chain", {"n": 3, "gate": 1, "D": d})
+    assert sampled_gated_chain(3, 1.0, 1.5, 1.5, 1, d, 2.0, 2.0)[0] == total
+    full = explore(lk, near_misses=False)
+    assert len(full.components) == total == full.search["components_total"]
+    assert full.search["complete"] and full.search["argument"] == "derived"
+    assert full.search["gated"] is gated
+    cut = explore(lk, near_misses=False, options=SpaceOptions(max_components=3))
+    assert len(cut.components) == 3 and cut.search["components_total"] == total
+    assert not cut.search["complete"] and cut.search["gated"] is gated
+    crit = find_critical_points(lk)
+    assert crit.critical_points == [] and crit.search["complete"]
+    assert crit.search["gated"] is gated
