@@ -119,9 +119,8 @@ SIZE_LIMIT = pytest.mark.xfail(reason="request handling and the first sparse nul
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", [
-    pytest.param("/v1/analysis/configuration-space", marks=ANSWER_SIZE),
-    "/v1/analysis/critical-points"])
+@pytest.mark.parametrize("path", ["/v1/analysis/configuration-space",
+                                  "/v1/analysis/critical-points"])
 def test_the_parallel_100_rotor_chain_answers_within_its_budget(api, path):
     # a = l: every cell of the chain a parallelogram
     linkage = api.get("/v1/presets/kl-chain?n=100&a=1&l=1&r=1.5").json()
@@ -148,8 +147,7 @@ POINTS_PATHS = ("/v1/analysis/configuration-space", "/v1/figures/configuration-s
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", [pytest.param(p, marks=ANSWER_SIZE) if p in POINTS_PATHS
-                                  else p for p in KL_PATHS])
+@pytest.mark.parametrize("path", KL_PATHS)
 def test_a_400_rotor_chain_answers_every_search_within_its_budget(api, path):
     linkage = api.get("/v1/presets/kl-chain?n=400").json()
     r, took = timed_post(api, path, kl_bodies(linkage)[path])

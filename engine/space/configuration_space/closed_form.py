@@ -100,7 +100,7 @@ def closed_form_answer(
     and the general path answers instead."""
     lk, opt = ex.linkage, ex.opt
     try:
-        cf = closed_form_space(lk, ex.tol, ex.h_max, opt.trace.max_points)
+        cf = closed_form_space(lk, ex.tol, ex.h_max, ex.trace_options().max_points)
     except (ArithmeticError, ValueError, MemoryError) as exc:  # a safety net: never worse
         ex.report["method"] = "tracer"                          # than the general path
         ex.report["closed_form"] = f"declined: {type(exc).__name__}: {exc}"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import itertools
 import re
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -28,6 +29,7 @@ from engine.space.configuration_space.results import (
 from engine.space.trace import (
     STOP_TIME,
     Curve,
+    TraceOptions,
     correct,
     trace_curve,
 )
@@ -109,6 +111,31 @@ class Explorer:
         #: points and tangents as arrays and their k-d tree, built once for every seed chunk
         #: :meth:`on_curve` tests against it
         self._curve_arrays: dict[int, tuple[Curve, np.ndarray, np.ndarray, cKDTree]] = {}
+        #: points the answer may still carry (``options.max_values`` over the vertex count;
+        #: None: no budget), spent by every traced curve and segment
+        self.points_left: int | None = None if options.max_values is None else \
+            max(0, options.max_values // max(1, len(linkage.vertex_ids)))
+
+    def trace_options(self) -> TraceOptions:
+        """The trace options of the next curve or segment: ``max_points`` no more than the
+        points the answer may still carry."""
+        if self.points_left is None or self.points_left >= self.opt.trace.max_points:
+            return self.opt.trace
+        return replace(self.opt.trace, max_points=max(1, self.points_left))
+
+    def spend(self, points: int) -> None:
+        """``points`` more in the answer; once its budget of values is spent the search
+        stops for size (``answer_size_reached``: reason ``budget``)."""
+        if self.points_left is None:
+            return
+        self.points_left -= points
+        if self.points_left <= 1:
+            self.report["answer_size_reached"] = True
+            self.report["answer_values_max"] = self.opt.max_values
+
+    def size_reached(self) -> bool:
+        """True once the answer's budget of values is spent (nothing more is traced)."""
+        return bool(self.report.get("answer_size_reached"))
 
     def out_of_time(self) -> bool:
         """True (and remembered) once the deadline has passed: the search stops there."""
@@ -117,9 +144,10 @@ class Explorer:
         return self.timed_out
 
     def _trace(self, u: np.ndarray, t: np.ndarray, close: bool = True) -> Curve:
-        curve = trace_curve(self.cons, u, t, self.tol, self.opt.trace, close=close,
+        curve = trace_curve(self.cons, u, t, self.tol, self.trace_options(), close=close,
                             deadline=self.deadline)
         self.timed_out = self.timed_out or curve.stop == STOP_TIME
+        self.spend(len(curve.points) + 1)  # (+1: a closed walk repeats its first point)
         return curve
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
@@ -138,7 +166,7 @@ class Explorer:
                                 time_budget_s=granted(self.deadline), argument=argument[0],
                                 argument_detail=argument[1])
         budget = bool(self.report.get("component_budget_reached")
-                      or self.report.get("assemblies_truncated")
+                      or self.report.get("assemblies_truncated") or self.size_reached()
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
         unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
@@ -226,7 +254,7 @@ class Explorer:
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = self._trace(u, rig.zero_modes[0])
-        if curve.stop != "closed":
+        if curve.stop != "closed" and not self.size_reached():
             back = self._trace(u, -rig.zero_modes[0], close=False)
             curve = Curve(
                 points=back.points[::-1][:-1] + curve.points,
@@ -355,7 +383,7 @@ class Explorer:
                 n += 1
 
         for n, u in points():
-            if self.out_of_time():
+            if self.out_of_time() or self.size_reached():
                 break
             # progress: seeds tested (all known for small linkages) or components traced
             done = max(n / len(stack) if batch else 0.0,
