@@ -37,6 +37,7 @@ from service.figure_drawing import (
     _draw_space,
     _draw_splitting,
     _rotors,
+    panels_in_time,
 )
 from service.schemas import critical_values as cv_schemas
 from service.schemas import space
@@ -45,6 +46,9 @@ from service.schemas.common import AnalysisRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
 
 SVG = "image/svg+xml"
+#: Seconds past the search's deadline that drawing a figure may take (a share of the margin
+#: an answer may come after its time budget).
+DRAW_SECONDS = 0.5
 
 
 # -- jobs (run in the engine worker pool) -----------------------------------------------------
@@ -98,8 +102,11 @@ def critical_values_figure(body: cv_schemas.CriticalValuesRequest, settings: Set
 
 def splitting_figure(body: splitting_schemas.SplittingRequest, settings: Settings) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
-    ans, points = jobs.splitting_with_points(body, settings)
-    return _svg(_draw_splitting, body, ans, points)
+    deadline = jobs.search_deadline(body.options, settings, None)
+    ans, points = jobs.splitting_with_points(body, settings, deadline)
+    # the panels that fit the time left and the drawing's share of the margin past it
+    panels = panels_in_time(deadline.remaining() + DRAW_SECONDS)
+    return _svg(_draw_splitting, body, ans, points, panels)
 
 
 # -- shared ------------------------------------------------------------------------------------

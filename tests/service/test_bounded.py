@@ -95,25 +95,9 @@ def test_a_deep_failing_assembly_tree_answers_within_its_budget(api):
     assert_in_time(r, took, 1.0)
 
 
-#: Open (issue 23, item 4): a configuration-space answer carries every traced point's V
-#: positions and is mapped and serialised after the search. A 4 s search of a 400-rotor chain
-#: traces ~8000 points: 170 MB (compact) to 250 MB (objects) of JSON, 7 to 20 s to answer; the
-#: 100-rotor parallel chain 15 to 65 MB, 3 to 8 s. LINKAGE_MAX_POINTS bounds configurations,
-#: not values: the answer needs a budget of values (points x V) the search stops at.
-ANSWER_SIZE = pytest.mark.xfail(reason="the answer's size (points x V) is not bounded by the "
-                                "deadline: mapping and serialising it takes seconds")
-#: Open: matplotlib draws one panel per branch point found (twelve for the three-rotor), 6 to
-#: 16 s on the shared test machine whatever the search's budget.
-FIGURE_PANELS = pytest.mark.xfail(reason="the splitting figure's drawing is not bounded by "
-                                  "the deadline")
 #: Open: at 20000 rotors the request's own handling (a 40000-vertex body parsed, validated and
 #: sent to the worker) and the first seed's sparse null space (shift-invert Lanczos) do not
 #: look at the deadline: 200 after 6 to 9 s where the budget is 4 s (before: 504 after 30 s).
-#: Open (since the merge of issue 23's items 1-2): the witness system's set-up
-#: (engine/space/witnesses.py: quad (E, M+1, M+1) and the SVD of its (E, M^2) quadratic
-#: parts, about 1 s at M = 200) runs before the path bound and the deadline are looked at.
-WITNESS_SETUP = pytest.mark.xfail(reason="the witness system is built before the deadline "
-                                  "is looked at")
 SIZE_LIMIT = pytest.mark.xfail(reason="request handling and the first sparse null space of a "
                                "40000-vertex linkage run outside the deadline")
 
@@ -142,8 +126,6 @@ def kl_bodies(linkage: Json) -> dict[str, Json]:
 
 
 KL_PATHS = list(kl_bodies({}))
-#: the paths whose answers carry the traced points (ANSWER_SIZE)
-POINTS_PATHS = ("/v1/analysis/configuration-space", "/v1/figures/configuration-space")
 
 
 @pytest.mark.slow
@@ -213,9 +195,9 @@ def hard_bodies(api: ApiClient) -> dict[str, Json]:
 HARD_PATHS = ["/v1/analysis/configuration-space", "/v1/analysis/critical-points",
               "/v1/analysis/robustness", "/v1/analysis/critical-values",
               "/v1/analysis/splitting", "/v1/design/splitting",
-              pytest.param("/v1/figures/configuration-space", marks=WITNESS_SETUP),
+              "/v1/figures/configuration-space",
               "/v1/figures/critical-values",
-              pytest.param("/v1/figures/splitting", marks=FIGURE_PANELS)]
+              "/v1/figures/splitting"]
 
 
 @pytest.mark.slow
