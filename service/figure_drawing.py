@@ -393,9 +393,11 @@ def _draw_splitting(body: splitting_schemas.SplittingRequest,
     fig = _figure(3.2 * cols + 1.6, 3.2 * rows + 0.6)
     change = ", ".join(f"d{bar} = {v:+.3g}" for bar, v in body.perturbation.items())
     left_out = len(found) - len(branches)
-    fig.suptitle(f"Splitting of the branch points under {change or 'no change'}" + (
+    title = fig.suptitle(f"Splitting of the branch points under {change or 'no change'}" + (
         f"\n(first {len(branches)} of {len(found)} branch points drawn: {left_out} panels "
         "left out to answer within the time budget)" if left_out else ""))
+    if left_out:
+        title.set_gid(f"panels-left-out-{left_out}")  # (the text is drawn as paths)
     if not branches:
         ax = fig.add_subplot()
         ax.set_axis_off()

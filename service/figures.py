@@ -11,7 +11,7 @@ Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests ca
 space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
 (critical values);
 ``ray-<b>-<r>``, ``split-<b>-<i>-<j>`` (splitting: branch point ``b``, ray ``r``, joined rays
-``i``, ``j``).
+``i``, ``j``; ``panels-left-out-<k>`` where the time left drew only the first panels).
 
 Only the object-oriented API is used (``Figure``, no ``pyplot``): no global figure state, so
 figures may be drawn in any thread or process. Text is drawn as paths (``svg.fonttype``), so an

@@ -190,7 +190,9 @@ class EnginePool:
         for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
             os.environ.setdefault(name, "1")
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["service.jobs"])
+        # (the figures too: importing matplotlib takes 1.1-1.4 s under load, outside every
+        # deadline, on the first figure job of each worker otherwise)
+        ctx.set_forkserver_preload(["service.jobs", "service.figures"])
         limit = None if self.memory_mb is None else self.memory_mb * 2**20
         return pebble.ProcessPool(max_workers=self.workers, context=ctx,
                                   initializer=_limit_memory, initargs=(limit,))
