@@ -254,7 +254,7 @@ class Explorer:
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = self._trace(u, rig.zero_modes[0])
-        if curve.stop != "closed" and not self.size_reached():
+        if curve.stop != "closed" and not self.size_reached() and not self.out_of_time():
             back = self._trace(u, -rig.zero_modes[0], close=False)
             curve = Curve(
                 points=back.points[::-1][:-1] + curve.points,
