@@ -104,8 +104,10 @@ def search_deadline(
     engine reports the seconds granted as ``search.time_budget_s``)."""
     if given is not None:
         return given
-    return Deadline.after(
-        settings.search_seconds(options.time_budget_s if options is not None else None))
+    seconds = settings.search_seconds(options.time_budget_s if options is not None else None)
+    if settings.arrived_at is not None:  # counted from the request's arrival
+        return Deadline(settings.arrived_at + seconds, budget_s=seconds)
+    return Deadline.after(seconds)
 
 
 def critical_points(

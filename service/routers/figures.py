@@ -7,7 +7,7 @@ from fastapi import APIRouter, Request, Response
 
 from service import figures
 from service.bodies import JsonBodyRoute
-from service.config import Settings, SettingsDep
+from service.config import Settings, SettingsDep, with_arrival
 from service.errors import problem_responses
 from service.schemas.critical_values import CriticalValuesRequest
 from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
@@ -26,7 +26,8 @@ _svg: dict[int | str, dict[str, Any]] = {
 async def _figure(request: Request, settings: Settings,
                   fn: Callable[[B, Settings], bytes], body: B) -> Response:
     """``fn(body, settings)`` in a worker under the time limit, as ``image/svg+xml``."""
-    svg = await engine_pool(request).run(settings.time_limit_s, fn, body, settings)
+    svg = await engine_pool(request).run(settings.time_limit_s, fn, body,
+                                         with_arrival(request, settings))
     return Response(svg, media_type=figures.SVG)
 
 

@@ -37,6 +37,10 @@ from engine.space.trace import (
 #: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
 #: method (measured faster than the dense SVD from about 100 rotors of a chain).
 SPARSE_SEED_RIGIDITY_MIN_FREE = 128
+#: Seconds per free coordinate of that sparse zero mode (shift-invert Lanczos), measured on
+#: the shared test machine (3.1 s at M = 40000, a 20000-rotor chain, at load 10 on 2 cores),
+#: rounded up: a seed whose zero mode would not fit the time left is not traced.
+SPARSE_SEED_SECONDS_PER_FREE = 1e-4
 
 
 #: Why a traced curve stopped, when that was a count running out (see ``trace_curve``).
@@ -248,9 +252,12 @@ class Explorer:
         # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
         # Lanczos, same rank rule), a dense SVD costs O(M^3) per traced curve (0.1-0.2 s at
         # M = 200 to 400, more than tracing the curve).
+        sparse = self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
+        if sparse and self.cons.n_free * SPARSE_SEED_SECONDS_PER_FREE > self.deadline.remaining():
+            self.timed_out = True  # (the zero mode alone would run past the deadline)
+            return None
         rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
-                          sparse=True if self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
-                          else None)
+                          sparse=True if sparse else None)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = self._trace(u, rig.zero_modes[0])
