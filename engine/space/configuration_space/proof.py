@@ -98,7 +98,7 @@ def count_text(n: int) -> str:
         return str(n)
     if n > 0 and n & (n - 1) == 0:
         return f"2^{n.bit_length() - 1}"
-    return f"about 10^{int((n.bit_length() - 1) * math.log10(2))}"
+    return f"about 10^{int(math.log10(n))}"
 
 
 def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],

@@ -277,3 +277,13 @@ def test_the_set_up_looks_at_the_deadline_first():
     w = witness_points(lk, deadline=Deadline.after(0.0))
     assert not w.success and w.paths == 0 and "deadline" in w.message
     assert len(w.seeds) == 0 and len(w.critical_starts) == 0
+
+
+def test_the_chain_rules_sentence_writes_counts_of_any_size():
+    # a 20000-rotor chain has 2^19999 components: str() refuses its 6021 digits
+    from engine.space.configuration_space.proof import count_text
+
+    assert count_text(12) == "12"
+    assert count_text(2**99) == "633825300114114700748351602688"
+    assert count_text(2**19999) == "2^19999"
+    assert count_text(10**5000 + 7) == "about 10^5000"
