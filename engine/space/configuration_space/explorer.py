@@ -14,7 +14,14 @@ from scipy.spatial import cKDTree
 
 from engine.local.rigidity import first_order
 from engine.model.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.model.budget import NEVER, Argument, Deadline, granted
+from engine.model.budget import (
+    ANSWER_SECONDS_PER_VALUE,
+    ANSWER_TIME_S,
+    NEVER,
+    Argument,
+    Deadline,
+    granted,
+)
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
@@ -136,6 +143,18 @@ class Explorer:
         if self.points_left <= 1:
             self.report["answer_size_reached"] = True
             self.report["answer_values_max"] = self.opt.max_values
+
+    def values_in_time(self) -> int | None:
+        """The values an answer made now may carry (None: no budget): its budget, or what
+        maps in the time left and ``ANSWER_TIME_S`` past the deadline where that is more (a
+        closed form's walks, made in a moment; traced curves keep to the budget, since
+        tracing spends the time left)."""
+        if self.opt.max_values is None:
+            return None
+        left = self.deadline.remaining()
+        if left == float("inf"):
+            return self.opt.max_values
+        return max(self.opt.max_values, int((left + ANSWER_TIME_S) / ANSWER_SECONDS_PER_VALUE))
 
     def size_reached(self) -> bool:
         """True once the answer's budget of values is spent (nothing more is traced)."""

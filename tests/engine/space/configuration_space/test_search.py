@@ -321,3 +321,19 @@ def test_a_budget_of_values_stops_the_search_for_size_and_keeps_what_was_found(p
     assert "answer_size_reached" not in roomy.search.details
     assert [len(c.points) for c in roomy.components] == [len(c.points) for c in full.components]
     assert roomy.search.reason == full.search.reason
+
+
+def test_a_closed_form_answer_keeps_the_values_the_time_left_maps():
+    # the crank-rocker, dense: ~35000 points of 4 vertices, above a budget of 50000 values, made
+    # in a moment: the time left maps them, and the closed form answers in full
+    from engine.model.budget import ANSWER_SECONDS_PER_VALUE, Deadline
+    from engine.space.trace import TraceOptions
+
+    lk = build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0})
+    opt = SpaceOptions(trace=TraceOptions(step_max=2.5e-4, max_points=200_000),
+                       max_values=50_000)
+    deadline = Deadline.after(4.0)
+    res = explore(lk, TOL, opt, near_misses=False, deadline=deadline)
+    values = lk.n_vertices * sum(len(c.points) for c in res.components)
+    assert res.search.details["method"] == "closed form" and res.search.complete
+    assert 50_000 < values <= (4.0 + 0.5) / ANSWER_SECONDS_PER_VALUE
