@@ -5,7 +5,10 @@ before (the path replaced, where it is still selectable) and after.
         [--json bench/results/design_loop.json]
 
 Rows (CPU time of this process, ``time.process_time``, and wall-clock; on a shared machine the
-CPU time is the steadier number; run with ``OPENBLAS_NUM_THREADS=1`` as the issue's table):
+CPU time is the steadier number; run with ``OPENBLAS_NUM_THREADS=1`` as the issue's table). The
+rows with the defaults a request gets (options and the service's 4 s search budget) come first
+and say whether the answer is complete (issue 30); a row with other options says so in its name
+(the same cells through HTTP: ``bench/bench_matrix.py``):
 
 * gate slice (L2, D), 4-rotor gated chain (``gated-kl-chain`` n=4, gate=2), resolution 48;
 * four-bar slice (L2, L3) in [0.3, 2.2]^2, resolution 200: ``method="traced"`` (before) and
@@ -32,9 +35,13 @@ import engine.local.critical as critical
 from engine.catalogue.presets import build_preset
 from engine.design.critical_values import critical_value_slice
 from engine.design.robustness import robustness
+from engine.model.budget import Deadline
 from engine.model.tolerances import Tolerances
-from engine.space.configuration_space import Explorer, SpaceOptions
+from engine.space.configuration_space import Explorer, SpaceOptions, find_critical_points
 from engine.space.configuration_space.critical_search import critical_points
+
+#: The service's default search budget (``LINKAGE_SEARCH_TIME_S``).
+DEFAULT_BUDGET_S = 4.0
 
 
 def main() -> None:
@@ -51,11 +58,20 @@ def main() -> None:
         table.record(name, wall, detail(out), cpu=cpu, **extra)
 
     gated = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    gate_axes = [("L2", 1.0, 3.0), ("D", 1.0, 3.5)]
+    # what a request gets (issue 30): the default options and the service's default search
+    # budget (LINKAGE_SEARCH_TIME_S, 4 s)
+    row("gate slice (L2, D), 4-rotor gated chain, resolution 48, defaults",
+        lambda: critical_value_slice(gated, gate_axes, resolution=48,
+                                     deadline=Deadline.after(DEFAULT_BUDGET_S)),
+        lambda s: f"{len(s.curves)} curves, {len(s.regions)} regions, {s.search['method']}, "
+                  f"complete {s.search['complete']} ({s.search['reason']})",
+        when="after")
     gate_opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
-    row("gate slice (L2, D), 4-rotor gated chain, resolution 48 (traced)",
-        lambda: critical_value_slice(gated, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], resolution=48,
-                                     options=gate_opt),
-        lambda s: f"{len(s.curves)} curves, {len(s.regions)} regions, {s.search['method']}",
+    row("gate slice, NOT the defaults: angles=12, random_starts=2, max_components=4",
+        lambda: critical_value_slice(gated, gate_axes, resolution=48, options=gate_opt),
+        lambda s: f"{len(s.curves)} curves, {len(s.regions)} regions, {s.search['method']}, "
+                  f"complete {s.search['complete']} ({s.search['reason']})",
         when="after")
 
     four_bar = build_preset("four-bar", {"L2": 1.2})
@@ -76,6 +92,10 @@ def main() -> None:
             lambda r: f"margin {r.margin:.9f}, {r.method} ({r.guarantee})", when=when)
 
     kl = build_preset("kl-chain", {"n": 100})
+    row("critical-point search, 100-rotor chain, defaults",
+        lambda: find_critical_points(kl, deadline=Deadline.after(DEFAULT_BUDGET_S)),
+        lambda r: f"{len(r.critical_points)} critical points, {len(r.near_misses)} near misses, "
+                  f"complete {r.search['complete']} ({r.search['argument']})", when="after")
     ex = Explorer(kl, Tolerances(), SpaceOptions(max_components=4))
     ex.trace_all(kl.coordinates())  # the curves, as an exploration traces them: not timed
     sparse_from = critical.SPARSE_REFINE_MIN_UNKNOWNS
@@ -85,7 +105,8 @@ def main() -> None:
             continue
         critical.SPARSE_REFINE_MIN_UNKNOWNS = threshold
         try:
-            row(f"critical-point search with near misses, 100-rotor chain ({label})",
+            row(f"near-miss refinement, 100-rotor chain, NOT the defaults: max_components=4, "
+                f"curves traced first untimed ({label})",
                 lambda: critical_points(ex),
                 lambda r: f"{ex.report['critical_candidates']} candidates, {len(r[0])} critical "
                           f"points, {len(r[1])} near misses, length gaps "

@@ -17,9 +17,12 @@ def main() -> None:
     from engine.catalogue.presets import build_preset
     from service import figures, mappers
     from service.config import Settings
-    from service.schemas.critical_values import CriticalValuesRequest
-    from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
-    from service.schemas.splitting import SplittingRequest
+    from service.schemas.figures import (
+        CriticalValuesFigureRequest,
+        LinkageFigureRequest,
+        SpaceFigureRequest,
+        SplittingFigureRequest,
+    )
 
     settings = Settings()
 
@@ -33,11 +36,11 @@ def main() -> None:
             {"linkage": linkage("gated-kl-chain", n=5, gate=2), "show": ["zero_modes"]})),
         "configuration-space.svg": (figures.configuration_space_figure,
                                     SpaceFigureRequest.model_validate({"linkage": four_bar})),
-        "critical-values.svg": (figures.critical_values_figure, CriticalValuesRequest
+        "critical-values.svg": (figures.critical_values_figure, CriticalValuesFigureRequest
                                 .model_validate({"linkage": four_bar, "axes": [
                                     {"bar": "L2", "min": 0.4, "max": 2.5},
                                     {"bar": "L3", "min": 0.4, "max": 2.5}]})),
-        "splitting.svg": (figures.splitting_figure, SplittingRequest.model_validate(
+        "splitting.svg": (figures.splitting_figure, SplittingFigureRequest.model_validate(
             {"linkage": four_bar, "perturbation": {"L2": 0.01}})),
     }
     TARGET.mkdir(parents=True, exist_ok=True)

@@ -9,7 +9,8 @@ Examples::
     linkage-topology run analysis/configuration-space request.json -o space.json
     linkage-topology run analysis/critical-points --preset four-bar --param L2=1
     linkage-topology presets                  # the names; ``presets four-bar``: one in full
-    linkage-topology figure figures/linkage --preset four-bar -o four-bar.svg   # or .png, .pdf
+    linkage-topology figure linkage --preset four-bar -o four-bar.svg   # .png, .pdf, .tex, .dxf
+    linkage-topology figure configuration-space --preset four-bar -o space.png --dpi 300
     linkage-topology --version
 
 ``run`` and ``figure`` work in this process (no Dask), under ``--time-limit`` (default
@@ -36,6 +37,11 @@ if TYPE_CHECKING:  # imported where used: --help and presets need none of them
 
 #: How often the progress bar reads the job's state (the state itself is pushed by the tasks).
 REFRESH_S = 0.1
+#: The figure formats and their file suffixes (service.figure_formats.SUFFIXES, named here so
+#: that --help imports nothing).
+FIGURE_FORMATS = ("svg", "png", "pdf", "tikz", "dxf")
+_SUFFIXES = {".svg": "svg", ".png": "png", ".pdf": "pdf", ".tex": "tikz", ".tikz": "tikz",
+             ".dxf": "dxf"}
 
 
 class UsageError(Exception):
@@ -106,6 +112,8 @@ def _request(args: argparse.Namespace, model: type[BaseModel]) -> BaseModel:
         body = {"linkage": linkage.model_dump(mode="json", exclude_none=True)}
     if args.options:
         body["options"] = json.loads(args.options)
+    if getattr(args, "command", None) == "figure":
+        _figure_fields(args, body)
     try:
         return model.model_validate_json(json.dumps(body))
     except ValidationError as err:
@@ -138,6 +146,22 @@ def _wait(manager: tasks.JobManager, job: tasks.Job, show: bool) -> None:
         bar.update(task, completed=job.fraction, message=job.message)
 
 
+def _figure_fields(args: argparse.Namespace, body: dict[str, Any]) -> None:
+    """The figure's ``format`` (--format, the request's, the suffix of --output, else svg) and
+    ``dpi`` in its request body."""
+    suffix = Path(args.output).suffix.lower() if args.output not in (None, "-") else ""
+    if suffix and suffix not in _SUFFIXES:
+        raise UsageError(f"-o {args.output}: a figure is written as "
+                         f"{', '.join(sorted(_SUFFIXES))}")
+    fmt = args.format or body.get("format") or _SUFFIXES.get(suffix, "svg")
+    if suffix and _SUFFIXES[suffix] != fmt:
+        raise UsageError(f"-o {args.output} is not a {fmt} file (--format or the request's "
+                         "format)")
+    body["format"] = fmt
+    if args.dpi is not None:
+        body["dpi"] = args.dpi
+
+
 def _write(result: Any, out: str | None, fmt: str | None, sweep: bool) -> None:
     from service import mappers, serialise
 
@@ -165,8 +189,7 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a preset parameter (repeatable)")
     common.add_argument("--options", help="search options as JSON (the requests' options)")
-    common.add_argument("-o", "--output", help="write here (.csv or .json; default stdout)")
-    common.add_argument("--format", choices=("json", "csv"), help="default: from --output")
+    common.add_argument("-o", "--output", help="write here (default stdout)")
     common.add_argument("--no-progress", action="store_true", help="no progress bar")
     common.add_argument("--scheduler", help="Dask scheduler address (default "
                         "LINKAGE_DASK_SCHEDULER, else an embedded cluster)")
@@ -175,6 +198,7 @@ def _parser() -> argparse.ArgumentParser:
                         "LINKAGE_JOB_TIME_LIMIT_S)")
     sw = sub.add_parser("sweep", parents=[common], help="a sweep (grid or Monte Carlo)")
     sw.add_argument("request", nargs="?", help="a JSON file with a POST /v1/sweeps body")
+    sw.add_argument("--format", choices=("json", "csv"), help="default: from --output")
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=MIN:MAX:STEPS")
     sw.add_argument("--sample", action="append", default=[], metavar="NAME=MEAN:SD")
     sw.add_argument("--count", type=int, help="Monte Carlo points")
@@ -186,10 +210,15 @@ def _parser() -> argparse.ArgumentParser:
                          "--scheduler)")
     run.add_argument("operation", help="an analysis path (see GET /v1/jobs/operations)")
     run.add_argument("request", nargs="?", help="a JSON file with that endpoint's request body")
-    fig = sub.add_parser("figure", parents=[common], help="a figure as SVG, e.g. linkage")
+    run.add_argument("--format", choices=("json", "csv"), help="default: from --output")
+    fig = sub.add_parser("figure", parents=[common], help="a figure as SVG, PNG, PDF, TikZ or "
+                         "DXF, e.g. linkage")
     fig.add_argument("operation", help="linkage, configuration-space, critical-values or "
                      "splitting (or figures/<name>)")
     fig.add_argument("request", nargs="?", help="a JSON file with that endpoint's request body")
+    fig.add_argument("--format", choices=FIGURE_FORMATS, help="default: the request's "
+                     "format, else from --output's suffix (.svg, .png, .pdf, .tex, .dxf), else svg")
+    fig.add_argument("--dpi", type=int, help="a PNG's dots per inch (default 150)")
     pre = sub.add_parser("presets", help="the preset names, or one preset in full")
     pre.add_argument("name", nargs="?", help="a preset: its description and parameters")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
@@ -221,7 +250,8 @@ def _presets(name: str | None) -> int:
 
 
 def _in_process(args: argparse.Namespace, operation: str) -> Any:
-    """One operation run here under the time limit: its answer as JSON data (a figure: SVG)."""
+    """One operation run here under the time limit: its answer as JSON data (a figure: its
+    bytes)."""
     import inspect
 
     from engine.model.budget import Deadline
@@ -232,10 +262,15 @@ def _in_process(args: argparse.Namespace, operation: str) -> Any:
     settings = get_settings()
     limit = args.time_limit or settings.job_time_limit_s
     body = _request(args, op.request)
+    run = op.run
+    if op.media_type != "application/json":  # a figure: its bytes (any format), not the job's text
+        from service import figures
+
+        run = getattr(figures, op.run.__name__)
     kwargs = ({"deadline": Deadline.after(limit)}
-              if "deadline" in inspect.signature(op.run).parameters else {})
-    answer = op.run(body, settings, **kwargs)
-    return answer if isinstance(answer, str) else answer.model_dump(mode="json")
+              if "deadline" in inspect.signature(run).parameters else {})
+    answer = run(body, settings, **kwargs)
+    return answer if isinstance(answer, bytes | str) else answer.model_dump(mode="json")
 
 
 def _operation(args: argparse.Namespace) -> str:
@@ -292,16 +327,19 @@ class _Failed(Exception):
     """The work ran and failed (exit status 1)."""
 
 
-def _figure_out(svg: Any, out: str | None) -> None:
+def _figure_out(figure: Any, out: str | None) -> None:
+    """A figure's answer (its bytes in-process; a job's text or data: URL on Dask) written."""
     from service import serialise
+    from service.operations import figure_bytes
 
-    text = svg.value() if isinstance(svg, serialise.RawJSON) else svg
+    if isinstance(figure, serialise.RawJSON):
+        figure = figure.value()
+    data = figure if isinstance(figure, bytes) else figure_bytes(figure)[0]
     if out in (None, "-"):
-        sys.stdout.write(text)
+        sys.stdout.buffer.write(data)
+        sys.stdout.flush()
         return
-    if Path(out).suffix.lower() not in ("", ".svg"):
-        raise UsageError("figures are written as SVG (-o NAME.svg)")
-    Path(out).write_text(text, encoding="utf-8")
+    Path(out).write_bytes(data)
 
 
 def main(argv: list[str] | None = None) -> int:

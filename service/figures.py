@@ -1,9 +1,14 @@
-"""Figures of the service's answers: SVG drawn by matplotlib's SVG backend.
+"""Figures of the service's answers: SVG, PNG and PDF drawn by matplotlib, TikZ
+(:mod:`service.figure_tikz`) and DXF (:mod:`service.figure_dxf`) written from the same answers;
+the format is the body's ``format`` (the routes set it from the Accept header when it is not
+given: :mod:`service.figure_formats`).
 
 Each figure job runs the job of the JSON endpoint it pictures (:mod:`service.jobs`, or the same
 engine calls and mappers) and draws the *response model*, so a figure shows exactly what the
 JSON answer says. The jobs are module-level functions of picklable arguments, run in the engine
-worker pool under the time limit like every analysis (:func:`service.workers.EnginePool.run`).
+worker pool under the time limit like every analysis (:func:`service.workers.EnginePool.run`);
+the command line runs them in its own process with a ``deadline`` for the search (the drawing
+after it is bounded by the answer's size: the engine's point limit, a PNG's pixel limit).
 
 Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests can find them:
 ``bar-<k>``, ``pin-<k>``, ``vertex-<k>``, ``slider-<k>``, ``zero-mode-<j>``, ``tangent-<j>``
@@ -14,8 +19,10 @@ space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current
 ``i``, ``j``; ``panels-left-out-<k>`` where the time left drew only the first panels).
 
 Only the object-oriented API is used (``Figure``, no ``pyplot``): no global figure state, so
-figures may be drawn in any thread or process. Text is drawn as paths (``svg.fonttype``), so an
-SVG needs no font to render the same everywhere.
+figures may be drawn in any thread or process. An SVG's text is ``<text>`` (``svg.fonttype``
+none: searchable, selectable, editable; a viewer without DejaVu Sans substitutes its own font);
+a PDF embeds its fonts. A PNG's pixels are counted before they are allocated
+(:func:`service.figure_formats.check_pixels`).
 """
 
 from __future__ import annotations
@@ -28,8 +35,9 @@ from typing import Any
 import matplotlib as mpl
 from matplotlib.figure import Figure
 
+from engine.model.budget import Deadline
 from engine.model.errors import InvalidRequest
-from service import jobs
+from service import figure_dxf, figure_tikz, jobs
 from service.config import Settings
 from service.figure_drawing import (
     _draw_critical_values,
@@ -39,13 +47,18 @@ from service.figure_drawing import (
     _rotors,
     panels_in_time,
 )
-from service.schemas import critical_values as cv_schemas
+from service.figure_formats import MEDIA_TYPES, check_pixels, check_png_before_drawing, negotiate
 from service.schemas import space
-from service.schemas import splitting as splitting_schemas
 from service.schemas.common import AnalysisRequest
-from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
+from service.schemas.figures import (
+    CriticalValuesFigureRequest,
+    FigureOutput,
+    LinkageFigureRequest,
+    SpaceFigureRequest,
+    SplittingFigureRequest,
+)
 
-SVG = "image/svg+xml"
+SVG = MEDIA_TYPES["svg"]
 #: Seconds past the search's deadline that drawing a figure may take (a share of the margin
 #: an answer may come after its time budget).
 DRAW_SECONDS = 0.5
@@ -56,16 +69,23 @@ DRAW_SECONDS = 0.5
 
 def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
     """The linkage at its analysed configuration, with what ``body.show`` asks for."""
+    fmt = _format("linkage", body)
     req = AnalysisRequest(linkage=body.linkage, tolerances=body.tolerances)
     if {"tangents", "self_stress"} & set(body.show):
         ans: object = jobs.second_order_analysis(req, settings)
     else:
         ans = jobs.rigidity(req, settings)
-    return _svg(_draw_linkage, body.linkage, ans, body.show)
+    if fmt == "tikz":
+        return figure_tikz.linkage(body.linkage, ans, body.show)
+    if fmt == "dxf":
+        return figure_dxf.linkage(body.linkage, ans, body.show)
+    return _render(body, _draw_linkage, body.linkage, ans, body.show)
 
 
-def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> bytes:
+def configuration_space_figure(body: SpaceFigureRequest, settings: Settings,
+                               deadline: Deadline | None = None) -> bytes:
     """The components in two rotor angles, critical points by kind, segments labelled."""
+    fmt = _format("configuration-space", body)
     if body.linkage.dimension != 2:
         raise InvalidRequest(
             "the configuration-space figure draws the components in the angles of two rotors "
@@ -90,40 +110,71 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings) -> 
     # the figure reads the per-vertex lists: the compact form is for clients of the JSON
     options = None if body.options is None else body.options.model_copy(update={"points": None})
     req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances, options=options)
-    ans = jobs.configuration_space(req, settings)
-    return _svg(_draw_space, ans, axes, rotors)
+    ans = jobs.configuration_space(req, settings, deadline)
+    if fmt == "tikz":
+        return figure_tikz.configuration_space(ans, axes, rotors)
+    return _render(body, _draw_space, ans, axes, rotors)
 
 
-def critical_values_figure(body: cv_schemas.CriticalValuesRequest, settings: Settings) -> bytes:
+def critical_values_figure(body: CriticalValuesFigureRequest, settings: Settings,
+                           deadline: Deadline | None = None) -> bytes:
     """The slice: curves, regions shaded and labelled with their component counts."""
-    ans = jobs.critical_values(body, settings)
-    return _svg(_draw_critical_values, body, ans)
+    _format("critical-values", body)
+    ans = jobs.critical_values(body, settings, deadline)
+    return _render(body, _draw_critical_values, body, ans)
 
 
-def splitting_figure(body: splitting_schemas.SplittingRequest, settings: Settings) -> bytes:
+def splitting_figure(body: SplittingFigureRequest, settings: Settings,
+                     deadline: Deadline | None = None) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
-    deadline = jobs.search_deadline(body.options, settings, None)
+    _format("splitting", body)
+    deadline = deadline or jobs.search_deadline(body.options, settings, None)
     ans, points = jobs.splitting_with_points(body, settings, deadline)
-    # the panels that fit the time left and the drawing's share of the margin past it
-    panels = panels_in_time(deadline.remaining() + DRAW_SECONDS)
-    return _svg(_draw_splitting, body, ans, points, panels)
+    # the panels that fit the time left and the drawing's share of the margin past it (all
+    # without a finite deadline)
+    left = deadline.remaining()
+    panels = None if left == float("inf") else panels_in_time(left + DRAW_SECONDS)
+    return _render(body, _draw_splitting, body, ans, points, panels)
 
 
 # -- shared ------------------------------------------------------------------------------------
 
 
+#: Metadata that would make the same figure differ from one drawing to the next: left out.
+_METADATA: dict[str, dict[str, Any]] = {
+    "svg": {"Date": None}, "pdf": {"CreationDate": None, "ModDate": None}, "png": {},
+}
+
+
+def _format(figure: str, body: FigureOutput) -> str:
+    """The body's format (default svg), checked against what ``figure`` offers, and a PNG's
+    resolution against the smallest size the figure can have, before any work."""
+    fmt = negotiate(figure, body.format, None).format
+    check_png_before_drawing(figure, fmt, body.dpi)
+    return fmt
+
+
 def _style() -> contextlib.AbstractContextManager[None]:
     return mpl.rc_context({
-        "svg.fonttype": "path",  # self-contained: no font needed where the SVG is shown
+        "svg.fonttype": "none",  # text as <text>, not paths (searchable, editable)
+        "pdf.fonttype": 42,  # TrueType fonts embedded whole (editable in Illustrator etc.)
         "svg.hashsalt": "linkage-figures",  # stable ids: the same answer gives the same bytes
         "font.size": 9.0,
         "axes.titlesize": 10.0,
     })
 
 
-def _svg(draw: Callable[..., Figure], *args: Any) -> bytes:
-    """``draw(*args)`` as SVG, drawn and saved in the house style."""
+def _render(body: FigureOutput, draw: Callable[..., Figure], *args: Any) -> bytes:
+    """``draw(*args)`` in the body's format (svg, png at ``body.dpi``, pdf), in the house
+    style; a PNG's pixels are counted on the drawn figure before any is allocated."""
+    fmt = body.format or "svg"
     buf = io.BytesIO()
     with _style():
-        draw(*args).savefig(buf, format="svg", metadata={"Date": None}, facecolor="white")
+        fig = draw(*args)
+        dpi: float | str = "figure"
+        if fmt == "png":
+            width, height = (float(v) for v in fig.get_size_inches())
+            check_pixels(width, height, body.dpi)
+            dpi = body.dpi
+        fig.savefig(buf, format=fmt, dpi=dpi, metadata=_METADATA[fmt], facecolor="white")
     return buf.getvalue()

@@ -17,10 +17,12 @@ from engine.design.splitting import length_change, split
 from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
 from engine.model.budget import Deadline, answer_values
-from engine.model.constraints import on_constraints
+from engine.model.constraints import ProjectionResult, on_constraints
 from engine.model.errors import InvalidRequest, LimitExceeded
 from engine.model.linkage import Linkage as EngineLinkage
+from engine.model.tolerances import Tolerances
 from engine.space.configuration_space import explore, find_critical_points
+from engine.space.surfaces.explore import explore_surfaces
 from service import mappers
 from service.config import Settings
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
@@ -127,6 +129,8 @@ def configuration_space(
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
     dl = search_deadline(body.options, settings, deadline)
     at, proj = on_constraints(linkage, tol)
+    if at.n_free - int(at.active.sum()) == 2 and at.anything_fixed:
+        return _surfaces(body, settings, at, proj, tol, dl)
     # the response carries no near misses: where the closed form certifies, or the rotor-chain
     # rules prove, that there is no critical point, the critical-point search is skipped
     # the search stops at the values (points x vertices) mapped in time past the deadline
@@ -141,6 +145,29 @@ def configuration_space(
         )
     return mappers.space_out(at, res, proj, tol,
                              points=body.options.points if body.options else None)
+
+
+#: Mesh vertices per triangle of a closed surface (``V = F / 2 + chi``), with a margin.
+VERTICES_PER_TRIANGLE = 0.55
+
+
+def _surfaces(body: SpaceRequest, settings: Settings, at: EngineLinkage, proj: ProjectionResult,
+              tol: Tolerances, dl: Deadline) -> SpaceResponse:
+    """Two degrees of freedom: the surfaces, after an estimate of the answer's size from the
+    triangle budget (a 422 naming ``options`` before any work where it is too large)."""
+    opt = mappers.surface_options_in(body.options)
+    vertices = int(VERTICES_PER_TRIANGLE * opt.max_triangles) + 7
+    numbers = vertices * at.n_vertices * at.dimension + 3 * opt.max_triangles
+    if vertices > settings.max_points \
+            or numbers * ANSWER_BYTES_PER_NUMBER > settings.max_answer_mb * 2**20:
+        raise InvalidRequest(
+            f"the surfaces could hold {vertices:,} mesh vertices ({numbers:,} numbers) within "
+            f"options.max_triangles = {opt.max_triangles}, more than LINKAGE_MAX_POINTS = "
+            f"{settings.max_points} or LINKAGE_MAX_ANSWER_MB = {settings.max_answer_mb}: "
+            "lower options.max_triangles", loc=("options",))
+    res = explore_surfaces(at, tol, opt, deadline=dl)
+    return mappers.surfaces_out(at, res, proj, tol,
+                                points=body.options.points if body.options else None)
 
 
 def splitting(

@@ -73,6 +73,10 @@ log = logging.getLogger("service.workers")
 LIGHT_MAX_VERTICES = 64
 LIGHT_MAX_BARS = 512
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+#: Modules the forkserver imports once, so that every worker starts with them: the jobs (the
+#: engine) and the figures (matplotlib: imported in a worker's first figure request otherwise,
+#: 1-3 s of that request on a loaded 2-core machine, paid again by every worker and replacement).
+FORKSERVER_PRELOAD = ("service.jobs", "service.figures")
 #: Seconds between two looks of the watchdog for a broken pool.
 WATCH_INTERVAL_S = 0.5
 
@@ -190,9 +194,7 @@ class EnginePool:
         for name in _BLAS_THREADS:  # inherited by the forkserver, before numpy loads
             os.environ.setdefault(name, "1")
         ctx = multiprocessing.get_context("forkserver")
-        # (the figures too: importing matplotlib takes 1.1-1.4 s under load, outside every
-        # deadline, on the first figure job of each worker otherwise)
-        ctx.set_forkserver_preload(["service.jobs", "service.figures"])
+        ctx.set_forkserver_preload(list(FORKSERVER_PRELOAD))
         limit = None if self.memory_mb is None else self.memory_mb * 2**20
         return pebble.ProcessPool(max_workers=self.workers, context=ctx,
                                   initializer=_limit_memory, initargs=(limit,))

@@ -95,6 +95,10 @@ def text_of(response: httpx.Response) -> str:
     return response.text
 
 
+def bytes_of(response: httpx.Response) -> bytes:
+    return response.content
+
+
 def model(parse: Callable[[Any], T]) -> Callable[[httpx.Response], T]:
     """A parser that builds ``parse(json)`` from the answer."""
     return lambda response: parse(response.json())

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from linkage_client._http import Call, drop_none, json_of, model, text_of
+from linkage_client._http import Call, bytes_of, drop_none, json_of, model, text_of
 from linkage_client.models import (
     CriticalPointsResult,
     CriticalValuesResult,
@@ -29,6 +29,11 @@ from linkage_client.models import (
 LinkageIn = Linkage | Mapping[str, Any]
 Opts = Mapping[str, Any] | None
 SVG = {"accept": "image/svg+xml"}
+#: The figure formats and the media type each is asked for with (the service's
+#: service/figure_formats.py MEDIA_TYPES).
+FIGURE_TYPES = {"svg": "image/svg+xml", "png": "image/png", "pdf": "application/pdf",
+                "tikz": "application/x-tex", "dxf": "image/vnd.dxf"}
+FIGURES = ("linkage", "configuration-space", "critical-values", "splitting")
 
 
 def _analysis(linkage: LinkageIn, tolerances: Opts, **more: Any) -> dict[str, Any]:
@@ -138,6 +143,21 @@ def draw_splitting(linkage: LinkageIn, perturbation: Mapping[str, float], option
     return Call("POST", "/v1/figures/splitting", text_of, headers=SVG,
                 json=_analysis(linkage, tolerances, perturbation=dict(perturbation),
                                options=options))
+
+
+def draw(figure: str, body: Mapping[str, Any], fmt: str, dpi: int | None) -> Call[bytes]:
+    """Any figure in any format: ``body`` is the figure endpoint's request (its ``linkage``
+    a model or a mapping), the answer the figure's bytes."""
+    if figure not in FIGURES:
+        raise ValueError(f"no figure named {figure!r}; known: {', '.join(FIGURES)}")
+    if fmt not in FIGURE_TYPES:
+        raise ValueError(f"no figure format {fmt!r}; known: {', '.join(FIGURE_TYPES)}")
+    data = dict(body)
+    if "linkage" in data:
+        data["linkage"] = linkage_json(data["linkage"])
+    return Call("POST", f"/v1/figures/{figure}", bytes_of,
+                headers={"accept": FIGURE_TYPES[fmt]},
+                json=drop_none({**data, "format": fmt, "dpi": dpi}))
 
 
 def create_job(operation: str, body: Mapping[str, Any]) -> Call[Job]:

@@ -193,6 +193,24 @@ class AsyncClient(PresetRoutes[Coroutine[Any, Any, Linkage]]):
                              *, options: Opts = None, tolerances: Opts = None) -> str:
         return await self._run(ops.draw_splitting(linkage, perturbation, options, tolerances))
 
+    async def draw(self, figure: str, body: Mapping[str, Any], *, format: str = "svg",
+                   dpi: int | None = None) -> bytes:
+        """A figure in a chosen format: its bytes.
+
+        Parameters
+        ----------
+        figure : str
+            ``linkage``, ``configuration-space``, ``critical-values`` or ``splitting``.
+        body : mapping
+            That figure endpoint's request (``{"linkage": ..., "show": [...]}``, ...).
+        format : str
+            ``svg``, ``png``, ``pdf``, ``tikz`` (linkage, configuration-space) or ``dxf``
+            (linkage).
+        dpi : int, optional
+            A PNG's dots per inch (the service's default: 150).
+        """
+        return await self._run(ops.draw(figure, body, format, dpi))
+
     # ------------------------------------------------------------ jobs and sweeps
 
     async def list_job_operations(self) -> list[Operation]:

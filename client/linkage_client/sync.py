@@ -198,6 +198,24 @@ class Client(PresetRoutes[Linkage]):
                        options: Opts = None, tolerances: Opts = None) -> str:
         return self._run(ops.draw_splitting(linkage, perturbation, options, tolerances))
 
+    def draw(self, figure: str, body: Mapping[str, Any], *, format: str = "svg",
+             dpi: int | None = None) -> bytes:
+        """A figure in a chosen format: its bytes.
+
+        Parameters
+        ----------
+        figure : str
+            ``linkage``, ``configuration-space``, ``critical-values`` or ``splitting``.
+        body : mapping
+            That figure endpoint's request (``{"linkage": ..., "show": [...]}``, ...).
+        format : str
+            ``svg``, ``png``, ``pdf``, ``tikz`` (linkage, configuration-space) or ``dxf``
+            (linkage).
+        dpi : int, optional
+            A PNG's dots per inch (the service's default: 150).
+        """
+        return self._run(ops.draw(figure, body, format, dpi))
+
     # ------------------------------------------------------------ jobs and sweeps
 
     def list_job_operations(self) -> list[Operation]:

@@ -7,8 +7,12 @@ With two bar lengths ``p = (L_x, L_y)`` free, the critical configurations solve:
 ``E + M + 1`` equations in ``M + E + 2`` unknowns: a one-dimensional solution set whose
 projection on ``p`` is the slice (paper, Sec. III B). It is traced by pseudo-arclength
 continuation (tangent from one factorisation of ``[DG; tau_prev]``, hyperplane Newton corrector)
-until it leaves the box or closes. Seeds: at a grid of sample lengths, every critical
-configuration the exploration reaches (critical points, and the nearest critical
+until it leaves the box or closes. Seeds: every critical configuration on the box's edges and
+wherever a curve turns or enters the box between them (a sweep of each axis in steps of one
+raster cell), each found by homotopy (:mod:`.slice_scan`), so that every curve crossing the box
+but a closed one smaller than a cell is traced;
+where the homotopy's paths exceed ``options.homotopy_paths_max``, at a grid of sample lengths,
+every critical configuration the exploration reaches (critical points, and the nearest critical
 configurations of the near misses), projected onto ``G = 0`` from the sample lengths. The
 boundaries where the configuration space becomes empty are critical values too (a component
 shrinks to a rigid point) and are found the same way.
@@ -16,7 +20,13 @@ shrinks to a rigid point) and are found the same way.
 Regions: the box is rasterised at ``resolution``; cells crossed by a curve separate the rest,
 which is split into 4-connected regions; each region is sampled at the cell farthest from every
 curve and explored there: its number of components (0 where empty) and a ``signature``
-(component count and the sorted rotor windings) tell topologies apart.
+(component count and the sorted rotor windings) tell topologies apart. Regions thinner than a
+cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
+
+What is proved is said in the report: a slice is complete only with the closed form's curves
+and every region's count exact; a traced slice names its sweeps and its exact
+regions, and stays ``searched`` (a closed curve born and gone within one sweep step is not
+excluded).
 
 This module seeds the curves and puts the slice together; ``G`` and its continuation are in
 :mod:`.slice_curves`, the regions and the polyline helpers in :mod:`.slice_regions`.
@@ -31,12 +41,14 @@ import numpy as np
 from engine.design.dyad_margin import critical_planes
 from engine.design.slice_curves import Axis, _continue, _onto_solutions_batch, _System, _tangent
 from engine.design.slice_regions import (
+    THIN_REFINE,
     Region,
     _clip,
     _merge_coincident,
-    _polyline_distance,
+    _on_polyline,
     _regions,
 )
+from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
 from engine.local.critical import refine_critical
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
 from engine.model.constraints import Constraints
@@ -51,6 +63,13 @@ from engine.space.configuration_space import SpaceOptions, find_critical_points
 #: critical values of symmetric linkages lie (a seed at critical lengths is the slowest and least
 #: robust exploration there is; its neighbours seed the same curves from regular lengths).
 GRID_OFFSET = np.array([0.5 + (np.sqrt(2.0) - 1.0) / 10.0, 0.5 - (np.sqrt(5.0) - 2.0) / 10.0])
+
+#: A seed this close to a traced polyline (relative to the tracing step), going its way, lies on
+#: that curve: a chord of a circle of radius ``R`` is within ``h^2 / (8 R)`` of it, so a curve
+#: whose radius of curvature is above ``1 / (8 KNOWN_REL)`` steps is recognised.
+KNOWN_REL = 0.05
+#: Sine of the angle below which a seed's direction is a traced polyline's.
+SAME_WAY = 0.2
 
 #: Point budget of one curve in a seed exploration.
 SEED_MAX_POINTS = 2000
@@ -124,13 +143,18 @@ def critical_value_slice(
     span = box[:, 1] - box[:, 0]
     h_max = float(min(span)) / resolution
     lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
+    scan: Scan | None = None
     if lines is not None:
         raw, seeds, timed_out = lines, 0, False
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
-        grid = [box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
-                for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
+        scan = _scan(tracing, opt.homotopy_paths_max, opt.seed)
+        # Seed lengths only where the sweeps did not all solve: their explorations find what
+        # they find, and add nothing to the sweeps' argument.
+        grid = [] if scan.complete else [
+            box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
+            for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
         # One column of seed lengths at a time: the explorations first, then all their starts
         # onto G = 0 in one batch (a pure function of each start), then taken in seed order
         # (the same curves as seed by seed; a deadline still leaves the earlier columns' curves).
@@ -140,15 +164,15 @@ def critical_value_slice(
                 if dl.expired():
                     tracing.timed_out = True
                     break
-                dl.report(0.6 * k / len(grid), "critical values: tracing the curves")
+                dl.report(0.3 + 0.3 * k / len(grid), "critical values: tracing the curves")
                 starts.append(tracing.starts_at(grid[k]))
             tracing.take(starts)
             if tracing.timed_out and dl.expired():
                 break
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
-    curves = _merge_coincident([c for c in raw if len(c) >= 2], 1e-7 * float(max(span)))
-    regions = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
+    curves = _merge_coincident([c for c in raw if len(c) >= 2], KNOWN_REL * h_max)
+    regions, thin_unresolved = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
     timed_out = timed_out or any(r.components is None for r in regions)
     search = SearchReport({
         "method": "closed form" if lines is not None else "traced",
@@ -159,23 +183,89 @@ def critical_value_slice(
         "resolution": resolution,
         "regions_explored": sum(r.components is not None for r in regions),
         "regions_exact": sum(r.argument is not None for r in regions),
+        "regions_thin": sum(r.cells == 0 for r in regions),
+        "thin_unresolved": thin_unresolved,
+        **_scan_details(scan),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions))
+    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved))
     return Slice(curves, regions, search)
 
 
-def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region]
+def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
+    """For each axis held in turn: every critical configuration on the box's two edges across
+    it, and where a curve turns or enters the box in between (:meth:`engine.design.slice_scan.
+    ScanDirection.sweep`, steps of at most the tracing step ``h_max``), each found by homotopy
+    where its paths are within ``paths_max``; the curves through them traced
+    (:meth:`_CurveTracing.take`). Every connected piece of a curve in the box meets one of
+    these (its point of least ``L_x`` is on the left edge, or where it enters through the top or
+    bottom edge, or where it turns; a segment ``L_x = const``, where the linkage without the
+    other bar is critical, is a curve like any other for the sweep of ``L_y``) unless it is
+    born and gone within one step of both sweeps."""
+    box, ax, dl = tracing.box, tracing.ax, tracing.deadline
+    paths = scan_paths(tracing.linkage)
+    planned = 2
+    if paths > paths_max:
+        return Scan([], planned, 0,
+                    f"{paths} paths per sweep exceed the bound of {paths_max}", tracing.h_max)
+    lines: list[Scanline] = []
+    for fixed in range(2):
+        lo, hi = (float(v) for v in box[fixed])
+        if dl.expired():
+            tracing.timed_out = True
+            return Scan(lines, planned, paths, "the deadline stopped the sweeps", tracing.h_max)
+        dl.report(0.3 * fixed, "critical values: sweeping the box")
+        direction = ScanDirection(tracing.linkage, ax[1 - fixed].bar, ax[fixed].bar, fixed,
+                                  0.5 * (lo + hi), float(box[1 - fixed, 1]), seed=seed + fixed,
+                                  deadline=dl)
+        line = direction.sweep(lo, hi, float(box[1 - fixed, 0]), float(box[1 - fixed, 1]),
+                               tracing.h_max, dl)
+        lines.append(line)
+        tracing.take([line.starts])
+    failed = [f"{tracing.linkage.bar_ids[ax[s.fixed].bar]}: {s.message}"
+              for s in lines if not s.success]
+    return Scan(lines, planned, paths, "; ".join(failed), tracing.h_max)
+
+
+def _scan_details(scan: Scan | None) -> dict[str, object]:
+    """The sweeps in the search report (none for a closed form)."""
+    if scan is None:
+        return {}
+    return {"sweeps": scan.planned,
+            "sweeps_complete": sum(s.success for s in scan.lines),
+            "sweep_paths": scan.paths,
+            "sweep_step": scan.step}
+
+
+def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
+                    scan: Scan | None = None, thin_unresolved: int = 0
                     ) -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box (the closed
     form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
-    count is exact (its exploration complete, with an argument)."""
+    count is exact (its exploration complete, with an argument). A traced slice says what is
+    proved so far: which curves the sweeps guarantee, how many regions are exact."""
     inexact = sum(r.argument is None for r in regions)
     if lines is None:
-        return None, ("the curves were traced from seed lengths: no argument proves that every "
-                      "critical curve crossing the box was found")
+        labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "
+                  "exact, the others lower bounds")
+        if scan is None or not scan.complete:
+            what = scan.summary() if scan is not None else "no scanline"
+            return None, (f"the curves were traced from seed lengths ({what}): no argument "
+                          f"proves that every critical curve crossing the box was found; {labels}")
+        return None, (
+            "every critical curve crossing the box was found, but for a closed curve born and "
+            f"gone within one sweep step ({scan.step:.3g}) of both axes: for each axis held, "
+            "the critical configurations on the box's two edges across it (every isolated "
+            f"solution of a square system: a {scan.paths}-path total-degree homotopy at a "
+            "generic length, its finite solutions followed to each edge, every path ended) "
+            "and, followed from one edge to the other in steps of at most that, wherever a "
+            f"curve turns or enters the box between two steps; {labels}")
     if inexact:
         return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
                       "regions' component counts are lower bounds")
+    if thin_unresolved:
+        return None, (f"the curves are the closed form's, but at {thin_unresolved} places they "
+                      f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
+                      "may be missing (a finer resolution resolves it)")
     return ARGUMENT_DERIVED, (
         "every critical curve in the box is a critical hyperplane of the one-dyad chain (closed "
         f"form) met with the plane; every one of the {len(regions)} regions' component counts "
@@ -251,10 +341,17 @@ class _CurveTracing:
         )
 
     def known(self, x: np.ndarray) -> bool:
-        """The seed's lengths lie on a curve already traced (other assemblies of the same
-        critical sheet project onto the same curve of the slice)."""
-        p = x[-2:][None, :]
-        return any(_polyline_distance(p, c[:, -2:])[0] <= 1e-7 * self.span for c in self.curves
+        """The seed's lengths lie on a curve already traced, going the same way there (other
+        assemblies of the same critical sheet project onto the same curve of the slice). A
+        traced polyline is a chord of its curve (within ``KNOWN_REL`` of a step of it); a
+        curve that only crosses it there has another direction, and is traced."""
+        p = x[-2:]
+        t = _tangent(self.sys, x, np.random.default_rng(0).normal(size=self.sys.n))
+        d = None if t is None else t[-2:]
+        if t is not None and np.linalg.norm(t[-2:]) <= 1e-3 * np.linalg.norm(t):
+            d = None  # (a cusp of the projection: its direction is no guide)
+        atol = KNOWN_REL * self.h_max
+        return any(_on_polyline(p, d, c[:, -2:], atol, SAME_WAY) for c in self.curves
                    if len(c) >= 2)  # (a curve the deadline cut to one point: no segment)
 
     def starts_at(self, p0: np.ndarray) -> np.ndarray:

@@ -391,10 +391,14 @@ def _multistart(
             best = found
     # the deadline may also have ended the last run part-way (conservatively: incomplete)
     complete = not (cut or deadline.expired())
+    detail = f"best local minimum over {converged} converged of {run} starts"
+    # no argument: what the answer establishes, and why it is not more (issue 30)
     search = SearchReport({"starts_planned": planned, "starts_run": run,
                            "critical_points_complete": cp_complete},
-                          timed_out=not complete, time_budget_s=_granted(deadline))
-    detail = f"best local minimum over {converged} converged of {run} starts"
+                          timed_out=not complete, time_budget_s=_granted(deadline),
+                          argument_detail=f"an upper bound: the {detail} of the multistart; "
+                          "no argument bounds the margin from below (a nearer critical value "
+                          "may lie where no start led)")
     nearest = np.array(linkage.lengths, dtype=float)
     if best is None:
         return Margin(np.inf, nearest, linkage.coordinates(), run, 0, False,

@@ -61,6 +61,22 @@ def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return np.min(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
 
 
+def _on_polyline(p: np.ndarray, d: np.ndarray | None, line: np.ndarray, atol: float,
+                 same_way: float = 0.2) -> bool:
+    """``p`` (2,) lies within ``atol`` of a segment of ``line`` (m, 2) that runs along ``d``
+    (2,; ``|sin|`` of the angle at most ``same_way``; None: any segment)."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
+    s = np.clip(np.einsum("ij,ij->i", p - a, ab) / denom, 0.0, 1.0)
+    near = np.linalg.norm(a + s[:, None] * ab - p, axis=1) <= atol
+    if d is None or not near.any():
+        return bool(near.any())
+    seg = ab[near] / np.sqrt(denom[near])[:, None]
+    sine = np.abs(seg[:, 0] * d[1] - seg[:, 1] * d[0]) / max(float(np.linalg.norm(d)), 1e-300)
+    return bool((sine <= same_way).any())
+
+
 def _merge_coincident(curves: list[np.ndarray], atol: float) -> list[np.ndarray]:
     """Drop a curve lying on another one: two sheets of the critical value set can project onto
     the same line of the slice (a self-intersection of the set); the slice draws it once."""
@@ -128,6 +144,107 @@ def _blocked_cells(curves: list[np.ndarray], box: np.ndarray, n: int) -> np.ndar
     return blocked
 
 
+#: Curves closer than this many raster cells, running alike (``|sin|`` of their angle at most
+#: ``THIN_SAME_WAY``) and not meeting there, may hold a region the raster loses between them.
+THIN_CELLS = 1.5
+THIN_SAME_WAY = 0.3
+#: The finer raster (``THIN_REFINE`` times the resolution, at most ``THIN_FINE_MAX`` cells a
+#: side) that thin regions are looked for in.
+THIN_REFINE = 8
+THIN_FINE_MAX = 1600
+
+
+def _close_pairs(curves: list[np.ndarray], cell: float, deadline: Deadline = NEVER
+                 ) -> list[np.ndarray]:
+    """Points (2,) midway between two curves (or two parts of one) that run alike closer than
+    ``THIN_CELLS`` cells without crossing: one per run of such samples along a curve."""
+    out: list[np.ndarray] = []
+    reach = THIN_CELLS * cell
+    lo = [c.min(axis=0) - reach for c in curves]
+    hi = [c.max(axis=0) + reach for c in curves]
+    for i, c in enumerate(curves):
+        d_c = np.gradient(c, axis=0) if len(c) >= 2 else np.zeros_like(c)
+        d_c /= np.maximum(np.linalg.norm(d_c, axis=1, keepdims=True), NORM_FLOOR)
+        for j in range(i, len(curves)):
+            if deadline.expired():
+                return out
+            if len(c) < 2 or len(curves[j]) < 2 or np.any(lo[j] > hi[i]) or \
+                    np.any(lo[i] > hi[j]):
+                continue
+            near, foot, u = _nearest_segments(c, curves[j], reach if j == i else None)
+            close = np.flatnonzero((near < reach) & (np.abs(u[:, 0] * d_c[:, 1] - u[:, 1]
+                                                           * d_c[:, 0]) <= THIN_SAME_WAY))
+            off = c - foot
+            side = np.sign(u[:, 0] * off[:, 1] - u[:, 1] * off[:, 0])
+            for run in np.split(close, np.flatnonzero(np.diff(close) > 1) + 1):
+                if len(run) and len(set(side[run].tolist()) - {0.0}) == 1:  # (crossing: no strip)
+                    k = run[len(run) // 2]
+                    out.append(0.5 * (c[k] + foot[k]))
+    return out
+
+
+def _nearest_segments(points: np.ndarray, line: np.ndarray, skip: float | None,
+                      chunk: int = 256) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each point (n, 2): the distance to the nearest segment of ``line`` (m, 2), the
+    nearest point on it and the segment's unit direction, in chunks of points (memory
+    ``chunk * m``). ``skip``: ``points`` is ``line`` itself, and segments within ``3 skip``
+    along it are left out."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    denom = np.maximum(np.einsum("ij,ij->i", ab, ab), NORM_FLOOR)
+    step = float(np.median(np.sqrt(denom)))
+    near = np.full(len(points), np.inf)
+    foot = np.zeros_like(points)
+    unit = np.zeros_like(points)
+    for s0 in range(0, len(points), chunk):
+        pts = points[s0:s0 + chunk]
+        rel = pts[:, None, :] - a[None]
+        s = np.clip(np.einsum("kij,ij->ki", rel, ab) / denom, 0.0, 1.0)
+        f = a[None] + s[:, :, None] * ab[None]
+        dist = np.linalg.norm(pts[:, None, :] - f, axis=2)
+        if skip is not None:
+            along = np.abs(np.arange(s0, s0 + len(pts))[:, None] - np.arange(len(ab))[None])
+            dist = np.where(along * step > 3 * skip, dist, np.inf)
+        seg = np.argmin(dist, axis=1)
+        rows = np.arange(len(pts))
+        near[s0:s0 + len(pts)] = dist[rows, seg]
+        foot[s0:s0 + len(pts)] = f[rows, seg]
+        unit[s0:s0 + len(pts)] = ab[seg] / np.sqrt(denom[seg])[:, None]
+    return near, foot, unit
+
+
+def _thin_points(curves: list[np.ndarray], box: np.ndarray, n: int, free: np.ndarray,
+                 deadline: Deadline = NEVER) -> tuple[list[np.ndarray], int]:
+    """Sample points of the regions narrower than a raster cell, and how many places where
+    curves run closer than a cell of the finer raster remain unresolved. In the raster
+    ``THIN_REFINE`` times finer (at most ``THIN_FINE_MAX`` cells a side), every piece of free
+    cells (4-connected, as the raster's: a diagonal step may cross a curve) that holds no free
+    cell of the coarse raster (``free``, (n, n)) is a thin region (a strip between close
+    curves, a corner cut off by a curve), sampled at its cell
+    farthest from the curves; a point midway between two curves that run alike closer than
+    ``THIN_CELLS`` cells (:func:`_close_pairs`) on a blocked fine cell is unresolved."""
+    if not curves:
+        return [], 0
+    span = box[:, 1] - box[:, 0]
+    k = max(2, min(THIN_REFINE, THIN_FINE_MAX // n))
+    fine_free = ~_blocked_cells(curves, box, k * n)
+    labels, count = ndimage.label(fine_free)
+    coarse = np.repeat(np.repeat(free, k, axis=0), k, axis=1)
+    wide = np.zeros(count + 1, dtype=bool)
+    wide[np.unique(labels[coarse & fine_free])] = True
+    wide[0] = True
+    points = []
+    thin = np.flatnonzero(~wide)
+    if len(thin):
+        dist = ndimage.distance_transform_edt(fine_free)
+        best = ndimage.maximum_position(dist, labels, thin)
+        points = [box[:, 0] + span * (np.array(ij) + 0.5) / (k * n) for ij in best]
+    pairs = _close_pairs(curves, float(max(span)) / n, deadline)
+    cells = [tuple(np.clip(((q - box[:, 0]) / span * k * n).astype(int), 0, k * n - 1))
+             for q in pairs]
+    return points, sum(int(labels[c]) == 0 for c in cells)
+
+
 def _regions(
     linkage: Linkage,
     ax: tuple[Axis, Axis],
@@ -137,24 +254,42 @@ def _regions(
     opt: SpaceOptions,
     tol: Tolerances,
     deadline: Deadline = NEVER,
-) -> list[Region]:
+) -> tuple[list[Region], int]:
+    """The regions (the raster's, then those thinner than a cell, with ``cells = 0``) and
+    how many places where curves run closer than a cell of the finer raster are unresolved."""
     n = resolution
     span = box[:, 1] - box[:, 0]
     blocked = _blocked_cells(curves, box, n)
     labels, count = ndimage.label(~blocked)
     dist = ndimage.distance_transform_edt(~blocked)
-    out = []
-    for k in range(1, count + 1):
-        cells = labels == k
+    # pieces of the raster that the finer raster joins are one region (a strip about a cell
+    # wide breaks into cells at the raster; between the same curves it is one region)
+    k = max(2, min(THIN_REFINE, THIN_FINE_MAX // n))
+    fine = ndimage.label(~_blocked_cells(curves, box, k * n))[0] if curves else None
+    group: dict[int, list[int]] = {}
+    keys = np.zeros(count)
+    if fine is not None and count:  # each piece's fine label (at its cells' centres)
+        centre = fine[k // 2::k, k // 2::k]  # (n, n)
+        keys = np.asarray(ndimage.maximum(centre, labels, np.arange(1, count + 1)))
+    for r in range(1, count + 1):
+        group.setdefault(int(keys[r - 1]) or -r, []).append(r)
+    samples = []
+    for members in group.values():
+        cells = np.isin(labels, members)
         idx = np.unravel_index(int(np.argmax(np.where(cells, dist, -1))), cells.shape)
-        point = box[:, 0] + span * (np.array(idx) + 0.5) / n
+        samples.append((box[:, 0] + span * (np.array(idx) + 0.5) / n, int(cells.sum())))
+    thin, unresolved = _thin_points(curves, box, n, ~blocked, deadline)
+    samples += [(q, 0) for q in thin]
+    out = []
+    for k, (point, size) in enumerate(samples):
         lengths = linkage.lengths.copy()
         lengths[ax[0].bar], lengths[ax[1].bar] = point
         where = (float(point[0]), float(point[1]))
         if deadline.expired():
-            out.append(Region(where, None, "not explored (time)", int(cells.sum())))
+            out.append(Region(where, None, "not explored (time)", size))
             continue
-        deadline.report(0.6 + 0.4 * k / count, "critical values: exploring the regions")
+        deadline.report(0.6 + 0.4 * (k + 1) / len(samples),
+                        "critical values: exploring the regions")
         comps, sig, argument = _signature(linkage, lengths, opt, tol, deadline)
-        out.append(Region(where, comps, sig, int(cells.sum()), argument))
-    return out
+        out.append(Region(where, comps, sig, size, argument))
+    return out, unresolved

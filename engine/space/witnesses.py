@@ -106,34 +106,44 @@ def bounded(linkage: Linkage, cons: Constraints) -> bool:
     return bool(anchored[label[moving]].all())
 
 
+def bar_quadrics(linkage: Linkage, cons: Constraints) -> tuple[np.ndarray, float, np.ndarray]:
+    """Each active bar's equation ``l_a^2 - L_a^2 = 0`` as a quadratic form ``X^T Q_a X`` in
+    homogeneous, scaled coordinates ``X = (x_0, y)``, ``u = centre + scale * y / x_0``: the
+    forms (E, M + 1, M + 1), ``scale`` (the median length) and ``centre`` (M,)."""
+    lk = linkage
+    d, m = lk.dimension, cons.n_free
+    pos = np.asarray(lk.positions, dtype=float)
+    scale = float(np.median(lk.lengths[cons.bars]))
+    centroid = pos.mean(axis=0)
+    scaled = (pos - centroid) / scale
+    fi = lk.free_index  # (V, d), -1 where fixed
+    centre = np.zeros(m)
+    centre[fi[fi >= 0]] = np.broadcast_to(centroid, fi.shape)[fi >= 0]
+    # coordinate (i, k) as a linear form in X: free -> e_{1+fi}, fixed -> scaled * e_0
+    ends = lk.ends[cons.bars]
+    e = len(ends)
+    diff = np.zeros((e, d, m + 1))
+    for side, sign in ((0, 1.0), (1, -1.0)):
+        v = ends[:, side]
+        idx = fi[v]  # (e, d)
+        free = idx >= 0
+        a_idx, k_idx = np.nonzero(free)
+        diff[a_idx, k_idx, 1 + idx[free]] += sign
+        a_fix, k_fix = np.nonzero(~free)
+        diff[a_fix, k_fix, 0] += sign * scaled[v[a_fix], k_fix]
+    quad = np.einsum("akm,akn->amn", diff, diff)
+    quad[:, 0, 0] -= (lk.lengths[cons.bars] / scale) ** 2
+    return quad, scale, centre
+
+
 class LinkageSystem:
     """``[quadrics; linear; det [J; c]]`` of a linkage in homogeneous, scaled coordinates
     ``X = (x_0, y)`` with ``u = centre + scale * y / x_0``."""
 
     def __init__(self, linkage: Linkage, cons: Constraints, c: np.ndarray) -> None:
-        lk = linkage
-        d, m = lk.dimension, cons.n_free
-        pos = np.asarray(lk.positions, dtype=float)
-        self.scale = float(np.median(lk.lengths[cons.bars]))
-        centroid = pos.mean(axis=0)
-        scaled = (pos - centroid) / self.scale
-        fi = lk.free_index  # (V, d), -1 where fixed
-        self.centre = np.zeros(m)
-        self.centre[fi[fi >= 0]] = np.broadcast_to(centroid, fi.shape)[fi >= 0]
-        # coordinate (i, k) as a linear form in X: free -> e_{1+fi}, fixed -> scaled * e_0
-        ends = lk.ends[cons.bars]
-        e = len(ends)
-        diff = np.zeros((e, d, m + 1))
-        for side, sign in ((0, 1.0), (1, -1.0)):
-            v = ends[:, side]
-            idx = fi[v]  # (e, d)
-            free = idx >= 0
-            a_idx, k_idx = np.nonzero(free)
-            diff[a_idx, k_idx, 1 + idx[free]] += sign
-            a_fix, k_fix = np.nonzero(~free)
-            diff[a_fix, k_fix, 0] += sign * scaled[v[a_fix], k_fix]
-        quad = np.einsum("akm,akn->amn", diff, diff)
-        quad[:, 0, 0] -= (lk.lengths[cons.bars] / self.scale) ** 2
+        m = cons.n_free
+        quad, self.scale, self.centre = bar_quadrics(linkage, cons)
+        e = len(quad)
         # fewest quadrics: combinations whose quadratic parts cancel are linear equations
         parts = quad[:, 1:, 1:].reshape(e, -1)
         # (economic: the same U (E, E) and singular values, without the (M^2, M^2) V that a

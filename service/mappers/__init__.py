@@ -46,6 +46,8 @@ from service.mappers.space import (
     critical_points_out,
     space_options_in,
     space_out,
+    surface_options_in,
+    surfaces_out,
 )
 
 __all__ = [
@@ -80,6 +82,8 @@ __all__ = [
     "space_options_in",
     "space_out",
     "splitting_out",
+    "surface_options_in",
+    "surfaces_out",
     "sweep_csv",
     "sweep_in",
     "sweep_out",

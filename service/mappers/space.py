@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from engine.space.configuration_space import (
     rotor_angles,
     winding,
 )
+from engine.space.surfaces.explore import SurfaceOptions, SurfaceResult
 from engine.space.trace import TraceOptions
 from service.gcpause import gc_paused
 
@@ -38,11 +40,22 @@ from service.schemas import space
 
 def space_options_in(model: space.SpaceOptions | None) -> SpaceOptions:
     # the time budget goes to the deadline, ``points`` to the answer's mapping (space_out)
-    given = model.model_dump(exclude_none=True, exclude={"time_budget_s", "points"}) \
-        if model else {}
+    given = model.model_dump(exclude_none=True, exclude={
+        "time_budget_s", "points", "surface_step", "max_triangles"}) if model else {}
     trace_keys = {"max_points", "strain_tol", "step_max"}
     trace = TraceOptions(**{k: v for k, v in given.items() if k in trace_keys})
     return SpaceOptions(trace=trace, **{k: v for k, v in given.items() if k not in trace_keys})
+
+
+def surface_options_in(model: space.SpaceOptions | None) -> SurfaceOptions:
+    """The options of a two-degree-of-freedom search (``surface_step``, ``max_triangles``,
+    ``random_starts``, ``homotopy_paths_max``, ``seed``; the rest are the tracer's)."""
+    if model is None:
+        return SurfaceOptions()
+    given: dict[str, Any] = {"step_rel": model.surface_step, "max_triangles": model.max_triangles,
+             "random_starts": model.random_starts,
+             "homotopy_paths_max": model.homotopy_paths_max, "seed": model.seed}
+    return SurfaceOptions(**{k: v for k, v in given.items() if v is not None})
 
 
 def _critical_out(linkage: EngineLinkage, k: int, cp: CriticalPoint) -> space.CriticalPointOut:
@@ -160,6 +173,46 @@ def space_out(
         ],
         degenerate=res.degenerate,
         search=c.SearchReport.model_validate(search_out(res.search)),
+        tolerances=tolerances_out(tol),
+        **projection_fields(linkage, proj),  # type: ignore[arg-type]
+    )
+
+
+def surfaces_out(
+    linkage: EngineLinkage, res: SurfaceResult, proj: ProjectionResult, tol: EngineTolerances,
+    points: str | None = None,
+) -> space.SpaceResponse:
+    """The configuration-space answer of a two-degree-of-freedom linkage: its surfaces."""
+    surfaces = []
+    with gc_paused():
+        for comp in res.components:
+            pos = np.array([linkage.positions_of(u) for u in comp.vertices]).reshape(
+                len(comp.vertices), linkage.n_vertices, linkage.dimension)
+            positions: dict[str, list[list[float]]] | space.PackedArray = (
+                packed_array(list(linkage.vertex_ids), pos) if points == "compact" else
+                {vid: pos[:, k].tolist() for k, vid in enumerate(linkage.vertex_ids)})
+            h = comp.homology
+            surfaces.append(space.SurfaceOut(
+                closed=comp.closed, positions=positions, triangles=comp.triangles.tolist(),
+                euler=None if h is None else h.euler,
+                orientable=None if h is None else h.orientable,
+                betti_z2=None if h is None else list(h.betti_z2),
+                betti_q=None if h is None else list(h.betti_q),
+                genus=None if h is None or not comp.closed else h.genus,
+                defects=comp.defects, inverted_triangles=comp.inverted,
+                tangent_angle_max=float(np.degrees(comp.tangent_angle_max)),
+                morse_sum=comp.morse_sum, morse_agrees=comp.morse_agrees,
+                critical_points=comp.critical_points))
+    heights = [space.HeightCriticalOut(
+        configuration=positions_out(linkage, linkage.positions_of(u)), index=int(i),
+        surface=int(k)) for u, i, k in zip(res.height_critical.points, res.height_critical.index,
+                                           res.height_component, strict=True)]
+    search = {**res.search.as_dict(), "height": vertex_vectors(linkage, res.height)}
+    return space.SpaceResponse(
+        components=[], critical_points=critical_list_out(linkage, res.critical_points),
+        segments=[], degenerate=bool(res.search.degenerate), surfaces=surfaces,
+        height_critical_points=heights,
+        search=c.SearchReport.model_validate(search_out(search)),
         tolerances=tolerances_out(tol),
         **projection_fields(linkage, proj),  # type: ignore[arg-type]
     )

@@ -9,7 +9,8 @@ from service import mappers, serialise, tasks
 from service.bodies import JsonBodyRoute
 from service.config import SettingsDep
 from service.errors import problem_responses
-from service.operations import OPERATIONS, REQUESTS, SWEEPS
+from service.figure_formats import MEDIA_TYPES
+from service.operations import OPERATIONS, REQUESTS, SWEEPS, figure_bytes
 from service.schemas.jobs import (
     JobOut,
     JobRequest,
@@ -24,6 +25,7 @@ from service.tasks import JobManager
 router = APIRouter(prefix="/v1", tags=["jobs"], route_class=JsonBodyRoute)
 _CSV = "text/csv"
 _SVG = "image/svg+xml"
+_FIGURE_TYPES = [t for t in MEDIA_TYPES.values() if t != _SVG]
 
 
 def job_manager(request: Request) -> JobManager:
@@ -100,14 +102,15 @@ def cancel_job(job_id: str, manager: Manager) -> Response:
 @router.get(
     "/jobs/{job_id}/result", operation_id="getJobResult",
     responses={**problem_responses(404, 406, 409),
-               200: {"content": {"application/json": {}, _CSV: {}, _SVG: {}},
+               200: {"content": {"application/json": {}, _CSV: {}, _SVG: {},
+                                 **{t: {} for t in _FIGURE_TYPES}},
                      "description": "the result; a sweep's rows as CSV with Accept: text/csv; "
-                     "a figure's SVG"}},
+                     "a figure in its format (the body's `format`, default SVG)"}},
 )
 def job_result(job_id: str, request: Request, manager: Manager) -> Response:
     """The result of a finished job alone (of a failed or cancelled one: what it finished,
     marked ``partial``); ``Accept: text/csv`` gives a sweep's rows as CSV; a figure's job
-    answers its SVG (``image/svg+xml``)."""
+    answers its SVG (``image/svg+xml``), or the format its body's ``format`` names."""
     job = manager.get(job_id)
     if job.result is None:
         raise tasks.JobNotDone(f"job {job_id} is {job.status}, not done, and has no partial "
@@ -119,7 +122,8 @@ def job_result(job_id: str, request: Request, manager: Manager) -> Response:
     operation = OPERATIONS.get(job.operation)
     if isinstance(job.result, serialise.RawJSON):
         if operation is not None and operation.media_type != "application/json":  # a figure
-            return Response(job.result.value(), media_type=operation.media_type)
+            data, media_type = figure_bytes(job.result.value())
+            return Response(data, media_type=media_type)
         return Response(job.result.data, media_type="application/json")
     return FastJSONResponse(job.result)
 

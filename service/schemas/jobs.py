@@ -71,7 +71,8 @@ class JobSummary(BaseModel):
 class JobOut(JobSummary):
     result: Any | None = Field(
         None, description="when done: the JSON the synchronous endpoint answers (for sweeps: "
-        "rows and summary; for figures: the SVG as a string); when failed or cancelled: what "
+        "rows and summary; for figures: the SVG as a string, another format as a data: URL, "
+        "base64); when failed or cancelled: what "
         "was finished, if anything (partial)"
     )
 

@@ -75,6 +75,18 @@ class SpaceOptions(Strict):
         "default 512, about a second); 0 skips it",
         json_schema_extra=default_of(512),
     )
+    surface_step: Annotated[float, Field(strict=True, ge=0.02, le=2.0,
+                                         allow_inf_nan=False)] | None = Field(
+        None, description="edge length of the triangles of a two-degree-of-freedom "
+        "configuration space (M - E = 2: the answer's surfaces), relative to the median bar "
+        "length (default 0.25); the other searches ignore it",
+        json_schema_extra=default_of(0.25),
+    )
+    max_triangles: Annotated[int, Field(strict=True, ge=100, le=200_000)] | None = Field(
+        None, description="budget of triangles over every surface of a two-degree-of-freedom "
+        "configuration space (default 20000); the other searches ignore it",
+        json_schema_extra=default_of(20000),
+    )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
     points: Literal["objects", "compact"] | None = Field(
         None, description="how configuration-space components carry their points: \"objects\" "
@@ -168,6 +180,41 @@ class SegmentOut(BaseModel):
     model_config = {"populate_by_name": True}
 
 
+class HeightCriticalOut(BaseModel):
+    configuration: VertexVectors
+    index: int = Field(description="Morse index of the height there: 0 minimum, 1 saddle, "
+                       "2 maximum; -1 degenerate")
+    surface: int = Field(description="the surface it lies on (-1: none of the meshed ones)")
+
+
+class SurfaceOut(BaseModel):
+    """One compact component of a two-degree-of-freedom configuration space, triangulated."""
+
+    closed: bool = Field(description="the marching closed (no open front): a closed surface")
+    positions: dict[str, list[list[float]]] | PackedArray = Field(
+        description="per vertex of the linkage, its position at each mesh vertex; with "
+        "options.points = \"compact\" one PackedArray of shape (mesh vertices, vertices, d)"
+    )
+    triangles: list[list[int]] = Field(description="mesh vertex indices, counter-clockwise "
+                                       "in the positive tangent frames")
+    euler: int | None = Field(description="Euler characteristic V - E + F of the mesh")
+    orientable: bool | None
+    betti_z2: list[int] | None = Field(description="b0, b1, b2 over Z/2")
+    betti_q: list[int] | None = Field(description="b0, b1, b2 over Q")
+    genus: int | None = Field(description="of a closed connected surface")
+    defects: dict[str, int] = Field(description="open_edges, branched_edges, "
+                                    "pinched_vertices, repeated_triangles: all 0 for a closed "
+                                    "2-manifold")
+    inverted_triangles: int = Field(description="triangles negative in two of their vertices' "
+                                    "tangent frames (folded)")
+    tangent_angle_max: float = Field(description="largest angle (degrees) between a mesh "
+                                     "edge and the tangent planes at its ends")
+    morse_sum: int | None = Field(description="sum of (-1)^index over the height's critical "
+                                  "points on it (null: one is degenerate)")
+    morse_agrees: bool = Field(description="morse_sum equals euler (the Morse check)")
+    critical_points: list[int] = Field(description="the linkage's critical points on it")
+
+
 class SpaceResponse(Projection):
     components: list[ComponentOut]
     critical_points: list[CriticalPointOut]
@@ -175,5 +222,12 @@ class SpaceResponse(Projection):
         description="at critical lengths: which critical points each branch joins"
     )
     degenerate: bool
+    surfaces: list[SurfaceOut] | None = Field(
+        None, description="two degrees of freedom (M - E = 2, something fixed): every compact "
+        "component as a triangulated surface with its topology (components and segments are "
+        "then empty); null for one degree of freedom")
+    height_critical_points: list[HeightCriticalOut] | None = Field(
+        None, description="two degrees of freedom: the critical points of the generic height "
+        "of the Morse check, with their indices")
     search: SearchReport
     tolerances: TolerancesUsed

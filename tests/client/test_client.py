@@ -206,6 +206,31 @@ def test_figures_are_svg_documents(sync: Client) -> None:
         options={"resolution": 12, "seeds_per_axis": 2}))
 
 
+def test_figures_in_a_chosen_format(sync: Client, aio: Any) -> None:
+    """``draw``: any figure in any format, its bytes (each format opened by its reader in
+    tests/service/test_figure_formats.py; here: that the client asks for and returns them)."""
+    four = sync.get_preset_four_bar(L2=1.2)
+    png = sync.draw("linkage", {"linkage": four, "show": ["zero_modes"]}, format="png", dpi=40)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    width = int.from_bytes(png[16:20], "big")
+    assert abs(width - 6.4 * 40) <= 1  # the linkage figure is 6.4 in wide
+    assert sync.draw("linkage", {"linkage": four}, format="pdf").startswith(b"%PDF-")
+    dxf = sync.draw("linkage", {"linkage": four}, format="dxf")
+    assert b"LINKAGE_TOPOLOGY" in dxf
+    client, loop = aio
+    tikz = loop.run(client.draw("configuration-space", {"linkage": four, "options": FAST},
+                                format="tikz"))
+    assert b"\\begin{tikzpicture}" in tikz
+    svg_root(loop.run(client.draw("linkage", {"linkage": four})).decode("utf-8"))
+    with pytest.raises(ProblemError) as err:  # offered for the linkage only
+        sync.draw("splitting", {"linkage": four, "perturbation": {"L2": 1e-3}}, format="dxf")
+    assert err.value.status == 422 and err.value.errors[0].loc == ("body", "format")
+    with pytest.raises(ValueError, match="no figure format 'gif'"):
+        sync.draw("linkage", {"linkage": four}, format="gif")
+    with pytest.raises(ValueError, match="no figure named"):
+        sync.draw("linkages", {"linkage": four})
+
+
 def test_job_routes_answer_without_a_cluster(sync: Client) -> None:
     """The job operations whose answers need no Dask worker (the jobs themselves run in
     tests/client/test_jobs.py): the list, and the problems of unknown jobs and bad bodies."""

@@ -42,6 +42,11 @@ TRACING = ("/v1/analysis/critical-points", "/v1/analysis/configuration-space",
 DESIGN = "/v1/design/splitting"
 SPLIT_FRACTION = 1e-3
 BOX = (0.8, 1.2)
+#: Presets beyond their default parameters (issue 30: presets up to 100 rotors, the paper's gate)
+#: as ``(name, query)``.
+VARIANTS = (("kl-chain", "n=100"), ("gated-kl-chain", "n=4&gate=2"))
+#: The gate slice of issue 30: the 4-rotor gated chain's map in (L2, D) over [1, 3] x [1, 3.5].
+GATE_SLICE_AXES = ({"bar": "L2", "min": 1.0, "max": 3.0}, {"bar": "D", "min": 1.0, "max": 3.5})
 
 
 def _fixed_axes(vertex: Json, dim: int) -> list[bool]:
@@ -115,6 +120,24 @@ def design_body(client: Client, linkage: Json) -> Json | None:
         return None
     return {"linkage": linkage, "targets": [{"branch_point": kinds.index("branch"), "sign": 1}],
             "adjustable": [b["id"] for b in free_bars(linkage)]}
+
+
+def gate_slice(client: Client) -> Json:
+    """The body of issue 30's gate slice (default options: resolution 48, the default budget)."""
+    got = client.get("/v1/presets/gated-kl-chain?n=4&gate=2")
+    assert got.status_code == 200, got.text
+    return {"linkage": got.json(), "axes": [dict(a) for a in GATE_SLICE_AXES]}
+
+
+def variant_linkages(client: Client) -> Iterator[tuple[str, Json]]:
+    """``(label, linkage)`` of every preset with its defaults, then of :data:`VARIANTS` (the
+    label is the preset's name with its query, e.g. ``kl-chain?n=100``)."""
+    listing = client.get("/v1/presets")
+    assert listing.status_code == 200, listing.text
+    for label in [info["name"] for info in listing.json()] + [f"{n}?{q}" for n, q in VARIANTS]:
+        got = client.get(f"/v1/presets/{label}")
+        assert got.status_code == 200, (label, got.text)
+        yield label, got.json()
 
 
 def preset_cases(client: Client, only: list[str] | None = None

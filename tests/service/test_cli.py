@@ -101,10 +101,74 @@ def test_figure_writes_svg_in_process(tmp_path: Path) -> None:
     assert report == {"rc": 0, "dask": [], "children": 0}
     svg = (tmp_path / "fb.svg").read_text()
     assert svg.lstrip().startswith("<?xml") and "<svg" in svg and svg.rstrip().endswith("</svg>")
-    proc = cli("figure", "linkage", "--preset", "four-bar", "-o", str(tmp_path / "fb.png"))
-    assert proc.returncode == 2 and "SVG" in proc.stderr
+    assert "<text" in svg  # text as text
     proc = cli("figure", "analysis/rigidity", "--preset", "four-bar")
     assert proc.returncode == 2 and "unknown operation" in proc.stderr
+
+
+@pytest.mark.parametrize("dpi", [40, 80])
+def test_figure_writes_png_at_its_dpi_in_process(tmp_path: Path, dpi: int) -> None:
+    from tests.service.test_figure_formats import png_size_and_dpi
+
+    _, report = probe("figure", "linkage", "--preset", "four-bar", "-o", "fb.png", "--dpi",
+                      str(dpi), cwd=tmp_path)
+    assert report == {"rc": 0, "dask": [], "children": 0}
+    width, height, dots = png_size_and_dpi((tmp_path / "fb.png").read_bytes())
+    assert dots == pytest.approx(dpi, abs=0.02)
+    # the linkage figure is 6.4 in wide (service/figure_drawing.py): its pixels at this dpi
+    assert abs(width - 6.4 * dpi) <= 1
+
+
+def test_figure_writes_pdf_tikz_and_dxf_in_process(tmp_path: Path) -> None:
+    import io
+
+    import ezdxf
+    from pypdf import PdfReader
+
+    _, report = probe("figure", "configuration-space", "--preset", "four-bar", "--options",
+                      '{"max_points": 2000}', "-o", "space.pdf", cwd=tmp_path)
+    assert report == {"rc": 0, "dask": [], "children": 0}
+    pdf = (tmp_path / "space.pdf").read_bytes()
+    assert pdf.startswith(b"%PDF-") and pdf.rstrip().endswith(b"%%EOF")
+    assert len(PdfReader(io.BytesIO(pdf)).pages) == 1
+    tikz, report = probe("figure", "linkage", "--preset", "four-bar", "--format", "tikz",
+                         cwd=tmp_path)  # to stdout
+    assert report["rc"] == 0 and "\\begin{tikzpicture}" in tikz
+    _, report = probe("figure", "linkage", "--preset", "four-bar", "-o", "fb.dxf",
+                      cwd=tmp_path)
+    assert report["rc"] == 0
+    doc = ezdxf.readfile(tmp_path / "fb.dxf")
+    assert len(doc.modelspace().query("LINE[layer=='BARS']")) == 3
+
+
+def test_figure_search_stops_at_the_time_limit(tmp_path: Path) -> None:
+    """In-process figures search under --time-limit (the job's deadline): a second is too
+    short for the three-rotor's space, and the figure says its search is incomplete."""
+    tikz, report = probe("figure", "configuration-space", "--preset", "three-rotor",
+                         "--time-limit", "1", "--format", "tikz", cwd=tmp_path)
+    assert report == {"rc": 0, "dask": [], "children": 0}
+    assert "(search incomplete: time)" in tikz
+
+
+def test_figure_usage_errors(tmp_path: Path) -> None:
+    for args, says in (
+            (["-o", str(tmp_path / "fb.gif")], "a figure is written as"),
+            (["-o", str(tmp_path / "fb.png"), "--format", "pdf"], "is not a pdf file"),
+            (["--format", "bmp"], "invalid choice"),
+            (["-o", str(tmp_path / "fb.png"), "--dpi", "5000"], "dpi"),
+    ):
+        proc = cli("figure", "linkage", "--preset", "four-bar", *args)
+        assert proc.returncode == 2 and says in proc.stderr, (args, proc.stderr)
+    proc = cli("figure", "linkage", "--preset", "four-bar", "-o", str(tmp_path / "fb.png"),
+               "--dpi", "1200")
+    assert proc.returncode == 2 and "25,000,000 pixels" in proc.stderr
+    from service.schemas.common import EXAMPLE_LINKAGE
+
+    request = tmp_path / "split.json"
+    request.write_text(json.dumps({"linkage": EXAMPLE_LINKAGE, "perturbation": {"L2": 0.01}}))
+    proc = cli("figure", "splitting", str(request), "-o", str(tmp_path / "split.tex"))
+    assert proc.returncode == 2 and "not as tikz" in proc.stderr
+    assert not list(tmp_path.glob("fb.*")) and not list(tmp_path.glob("*.tex"))
 
 
 def test_sweep_usage_errors_start_no_cluster(tmp_path: Path) -> None:

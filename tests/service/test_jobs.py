@@ -508,3 +508,34 @@ def test_figure_runs_as_a_job_and_answers_the_endpoints_svg(api):
     ops = {o["operation"] for o in api.get("/v1/jobs/operations").json()}
     assert {"figures/linkage", "figures/configuration-space", "figures/critical-values",
             "figures/splitting"} <= ops
+
+
+def test_a_figure_job_in_another_format_answers_its_bytes(api):
+    """A PNG or DXF figure job: its JSON result a data: URL (RFC 2397), /result the bytes
+    the endpoint answers, with the format's media type."""
+    import base64
+
+    for fmt, media_type in (("png", "image/png"), ("dxf", "image/vnd.dxf")):
+        body = {"linkage": four_bar(api), "format": fmt, "dpi": 40}
+        r = api.post("/v1/jobs", json={"operation": "figures/linkage", "body": body})
+        assert r.status_code == 202, r.text
+        job = wait(api, r.headers["location"])
+        assert job["status"] == "done", job
+        head, data = job["result"].split(",", 1)
+        assert head == f"data:{media_type};base64"
+        result = api.get(f"{r.headers['location']}/result")
+        assert result.headers["content-type"] == media_type
+        assert result.content == base64.b64decode(data)
+        direct = api.post("/v1/figures/linkage", json=body).content
+        if fmt == "png":
+            assert result.content == direct
+        else:  # a DXF carries its time of writing and random GUIDs: the same entities
+            import io
+
+            import ezdxf
+
+            def entities(data: bytes) -> list[tuple[str, str, str]]:
+                msp = ezdxf.read(io.StringIO(data.decode())).modelspace()
+                return sorted((e.dxftype(), e.dxf.layer, str(e.dxfattribs())) for e in msp)
+
+            assert entities(result.content) == entities(direct)

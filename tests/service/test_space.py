@@ -256,3 +256,80 @@ def test_robustness_job_stopped_by_its_deadline_answers_incomplete():
     assert out.search.complete is False and out.search.reason == "time"
     assert out.margin is None and out.success is False and out.method == "multistart"
     assert out.model_dump(mode="json")["search"]["reason"] == "time"
+
+
+def pentagon_body(lengths=(1.0, 1.0, 1.0, 1.0, 1.0)):
+    """A planar pentagon with the bar P0 P1 pinned (two degrees of freedom), at a convex
+    configuration with the given lengths (the service projects it onto them)."""
+    pts = [[0.0, 0.0], [lengths[0], 0.0]]
+    th = 0.0
+    for k in range(3):
+        th += 2 * np.pi / 5
+        pts.append([pts[-1][0] + lengths[k + 1] * np.cos(th),
+                    pts[-1][1] + lengths[k + 1] * np.sin(th)])
+    ids = ["P0", "P1", "A", "B", "C"]
+    ends = [("P0", "P1"), ("P1", "A"), ("A", "B"), ("B", "C"), ("C", "P0")]
+    return {"vertices": [{"id": i, "position": p, "fixed": i in ("P0", "P1")}
+                         for i, p in zip(ids, pts, strict=True)],
+            "bars": [{"id": f"b{k}", "ends": list(e), "length": x}
+                     for k, (e, x) in enumerate(zip(ends, lengths, strict=True))]}
+
+
+def test_two_degrees_of_freedom_answer_surfaces(client):
+    """The equilateral pentagon's space (modulo rotations) is a closed orientable surface of
+    genus 4 (Kapovich and Millson; Farber and Schuetz: b1 = 8)."""
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": pentagon_body(), "options": {"surface_step": 0.4,
+                                                         "random_starts": 2}})
+    assert body["components"] == [] and body["segments"] == []
+    (surf,) = body["surfaces"]
+    assert surf["closed"] and surf["orientable"] and surf["genus"] == 4
+    assert surf["betti_q"] == [1, 8, 1] and surf["betti_z2"] == [1, 8, 1]
+    assert surf["euler"] == -6 and surf["morse_sum"] == -6 and surf["morse_agrees"]
+    assert not any(surf["defects"].values())
+    a, b = np.array(surf["positions"]["A"]), np.array(surf["positions"]["B"])
+    assert np.allclose(np.linalg.norm(a - b, axis=1), 1.0, atol=1e-9)
+    tri = np.array(surf["triangles"])
+    assert tri.min() == 0 and tri.max() == len(a) - 1
+    assert sum((-1) ** h["index"] for h in body["height_critical_points"]) == -6
+    assert body["search"]["reason"] == "searched"  # 1024 homotopy paths beyond 512
+    assert len(body["search"]["height"]) == 5
+
+
+def test_two_degrees_of_freedom_compact_and_bounded(client):
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": pentagon_body(), "options": {"points": "compact",
+                                                         "max_triangles": 200,
+                                                         "homotopy_paths_max": 0}})
+    (surf,) = body["surfaces"]
+    assert surf["positions"]["shape"][1:] == [5, 2] and not surf["closed"]
+    assert body["search"]["complete"] is False and body["search"]["reason"] == "budget"
+    for bad in ({"max_triangles": 10}, {"surface_step": 0.0}, {"surface_step": "x"}):
+        r = client.post("/v1/analysis/configuration-space",
+                        json={"linkage": pentagon_body(), "options": bad})
+        assert r.status_code == 422
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert "options" in r.text
+
+
+def test_two_degrees_of_freedom_answer_size_is_estimated_first(app, client):
+    """A triangle budget whose surfaces could exceed LINKAGE_MAX_POINTS is a 422 naming
+    options before any work (the estimate: about half a mesh vertex per triangle)."""
+    from service import config
+
+    before = app.dependency_overrides[config.get_settings]
+    app.dependency_overrides[config.get_settings] = lambda: before().replace(max_points=1000)
+    try:
+        r = client.post("/v1/analysis/configuration-space",
+                        json={"linkage": pentagon_body(), "options": {"max_triangles": 5000}})
+        ok = client.post("/v1/analysis/configuration-space",
+                         json={"linkage": pentagon_body(),
+                               "options": {"max_triangles": 1000, "homotopy_paths_max": 0,
+                                           "random_starts": 0}})
+    finally:
+        app.dependency_overrides[config.get_settings] = before
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "options"]
+    assert "max_triangles" in r.json()["errors"][0]["msg"]
+    assert ok.status_code == 200, ok.text
+    assert sum(len(s["triangles"]) for s in ok.json()["surfaces"]) <= 1000 + 12

@@ -135,6 +135,24 @@ def test_a_floppy_chain_within_the_limits_is_answered(four_bar):
     assert body["method"] == "dense-svd"
 
 
+def _loaded(name: str) -> bool:
+    import sys
+
+    return name in sys.modules
+
+
+def test_a_worker_starts_with_the_figures_imported():
+    """The forkserver imports the figures (matplotlib) once: a worker's first figure request
+    does not pay the import (1-3 s on a loaded 2-core machine, issue 30)."""
+    pool = EnginePool(1, 4)
+    try:
+        pool.start()
+        assert asyncio.run(pool.run(30, _loaded, "service.figures"))
+        assert asyncio.run(pool.run(30, _loaded, "matplotlib.figure"))
+    finally:
+        pool.close()
+
+
 def _allocate(n_bytes: int) -> int:
     return int(np.ones(n_bytes // 8).size)
 

@@ -65,6 +65,10 @@ SEED_CHUNK = 128
 #: these, only the closest point of each pass of a curve near the point is tested.
 NEAREST = 16
 
+#: Up to this many traced curves :meth:`Explorer.on_traced` asks each curve's own k-d tree
+#: instead of the tree of all curves (rebuilt after every new curve).
+FOREST_MAX = 64
+
 #: The k-d tree query of :meth:`Explorer.on_curve` looks this far (relative to the step bound,
 #: beyond which no point is a candidate), a little further so that rounding in the tree's
 #: distance test drops no neighbour at the bound.
@@ -175,7 +179,8 @@ class Explorer:
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
                argument: tuple[Argument | None, str | None] = (None, None),
-               curves_needed: bool = True, **details: object) -> SearchReport:
+               curves_needed: bool = True, seeds_needed: bool = True,
+               **details: object) -> SearchReport:
         """The report of the search: what was done (``self.report`` and ``details``), and the
         flags that decide whether it is complete (:class:`engine.model.report.SearchReport`);
         ``agreed`` False: an independent count disagrees with what was traced (unresolved);
@@ -183,13 +188,16 @@ class Explorer:
         (:func:`engine.space.configuration_space.proof.argument`); ``curves_needed`` False: the
         argument does not rest on the traced curves (critical points proved by the homotopy or
         the chain rules), so budgets, open curves and the deadline while tracing do not make
-        the answer incomplete."""
+        the answer incomplete; ``seeds_needed`` False: the argument counts the components
+        and that many were traced (the chain rules), so seeds left untried (the component and
+        assembly budgets) do not either."""
         if argument[0] is not None and not curves_needed:
             return SearchReport({**self.report, **details}, degenerate=degenerate,
                                 time_budget_s=granted(self.deadline), argument=argument[0],
                                 argument_detail=argument[1])
-        budget = bool(self.report.get("component_budget_reached")
-                      or self.report.get("assemblies_truncated") or self.size_reached()
+        budget = bool((seeds_needed and (self.report.get("component_budget_reached")
+                                         or self.report.get("assemblies_truncated")))
+                      or self.size_reached()
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
         unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
@@ -245,27 +253,57 @@ class Explorer:
         """True when ``u`` lies on a traced curve: near its polyline, and the hyperplane
         correction from the closest point of some pass of a curve near ``u`` (among its
         ``NEAREST`` nearest curve points) towards ``u`` lands on ``u``."""
-        tree = self.tree
-        if tree is None:
+        near = self._nearest_traced(u)
+        if near is None:
             return False
-        dist, idx = tree.query(u, k=min(NEAREST, tree.n))
-        dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
-        near = dist <= self.h_max
-        dist, idx = dist[near], idx[near]
-        if not len(idx):
+        dist, owner, offset = near
+        keep = dist <= self.h_max
+        dist, owner, offset = dist[keep], owner[keep], offset[keep]
+        if not len(dist):
             return False
-        owner = self.tree_owner[idx]
-        first = self.tree_first[owner]
-        last = first + np.array([len(self.curves[o].points) for o in owner]) - 1
-        tested = pass_minima(tree.data, u[None], idx[None], dist[None], first, last)[0]
-        for i in idx[tested]:
-            curve, offset = self._tree_point(int(i))
-            p, t = curve.points[offset], curve.tangents[offset]
+        tested = np.zeros(len(dist), dtype=bool)
+        for k in np.unique(owner):  # (pass minima along each curve's own points)
+            mine = owner == k
+            pts = self._curve_cache(self.curves[int(k)])[1]
+            tested[mine] = pass_minima(pts, u[None], offset[mine][None], dist[mine][None])[0]
+        for k, i in zip(owner[tested], offset[tested], strict=True):
+            curve = self.curves[int(k)]
+            p, t = curve.points[int(i)], curve.tangents[int(i)]
             v = p + ((u - p) @ t) * t
             w, ok, _ = correct(self.cons, v, t, self.tol)
             if ok and np.linalg.norm(w - u) <= SAME_POINT_REL * self.scale:
                 return True
         return False
+
+    def _nearest_traced(self, u: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The ``NEAREST`` traced points nearest to ``u`` (distances ascending, as the tree of
+        all curves gives them; those beyond ``QUERY_BOUND_REL h_max`` may be left out): their
+        distances, curves and offsets along them, None before any curve. Up to
+        :data:`FOREST_MAX` curves each curve's own tree is asked (built once per curve): the
+        tree of all curves is rebuilt after every traced curve, which on long chains (10^4
+        points of 200 coordinates per curve) cost more than the tracing."""
+        if not self.curves:
+            return None
+        if len(self.curves) > FOREST_MAX:
+            tree = self.tree
+            assert tree is not None
+            dist, idx = tree.query(u, k=min(NEAREST, tree.n))
+            idx = np.atleast_1d(idx)
+            owner = self.tree_owner[idx]
+            return np.atleast_1d(dist), owner, idx - self.tree_first[owner]
+        found = []
+        bound = QUERY_BOUND_REL * self.h_max
+        for k, curve in enumerate(self.curves):
+            tree = self._curve_cache(curve)[3]
+            dist, idx = tree.query(u, k=min(NEAREST, tree.n), distance_upper_bound=bound)
+            dist, idx = np.atleast_1d(dist), np.atleast_1d(idx)
+            near = np.isfinite(dist)
+            found.append((dist[near], np.full(int(near.sum()), k), idx[near]))
+        dist = np.concatenate([f[0] for f in found])
+        order = np.argsort(dist, kind="stable")[:NEAREST]  # (ties: the first curve first)
+        return (dist[order], np.concatenate([f[1] for f in found])[order],
+                np.concatenate([f[2] for f in found])[order])
 
     def trace_from(self, u: np.ndarray) -> Curve | None:
         # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
@@ -304,10 +342,11 @@ class Explorer:
     def nearest_points(self, us: np.ndarray) -> list[tuple[Curve, int]] | None:
         """The traced curve point nearest to each row of ``us`` (K, M): its curve and its
         index along it (None before any curve), all rows in one query per tree. Small
-        linkages ask each curve's own k-d tree (:meth:`on_curve` has built them), so the tree
-        of all curves is never built; large ones :attr:`tree`."""
+        linkages, and up to :data:`FOREST_MAX` curves, ask each curve's own k-d tree
+        (:meth:`on_curve` and :meth:`on_traced` have built them), so the tree of all curves is
+        never built; more curves of a large linkage :attr:`tree`."""
         us = np.asarray(us, dtype=float).reshape(-1, self.cons.n_free)
-        if self.batched is None:
+        if self.batched is None and len(self.curves) > FOREST_MAX:
             tree = self.tree
             if tree is None:
                 return None

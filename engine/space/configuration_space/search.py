@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from engine.local.critical import CriticalPoint, NearMiss
@@ -13,7 +15,7 @@ from engine.model.budget import (
 )
 from engine.model.linkage import Linkage
 from engine.model.tolerances import Tolerances
-from engine.space.chain_count import chain_components
+from engine.space.chain_count import chain_components, gated_chain_components
 from engine.space.configuration_space.closed_form import (
     NO_CANDIDATE,
     closed_form_answer,
@@ -60,6 +62,16 @@ def find_critical_points(
     """
     tol = tolerances or Tolerances()
     opt = options or SpaceOptions()
+    # The chain rules prove that there is no critical point (engine.space.chain_count): for a
+    # gated chain as for a plain one, since with the chain driven from the gate rotor a
+    # self-stress vanishes tip by tip inwards to the gate's tip, where it is left on the gate
+    # four-bar P_g T_g R G (G held by the slider's transversal meeting with the circle of
+    # radius D: a pin for the stress), which carries one only when flat, and its lengths are
+    # generic. The curves then serve only the near misses, and the components a budget would
+    # trace are an arbitrary few of 2^(n-1) (a 100-rotor chain: 32 of 2^99, the whole default
+    # budget): the near misses are those of the component the linkage is on.
+    count = chain_components(linkage) or gated_chain_components(linkage)
+    sample = start_on_space and count is not None
     ex = Explorer(linkage, tol, opt, deadline or NEVER)
     start = linkage.coordinates() if start_on_space else None
     if opt.closed_form and opt.critical_closed_form:
@@ -75,9 +87,14 @@ def find_critical_points(
     if opt.critical_closed_form:
         ex.report["method"] = "tracer"
         ex.report.setdefault("closed_form", "off")
-    count = chain_components(linkage)
     proof = gather(ex) if count is None else None
+    if sample:  # (the closed form above samples every sheet: it needs no such choice)
+        ex.opt = replace(opt, max_components=1)
     ex.trace_all(start)
+    if sample and count is not None:
+        ex.report["near_misses_from"] = (
+            f"the component through the given configuration: the chain rules ({count.rule}) "
+            f"prove that none of the {count.components} components has a critical point")
     extra = proof.critical_starts if proof is not None else None
     crit, misses, degenerate = critical_points(ex, extra)
     search = ex.finish(degenerate, argument=argument(ex, proof, crit, count, components=False),
@@ -137,7 +154,9 @@ def explore(
     # -- general path ---------------------------------------------------------------------
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
-    count = chain_components(linkage)
+    # (a gated chain driven from its gate: see find_critical_points for why it has no critical
+    # point; engine.space.chain_count for its count)
+    count = chain_components(linkage) or gated_chain_components(linkage)
     proof = gather(ex) if count is None else None
     ex.trace_all(start, *_seeds_and_isolated(ex, proof))
     if count is not None and not near_misses:
@@ -168,8 +187,9 @@ def explore(
         if not agreed:  # a second method disagrees: never a confident count (unresolved)
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives {count.components}")
-    search = ex.finish(degenerate, seg_complete, agreed,
-                       argument(ex, proof, crit, count, len(components)),
+    why = argument(ex, proof, crit, count, len(components))
+    search = ex.finish(degenerate, seg_complete, agreed, why,
+                       seeds_needed=count is None or why[0] is None,
                        critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)

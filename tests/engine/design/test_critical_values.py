@@ -13,6 +13,14 @@ from engine.design.critical_values import critical_value_slice
 from engine.design.slice_curves import Axis, _System
 from engine.design.slice_regions import _blocked_cells, _polyline_distance
 from engine.space.configuration_space import SpaceOptions, explore
+from tests.engine.design.slice_references import (
+    gate_lines,
+    gate_rotor_turns,
+    three_rotor_arcs,
+    three_rotor_components,
+    three_rotor_lines,
+    three_rotor_residual,
+)
 
 SIGNS = list(itertools.product((1, -1), repeat=3))
 
@@ -141,10 +149,12 @@ def test_a_traced_slice_has_one_topology_per_region():
     assert not res.search["complete"] and res.search["reason"] == "searched"
     free = ~_blocked_cells(res.curves, box, n)
     labels, count = ndimage.label(free)
-    assert count == len(res.regions)
+    # one region per piece of the raster, or several pieces the finer raster joins; regions
+    # thinner than a cell have no cell
+    assert count >= sum(r.cells > 0 for r in res.regions)
     dist = ndimage.distance_transform_edt(free)
     bars = (lk.bar_ids.index("L1"), lk.bar_ids.index("L2"))
-    for region in res.regions:
+    for region in (r for r in res.regions if r.cells > 0):
         cell = tuple(((np.array(region.point) - box[:, 0]) / (box[:, 1] - box[:, 0]) * n)
                      .astype(int))
         inner = np.argwhere((labels == labels[cell]) & (dist >= 2))
@@ -155,3 +165,118 @@ def test_a_traced_slice_has_one_topology_per_region():
             at = lk.with_lengths(lengths)
             comps = explore(at, options=opt, start_on_space=False, near_misses=False).components
             assert len(comps) == region.components, (region, (i, j))
+
+
+def _inside_points(res, box: np.ndarray, n: int, region, count: int = 3) -> list[np.ndarray]:  # noqa: ANN001
+    """The region's sample and up to ``count`` of its cells at least two cells from every curve
+    (a region thinner than a cell: its sample only)."""
+    points = [np.array(region.point)]
+    if region.cells == 0:
+        return points
+    free = ~_blocked_cells(res.curves, box, n)
+    labels, _ = ndimage.label(free)
+    dist = ndimage.distance_transform_edt(free)
+    span = box[:, 1] - box[:, 0]
+    cell = tuple(np.clip(((points[0] - box[:, 0]) / span * n).astype(int), 0, n - 1))
+    inner = np.argwhere((labels == labels[cell]) & (dist >= 2))
+    for i, j in inner[np.linspace(0, len(inner) - 1, min(count, len(inner))).astype(int)]:
+        points.append(box[:, 0] + span * (np.array([i, j]) + 0.5) / n)
+    return points
+
+
+def _covered(res, pieces: list[np.ndarray], box: np.ndarray, atol: float) -> None:  # noqa: ANN001
+    """Every point of the closed-form pieces strictly inside the box is within ``atol`` of a
+    curve of the slice."""
+    for piece in pieces:
+        inside = np.all((piece > box[:, 0] + 1e-3) & (piece < box[:, 1] - 1e-3), axis=1)
+        if not inside.any():
+            continue
+        pts = piece[inside][:: max(1, int(inside.sum()) // 400)]
+        dist = np.min([_polyline_distance(pts, c) for c in res.curves], axis=0)
+        assert dist.max() <= atol, pts[np.argmax(dist)]
+
+
+@pytest.mark.slow
+def test_the_three_rotor_slice_has_its_closed_form_critical_set():
+    """Issue 23: the default three-rotor over L1, L2 in [0.6, 1.4] has the lines where one dyad
+    straightens with the middle rotor (L1 = 1, L2 = 1) and the arcs where both dyads are
+    straight (a component is born at a rigid point on the arc from (0.98, 0.6) to (0.6, 0.98),
+    missed before: one region held 3 and 4 components). Every curve point is on the closed
+    form, every closed-form piece in the box is drawn, and every region's count is the dense
+    sampling's at its sample and at three more of its cells."""
+    lk = build_preset("three-rotor")
+    n = 24
+    box = np.array([[0.6, 1.4], [0.6, 1.4]])
+    res = critical_value_slice(lk, [("L1", 0.6, 1.4), ("L2", 0.6, 1.4)], resolution=n)
+    for curve in res.curves:
+        inner = np.all((curve > box[:, 0] + 1e-9) & (curve < box[:, 1] - 1e-9), axis=1)
+        for l1, l2 in curve[inner]:
+            assert three_rotor_residual(l1, l2) <= 1e-6, (l1, l2)
+    vertical, horizontal = three_rotor_lines()
+    ys = np.linspace(0.6, 1.4, 200)
+    lines = [np.column_stack([np.full_like(ys, v), ys]) for v in vertical] + \
+        [np.column_stack([ys, np.full_like(ys, h)]) for h in horizontal]
+    _covered(res, lines + three_rotor_arcs(), box, 2e-3)
+    for region in res.regions:
+        for q in _inside_points(res, box, n, region):
+            assert region.components == three_rotor_components(*q), (region, q)
+    assert {3, 4} <= {r.components for r in res.regions}
+    s = res.search
+    assert s["sweeps_complete"] == s["sweeps"] == 2  # per axis: two edges and between them
+    # every curve but one born and gone within a sweep step: still only searched
+    assert not s["complete"] and s["reason"] == "searched"
+    assert "sweep step" in s["argument_detail"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("box", "empty"), [
+    (((1.0, 3.0), (1.0, 3.5)), False),
+    (((0.5, 3.0), (1.0, 5.0)), True),  # with the line D = L2 + 3.5 beyond which it is empty
+], ids=["default box", "with the empty region"])
+def test_the_gate_slice_has_its_closed_form_lines(box, empty):
+    """The gated chain (n = 4, gate 2) over (L2, D): its critical values are the gate four-bar's
+    straight lines D = +-r +-L2 +-L1 (the chain's dyads never straighten), the last of which
+    bounds the region where the space is empty; every curve point is on one, every line in the
+    box is drawn, and the gate rotor's turning in every region is the dense sampling's at its
+    sample and at three more of its cells (0 components where the gate does not assemble)."""
+    lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    n = 48
+    b = np.array(box)
+    res = critical_value_slice(lk, [("L2", *box[0]), ("D", *box[1])], resolution=n,
+                               options=SpaceOptions(angles=12, random_starts=2,
+                                                    max_components=4))
+    lines = gate_lines()
+    for curve in res.curves:
+        for l2, d in curve:
+            assert min(abs(d - (k * l2 + c)) for k, c in lines) <= 1e-6, (l2, d)
+    xs = np.linspace(*box[0], 400)
+    _covered(res, [np.column_stack([xs, k * xs + c]) for k, c in lines], b, 1e-6)
+    kinds = set()
+    for region in res.regions:
+        for q in _inside_points(res, b, n, region):
+            expected = gate_rotor_turns(*q)
+            kinds.add(expected)
+            if expected is None:
+                assert region.components == 0, (region, q)
+                continue
+            turns = {int(t.split(":")[1]) for t in
+                     region.signature.split("turns=")[1].split(",") if t.startswith("r2")}
+            assert turns == {expected}, (region, q)
+    assert (None in kinds) == empty and {0, 1} <= kinds
+
+
+def test_a_four_bar_map_keeps_a_region_thinner_than_a_cell():
+    """Four-bar a = 1, L1 = 1.01 over (L2, L3) in [0.3, 2.2]^2 at 48 cells (0.04 each): the
+    lines L3 = L2 +- 0.01 (a +- L1 +- L2 +- L3 = 0) bound a strip 0.014 wide where the four-bar
+    is Grashof (2 components, 1 on either side for L2 > 1): it is a region of the map, with
+    every region's count the classical rule's."""
+    base = {"a": 1.0, "L1": 1.01, "L2": 1.2, "L3": 1.0}
+    lk = build_preset("four-bar", {"L1": 1.01, "L2": 1.2})
+    res = critical_value_slice(lk, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)], resolution=48)
+    for region in res.regions:
+        lengths = {**base, "L2": region.point[0], "L3": region.point[1]}
+        assert region.components == four_bar_components(lengths), region
+    # the strip beyond L2 = 1.01 (below it other lines cross it and it is non-Grashof)
+    strip = [r for r in res.regions if abs(r.point[1] - r.point[0]) < 0.01 and r.point[0] > 1.1]
+    assert strip and all(r.components == 2 and r.cells == 0 for r in strip)
+    assert res.search["complete"] and res.search["thin_unresolved"] == 0

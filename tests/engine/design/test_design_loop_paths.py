@@ -83,14 +83,15 @@ def test_closed_form_slice_is_the_traced_slice(params, axes):
     for c in fast.curves:
         assert max(_plane_residual({**base, x: p, y: q}) for p, q in c) <= 1e-9
         assert np.max(np.linalg.norm(np.diff(c, axis=0), axis=1)) <= fast.search["step"] + 1e-12
-    for r in fast.regions:
+    for r in fast.regions + slow.regions:
         assert r.components == _four_bar_components({**base, x: r.point[0], y: r.point[1]})
     if len(fast.curves) == len(slow.curves):  # the traced path found every line
         assert _hausdorff(fast.curves, slow.curves) <= 1e-7 * span
         # the same regions (rasters of two samplings of one line differ by a few cells; a
-        # region's sample point may be another of equally central cells)
-        key = sorted((r.components, r.signature, r.cells) for r in fast.regions)
-        ref = sorted((r.components, r.signature, r.cells) for r in slow.regions)
+        # region's sample point may be another of equally central cells; the regions thinner
+        # than a cell, found in a finer raster, depend on the sampling: each is checked above)
+        key = sorted((r.components, r.signature, r.cells) for r in fast.regions if r.cells)
+        ref = sorted((r.components, r.signature, r.cells) for r in slow.regions if r.cells)
         assert [k[:2] for k in key] == [k[:2] for k in ref]
         assert all(abs(a[2] - b[2]) <= max(2, 0.05 * b[2]) for a, b in zip(key, ref, strict=True))
 
@@ -268,7 +269,8 @@ def test_seeds_taken_a_column_at_once_are_the_seeds_taken_one_by_one(
     from engine.design.critical_values import _CurveTracing
 
     lk = build_preset(name, params)
-    opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
+    # (no homotopy: the seed lengths' path, which slices take where the sweeps cannot run)
+    opt = SpaceOptions(angles=12, random_starts=2, max_components=4, homotopy_paths_max=0)
     fast = critical_value_slice(lk, axes, resolution=16, options=opt, method=method)
     batches: list[int] = []
     take = _CurveTracing.take

@@ -244,6 +244,9 @@ def test_slider_crank_margin_is_the_branch_point_crank_equals_rod(adjustable, ex
     res = robustness(lk, adjustable, tol)
     assert res.success and res.method == "multistart"
     assert res.guarantee == "upper-bound" and res.exact_margin is None
+    # incomplete without an argument, and the answer says what it does establish (issue 30)
+    assert not res.search.complete and res.search.argument is None
+    assert res.search.argument_detail.startswith("an upper bound: the best local minimum")
     assert res.guarantee_detail.startswith("best local minimum over")
     # every start ran, but a multistart's margin is an upper bound: no argument, never complete
     assert res.search["complete"] is False and res.search["reason"] == "searched"

@@ -98,14 +98,23 @@ def test_find_critical_points_equals_explore(name):
     assert len(fast.critical_points) == len(full.critical_points)
     for a, b in zip(fast.critical_points, full.critical_points, strict=True):
         assert np.allclose(a.u, b.u, atol=1e-12) and a.kind == b.kind
+    assert fast.degenerate == full.degenerate
+    if full.search["complete"]:
+        assert fast.search["complete"]
+    if "near_misses_from" in fast.search:
+        # the chain rules prove that there is no critical point (the gated chain driven from
+        # its gate): only the component through the given configuration is traced, and the
+        # near misses lie on it, the one explore traces from there too (issue 30)
+        assert fast.search["curves_traced"] == 1 and fast.near_misses
+        (own,) = [c for c in full.components if c.through_start]
+        for m in fast.near_misses:
+            assert np.linalg.norm(own.points - m.u, axis=1).min() <= 1e-9
+        return
     assert len(fast.near_misses) == len(full.near_misses)
     for a, b in zip(fast.near_misses, full.near_misses, strict=True):
         assert np.allclose(a.critical_u, b.critical_u, atol=1e-12)
-    assert fast.degenerate == full.degenerate
     for key in ("curves_traced", "critical_candidates", "critical_points_found", "seeds"):
         assert fast.search[key] == full.search[key]
-    if full.search["complete"]:
-        assert fast.search["complete"]
 
 
 def test_three_rotor_critical_points_fast_path():
@@ -299,9 +308,10 @@ def test_random_seeds_appended_when_reached_trace_what_all_seeds_up_front_trace(
 
 @pytest.mark.parametrize("name", list(LINKAGES))
 def test_the_seed_loop_builds_the_tree_of_its_curves_once(name, monkeypatch):
-    """Small linkages' seed loop never builds the k-d tree of all traced curves (on_curve keeps
-    a tree per curve): it is built once, when the search first reads it (critical_search's near
-    misses), and it is the tree of the one-at-a-time loop, which reads it for every seed."""
+    """The seed loop never builds the k-d tree of all traced curves, neither small linkages'
+    (on_curve keeps a tree per curve) nor the one-at-a-time loop of large ones (on_traced asks
+    each curve's tree up to FOREST_MAX curves): it is built once, when first read, and it is
+    the same tree for both loops."""
     lk = build_preset(*LINKAGES[name])
     opt = SpaceOptions(angles=24, random_starts=4, max_components=4)
     builds = {}
@@ -317,12 +327,12 @@ def test_the_seed_loop_builds_the_tree_of_its_curves_once(name, monkeypatch):
     ref.batched = None
     for ex in (fast, ref):
         ex.trace_all(lk.coordinates())
-    assert id(fast) not in builds and 0 < builds[id(ref)] <= len(ref.curves)
+    assert id(fast) not in builds and id(ref) not in builds
     assert len(ref.curves) == len(fast.curves) > 0
     assert np.array_equal(fast.tree_owner, ref.tree_owner)
     assert np.array_equal(fast.tree_first, ref.tree_first)
     assert np.array_equal(fast.tree.data, ref.tree.data)
-    assert builds[id(fast)] == 1
+    assert builds[id(fast)] == builds[id(ref)] == 1
 
 
 def _on_curve_full_query(ex, us, curve):
@@ -578,3 +588,41 @@ def test_curve_arrays_joined_from_blocks_are_the_lists_converted(case, path, mon
     curve = curves[0]
     curve.points.append(curve.points[0] + 1.0)  # behind the blocks' back
     np.testing.assert_array_equal(curve.array("points"), np.array(curve.points))
+
+
+@pytest.mark.parametrize("case", [LINKAGES[k] for k in ("three-rotor", "gated chain",
+                                                        "kl-chain 6")]
+                         + [("kl-chain", {"n": 20})])
+def test_per_curve_trees_of_on_traced_change_nothing(case, monkeypatch):
+    """``on_traced`` asking each curve's own k-d tree (up to ``FOREST_MAX`` curves: the tree of
+    all curves was rebuilt after every traced curve, 40 % of a 100-rotor chain's search, issue
+    30) marks the same points as the tree of all curves, for seeds and for points scattered
+    near and far from the curves; the one-at-a-time seed loop of a chain of 20 rotors (40 free
+    coordinates, beyond the batched loop) traces the same exploration with either."""
+    import engine.space.configuration_space.explorer as explorer_module
+
+    lk = build_preset(*case)
+    opt = SpaceOptions(closed_form=False, angles=24, random_starts=4, max_components=6)
+    ex = _Explorer(lk, TOL, opt)
+    ex.trace_all(lk.coordinates())
+    assert ex.curves and len(ex.curves) <= explorer_module.FOREST_MAX
+    rng = np.random.default_rng(11)
+    stack = np.array(seeds(lk, TOL, opt.angles, opt.assembly_budget, opt.random_starts,
+                           opt.seed, opt.max_swept_rotors).points)[:200]
+    pts = np.vstack([c.array("points") for c in ex.curves])
+    picks = pts[rng.integers(0, len(pts), 32)]
+    probes = np.vstack([stack] + [picks + s * ex.h_max * rng.normal(size=picks.shape)
+                                  for s in (0.0, 0.01, 0.5, 1.0, 3.0)])
+    forest = [ex.on_traced(u) for u in probes]
+    monkeypatch.setattr(explorer_module, "FOREST_MAX", 0)
+    assert forest == [ex.on_traced(u) for u in probes]
+    assert any(forest) and not all(forest)
+    ref = explore(lk, TOL, opt)
+    monkeypatch.undo()
+    fast = explore(lk, TOL, opt)
+    assert fast.search == ref.search
+    assert len(fast.components) == len(ref.components)
+    for a, b in zip(fast.components, ref.components, strict=True):
+        assert np.array_equal(a.points, b.points)
+    assert [(m.u.tolist(), m.critical_u.tolist()) for m in fast.near_misses] == \
+        [(m.u.tolist(), m.critical_u.tolist()) for m in ref.near_misses]

@@ -1,0 +1,28 @@
+"""The configuration space of a two-degree-of-freedom linkage (``M - E = 2``): every compact
+component as a triangulated surface with its topology (issue 25).
+
+Modules: :mod:`.geometry` (oriented tangent frames, projection), :mod:`.mesh` (the marching
+triangulation), :mod:`.homology` (Euler characteristic, orientability, Betti numbers over Z/2
+and Q), :mod:`.morse` (critical points of a generic height: seeds on every compact component
+and the Morse check), :mod:`.explore` (the entry point :func:`explore_surfaces`).
+"""
+
+from engine.space.surfaces.explore import (
+    SurfaceComponent,
+    SurfaceOptions,
+    SurfaceResult,
+    explore_surfaces,
+    require_two_dof,
+)
+from engine.space.surfaces.homology import Homology, manifold_defects, surface_homology
+
+__all__ = [
+    "Homology",
+    "SurfaceComponent",
+    "SurfaceOptions",
+    "SurfaceResult",
+    "explore_surfaces",
+    "manifold_defects",
+    "require_two_dof",
+    "surface_homology",
+]

@@ -1,0 +1,344 @@
+"""The whole configuration space of a two-degree-of-freedom linkage (``M - E = 2``, something
+fixed): every compact component as a triangulated surface with its topology.
+
+1. **Seeds**: the critical points of a generic height ``c . u`` (:mod:`.morse`: the Lagrange
+   system's real solutions, all of them found by homotopy when its ``2^(M + E)`` paths are
+   within ``homotopy_paths_max``: then every compact component holds one), the given
+   configuration and projected random starts.
+2. **Meshes**: from every seed that no mesh covers yet, march a triangulation
+   (:mod:`.mesh`), within the triangle budget and the deadline.
+3. **Topology** per component (:mod:`.homology`): Euler characteristic, orientability, Betti
+   numbers over Z/2 and Q, the genus of a closed surface; the manifold checks (every edge in two
+   triangles, every vertex link a cycle) and the geometric ones (every triangle positive in its
+   vertices' tangent frames, its plane within ``TANGENT_ANGLE_MAX`` of theirs).
+4. **Morse check**: the critical points of the height (the homotopy's, else the PL critical
+   vertices of the meshes refined by Newton) with their indices; on each component their
+   alternating sum must equal the Euler characteristic.
+5. **Critical points of the linkage** (rank-deficient ``J``): refined from the mesh vertices
+   where ``J`` is nearest to losing rank, classified to second order (``Q`` on the three zero
+   modes: its signature says cone or isolated point). A component through one is no smooth
+   surface: the answer is then incomplete (``degenerate``).
+
+The answer is complete only when every mesh closed as a 2-manifold, passed the geometric and
+Morse checks, no linkage critical point lies on it, and the homotopy proved the seeds
+(``argument = "proved"``); otherwise ``search.reason`` says what is missing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from engine.local.critical import CriticalPoint, classify, refine_critical
+from engine.model.budget import NEVER, Deadline, granted
+from engine.model.constraints import Constraints
+from engine.model.errors import InvalidLinkage
+from engine.model.linkage import Linkage
+from engine.model.report import SearchReport
+from engine.model.tolerances import SAME_POINT_REL, Tolerances
+from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.homology import (
+    Homology,
+    edges_of,
+    manifold_defects,
+    surface_homology,
+)
+from engine.space.surfaces.mesh import Mesh, march
+from engine.space.surfaces.morse import (
+    HeightCritical,
+    HeightWitnesses,
+    assign,
+    classify_points,
+    height_witnesses,
+    pl_critical_vertices,
+    ring,
+)
+from engine.space.witnesses import PATHS_MAX, bounded
+
+#: Largest angle (radians) between a mesh edge and the tangent planes at its ends: it grows as
+#: the step times the surface's curvature (the equilateral pentagon: 36 degrees at
+#: ``step_rel = 0.25``); beyond it the mesh cuts across the surface (a thin part, a tight
+#: bend), and the component is meshed again with a shorter step.
+TANGENT_ANGLE_MAX = np.deg2rad(45.0)
+#: The step of a component meshed again (its geometric checks failed), relative to the last.
+REMESH_FACTOR = 0.6
+#: Times a component is meshed again at most.
+REMESH_MAX = 2
+#: Mesh vertices where ``s_min / s_max`` of ``J`` is below this are refined as possible
+#: critical points of the linkage.
+NEAR_CRITICAL_GAP = 0.02
+#: At most this many such vertices are refined (the smallest gaps first).
+NEAR_CRITICAL_MAX = 8
+
+
+@dataclass(frozen=True)
+class SurfaceOptions:
+    """Controls of the surface search (every cost is bounded by these and the deadline)."""
+
+    #: Edge length of the triangles, relative to the median bar length.
+    step_rel: float = 0.25
+    #: Budget of triangles over all components.
+    max_triangles: int = 20_000
+    #: Projected random starts (seeds besides the height's critical points).
+    random_starts: int = 12
+    #: Largest path count of the homotopy (``2^(M + E)``; 1024 for a pentagon with one bar
+    #: pinned); 0 skips it.
+    homotopy_paths_max: int = PATHS_MAX
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class SurfaceComponent:
+    """One meshed component: ``vertices`` (N, M), ``triangles`` (T, 3), ``closed``, its
+    ``homology`` (None without triangles), ``defects`` (:func:`.homology.manifold_defects`),
+    ``inverted`` (triangles negative in two of their vertices' frames),
+    ``tangent_angle_max`` (radians: the largest angle of an edge off its ends' tangent planes),
+    the height's critical points on it (indices into :attr:`SurfaceResult.height_critical`),
+    ``morse_sum`` (their alternating sum) and ``morse_agrees``, and the linkage's critical
+    points on it (indices into :attr:`SurfaceResult.critical_points`)."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    closed: bool
+    homology: Homology | None
+    defects: dict[str, int]
+    inverted: int
+    tangent_angle_max: float
+    height_critical: list[int]
+    morse_sum: int | None
+    morse_agrees: bool
+    critical_points: list[int]
+    message: str
+
+
+@dataclass(frozen=True)
+class SurfaceResult:
+    """Outcome of :func:`explore_surfaces`: the components, the height ``c`` (M,) of the
+    Morse check with its critical points (``component`` (K,): the component each lies on, -1
+    none), the linkage's critical points and the search report."""
+
+    components: list[SurfaceComponent]
+    height: np.ndarray
+    height_critical: HeightCritical
+    height_component: np.ndarray
+    critical_points: list[CriticalPoint]
+    search: SearchReport
+
+
+def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
+    """Raise :class:`InvalidLinkage` unless ``M - E = 2`` with something fixed and a bounded
+    configuration space (every moving vertex on a bar, every piece of the bar graph pinned:
+    the components are then compact, and each can be meshed whole)."""
+    if cons.n_free - cons.n_constraints != 2 or not linkage.anything_fixed:
+        raise InvalidLinkage(
+            "surfaces need two degrees of freedom (M - E = 2 with something fixed); this "
+            f"linkage has M = {cons.n_free}, E = {cons.n_constraints}"
+            + ("" if linkage.anything_fixed else " and nothing fixed"),
+            loc=("bars",),
+        )
+    moving = ~np.asarray(linkage.fixed, dtype=bool).all(axis=1)
+    on_bar = np.zeros(linkage.n_vertices, dtype=bool)
+    on_bar[linkage.ends[cons.bars].ravel()] = True
+    if (moving & ~on_bar).any() or not bounded(linkage, cons):
+        raise InvalidLinkage(
+            "the configuration space is unbounded (a moving vertex on no bar, or a piece of "
+            "the bar graph with no pinned vertex): its surfaces cannot be meshed whole",
+            loc=("bars",),
+        )
+
+
+def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
+    """Triangles negative in at least two of their vertices' positive frames (folded), and
+    the largest angle between an edge and the tangent planes at its ends (an edge of a mesh
+    that follows the surface leaves its tangent planes by about half the step times the
+    curvature; unlike the plane of a thin triangle, an edge's direction is well defined)."""
+    tri, x = mesh.triangles, mesh.vertices
+    if not len(tri):
+        return 0, 0.0
+    frames = mesh.frames  # (N, M, 2)
+    negative = np.zeros(len(tri), dtype=np.int64)
+    e1 = x[tri[:, 1]] - x[tri[:, 0]]
+    e2 = x[tri[:, 2]] - x[tri[:, 0]]
+    for k in range(3):
+        z = frames[tri[:, k]]
+        a = np.einsum("tm,tmj->tj", e1, z)
+        b = np.einsum("tm,tmj->tj", e2, z)
+        negative += a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0
+    edges, _ = edges_of(tri)
+    d = x[edges[:, 1]] - x[edges[:, 0]]
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    worst = 0.0
+    for end in (0, 1):
+        inplane = np.linalg.norm(np.einsum("em,emj->ej", d, frames[edges[:, end]]), axis=1)
+        off = np.sqrt(np.maximum(length ** 2 - inplane ** 2, 0.0)) / length
+        worst = max(worst, float(np.arcsin(np.clip(off, 0.0, 1.0)).max()))
+    # a fold shows in the frames of most of a triangle's vertices; a sliver left by a join
+    # (its area near zero) may lean across one vertex's frame without any overlap
+    return int((negative >= 2).sum()), worst
+
+
+def _seeds(surface: Surface, start: np.ndarray | None, witnesses: np.ndarray,
+           rng: np.random.Generator, count: int, deadline: Deadline) -> list[np.ndarray]:
+    """The height's critical points, the given configuration, projected random starts."""
+    seeds = list(witnesses)
+    if start is not None:
+        seeds.append(start)
+    scale = float(np.median(surface.linkage.lengths[surface.cons.bars]))
+    base = surface.linkage.coordinates()
+    for _ in range(count):
+        if deadline.expired():
+            break
+        u, ok = surface.project(base + scale * rng.normal(size=surface.n))
+        if ok:
+            seeds.append(u)
+    return seeds
+
+
+def _linkage_critical(surface: Surface, meshes: list[Mesh], tol: Tolerances
+                      ) -> tuple[list[CriticalPoint], list[int]]:
+    """Critical points of the linkage refined from the mesh vertices of smallest gap, and
+    the mesh each lies on."""
+    cands = [(float(m.gaps[v]), k, int(v)) for k, m in enumerate(meshes)
+             for v in np.flatnonzero(m.gaps < NEAR_CRITICAL_GAP)]
+    cands.sort()
+    same = SAME_POINT_REL * float(np.median(surface.linkage.lengths[surface.cons.bars])) * 1e3
+    found: list[CriticalPoint] = []
+    where: list[int] = []
+    for _, k, v in cands[:NEAR_CRITICAL_MAX]:
+        ref = refine_critical(surface.cons, meshes[k].vertices[v], tol)
+        if not ref.critical:
+            continue
+        if any(np.linalg.norm(cp.u - ref.u) <= same for cp in found):
+            continue
+        found.append(CriticalPoint(ref.u, classify(surface.linkage, ref.u, tol),
+                                   ref.length_residual, ref.stress_residual))
+        where.append(k)
+    return found, where
+
+
+def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadline
+          ) -> tuple[Mesh, tuple[int, float], bool]:
+    """March from ``seed``; where the closed mesh fails the geometric checks, march again
+    with ``REMESH_FACTOR`` times the step (at most ``REMESH_MAX`` times) while the budget and
+    the deadline allow. The mesh, its checks (folded triangles, largest edge angle) and whether
+    the budget stopped a march."""
+    mesh = march(surface, seed, step, left, dl)
+    check = _geometry_checks(mesh)
+    for _ in range(REMESH_MAX):
+        if not mesh.closed or not (check[0] or check[1] > TANGENT_ANGLE_MAX) or dl.expired():
+            break
+        if len(mesh.gaps) and float(mesh.gaps.min()) < NEAR_CRITICAL_GAP:
+            break  # near a cone of the linkage: no step makes the surface smooth there
+        step *= REMESH_FACTOR
+        finer = march(surface, seed, step, left, dl)
+        if not finer.closed:
+            return mesh, check, "budget" in finer.message
+        mesh, check = finer, _geometry_checks(finer)
+    return mesh, check, "budget" in mesh.message
+
+
+def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner: np.ndarray,
+               k: int, critical: list[int]) -> SurfaceComponent:
+    hom = surface_homology(mesh.triangles) if len(mesh.triangles) else None
+    defects = manifold_defects(mesh.triangles)
+    inverted, angle = check
+    mine = [int(i) for i in np.flatnonzero(owner == k)]
+    idx = crit.index[mine]
+    morse = None if (idx < 0).any() else int(sum((-1) ** int(i) for i in idx))
+    agrees = hom is not None and morse is not None and morse == hom.euler
+    return SurfaceComponent(mesh.vertices, mesh.triangles, mesh.closed, hom, defects, inverted,
+                            angle, mine, morse, agrees, critical, mesh.message)
+
+
+def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
+                     options: SurfaceOptions | None = None, start_on_space: bool = True,
+                     deadline: Deadline | None = None) -> SurfaceResult:
+    """Every compact component of a ``D = 2`` configuration space as a triangulated surface
+    with its topology (module docstring).
+
+    Examples
+    --------
+    >>> from engine.model.linkage import build_linkage, VertexSpec, BarSpec
+    >>> vs = [VertexSpec("P", (0, 0, 0), True), VertexSpec("A", (1, 0, 0))]
+    >>> res = explore_surfaces(build_linkage(3, vs, [BarSpec("r", ("P", "A"))]))
+    >>> [c.homology.betti_q for c in res.components], res.search["complete"]
+    ([(1, 0, 1)], True)
+    """
+    tol = tolerances or Tolerances()
+    opt = options or SurfaceOptions()
+    dl = deadline or NEVER
+    cons = Constraints(linkage)
+    require_two_dof(linkage, cons)
+    surface = Surface(linkage, cons, tol.residual_atol)
+    rng = np.random.default_rng(opt.seed)
+    c = rng.normal(size=cons.n_free)
+    c /= np.linalg.norm(c)
+    wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
+        if opt.homotopy_paths_max > 0 else None
+    scale = float(np.median(linkage.lengths[cons.bars]))
+    step = opt.step_rel * scale
+    start = linkage.coordinates() if start_on_space else None
+    seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
+                   rng, opt.random_starts, dl)
+    meshes: list[Mesh] = []
+    checks: list[tuple[int, float]] = []
+    trees: list[cKDTree] = []
+    budget_hit = False
+    for seed in seeds:
+        if dl.expired():
+            break
+        if any(t.query(seed)[0] <= step for t in trees):
+            continue
+        left = opt.max_triangles - sum(len(m.triangles) for m in meshes)
+        if left <= 0:
+            budget_hit = True
+            break
+        mesh, check, hit = _mesh(surface, seed, step, left, dl)
+        budget_hit |= hit
+        meshes.append(mesh)
+        checks.append(check)
+        trees.append(cKDTree(mesh.vertices))
+    proved = wit is not None and wit.success
+    # without the homotopy: the PL critical vertices of the closed meshes and their
+    # neighbours, refined by Newton within a trust region of half a step
+    crit = wit.critical if proved and wit is not None else classify_points(
+        surface, c, np.vstack([np.zeros((0, cons.n_free))] + [
+            m.vertices[ring(m.triangles, pl_critical_vertices(m.vertices, m.triangles,
+                                                              m.vertices @ c)[0])]
+            for m in meshes if m.closed]), 0.5 * step)
+    owner = assign(crit.points, [m.vertices for m in meshes], 2.0 * step)
+    critical, where = _linkage_critical(surface, meshes, tol)
+    comps = [_component(m, checks[k], crit, owner, k,
+                        [j for j, w in enumerate(where) if w == k])
+             for k, m in enumerate(meshes)]
+    return SurfaceResult(comps, c, crit, owner, critical,
+                         _report(wit, comps, owner, critical, dl, budget_hit, step))
+
+
+def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
+            owner: np.ndarray, critical: list[CriticalPoint], dl: Deadline, budget_hit: bool,
+            step: float) -> SearchReport:
+    """The search report: complete only with the homotopy's proof, every surface closed and
+    sound, every critical point of the height on one, no cone of the linkage."""
+    proved = wit is not None and wit.success
+    paths = wit.paths if wit is not None else 0
+    sound = all(c.closed and not any(c.defects.values()) and c.inverted == 0
+                and c.tangent_angle_max <= TANGENT_ANGLE_MAX and c.morse_agrees for c in comps)
+    missed = int((owner < 0).sum())
+    details: dict[str, object] = {
+        "method": "marching", "dof": 2, "step": step, "components_meshed": len(comps),
+        "triangles": int(sum(len(c.triangles) for c in comps)),
+        "height_critical_points": len(owner), "height_critical_unplaced": missed,
+        "homotopy": wit.message if wit is not None else "skipped",
+        "homotopy_paths": paths, "morse_agrees": all(c.morse_agrees for c in comps),
+    }
+    detail = ("every compact component holds a maximum of a generic height: the "
+              f"{paths} paths of the Lagrange system's homotopy found its {len(owner)} real "
+              "critical points, each on a meshed closed surface whose Morse sum equals its "
+              "Euler characteristic") if proved else None
+    return SearchReport(details, timed_out=dl.expired(), budget=budget_hit,
+                        degenerate=bool(critical), unresolved=not sound or missed > 0,
+                        time_budget_s=granted(dl), argument="proved" if proved else None,
+                        argument_detail=detail)

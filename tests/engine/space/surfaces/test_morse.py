@@ -1,0 +1,89 @@
+"""Critical points of a height on a D = 2 surface: the Lagrange system against finite
+differences, the sphere's two poles in closed form, and the Morse sum against the genus."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.mesh import march
+from engine.space.surfaces.morse import (
+    LagrangeSystem,
+    assign,
+    classify_points,
+    height_witnesses,
+    pl_critical_vertices,
+    ring,
+)
+from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti, slider_torus, sphere_3d
+
+
+def test_lagrange_jacobian_against_finite_differences():
+    lk = pentagon((1, 1, 1, 1, 1))
+    rng = np.random.default_rng(0)
+    system = LagrangeSystem(lk, Surface(lk).cons, rng.normal(size=lk.n_free))
+    n = lk.n_free + int(lk.active.sum()) + 1
+    x = rng.normal(size=(2, n)) + 1j * rng.normal(size=(2, n))
+    values, jac = system(x)
+    h = 1e-7
+    fd = np.stack([(system(x + h * e)[0] - system(x - h * e)[0]) / (2 * h) for e in np.eye(n)],
+                  axis=2)
+    assert np.abs(fd - jac).max() < 1e-6 * max(1.0, float(np.abs(jac).max()))
+    assert values.shape == (2, n - 1) and system.paths == 2 ** (n - 1)
+
+
+def test_sphere_poles_in_closed_form():
+    """A point on a sphere of radius r about the pin: the height c . u has its minimum at
+    -r c and its maximum at +r c (c a unit vector)."""
+    lk = sphere_3d(1.3)
+    s = Surface(lk)
+    c = np.array([0.3, -0.5, 0.8])
+    c /= np.linalg.norm(c)
+    w = height_witnesses(s, c, np.random.default_rng(1))
+    assert w.success, w.message
+    order = np.argsort(w.critical.index)
+    assert w.critical.index[order].tolist() == [0, 2]
+    assert np.allclose(w.critical.points[order], [-1.3 * c, 1.3 * c], atol=1e-9)
+    assert w.paths == 2 ** 4  # (M + E = 4 unknowns of degree 2)
+
+
+def test_torus_has_four_critical_points_summing_to_zero():
+    lk = slider_torus()
+    s = Surface(lk)
+    c = np.random.default_rng(5).normal(size=lk.n_free)
+    w = height_witnesses(s, c, np.random.default_rng(2))
+    assert w.success, w.message
+    idx = sorted(w.critical.index.tolist())
+    assert sum((-1) ** i for i in idx) == 0 and idx[0] == 0 and idx[-1] == 2
+    assert w.counts["paths"] == 2 ** 8
+    c = w.counts
+    assert c["regular"] + c["singular"] + c["far"] + c["failed"] == c["paths"]
+
+
+def test_pl_critical_vertices_refine_to_the_morse_sum():
+    """On a genus-4 pentagon space the refined PL critical vertices of a generic height give
+    sum (-1)^index = chi = -6 (Farber and Schuetz give the genus, not the engine)."""
+    lengths = (1, 1, 1, 1, 1)
+    b = pentagon_betti(lengths)
+    chi = b[0] - b[1] + b[2]
+    lk = pentagon(lengths)
+    s = Surface(lk)
+    m = march(s, lk.coordinates(), 0.35, 60_000)
+    c = np.random.default_rng(7).normal(size=lk.n_free)
+    verts, pl_index = pl_critical_vertices(m.vertices, m.triangles, m.vertices @ c)
+    assert int(pl_index.sum()) == chi  # the PL Morse theorem on the mesh itself
+    crit = classify_points(s, c, m.vertices[ring(m.triangles, verts)], 0.5 * 0.35)
+    assert (crit.index >= 0).all()
+    assert sum((-1) ** int(i) for i in crit.index) == chi
+    # each is a critical point: c in the row space of J there
+    for u, lam in zip(crit.points, crit.multipliers, strict=True):
+        assert np.linalg.norm(s.jacobian(u).T @ lam - c / np.linalg.norm(c)) < 1e-8
+    assert (assign(crit.points, [m.vertices], 0.7) == 0).all()
+    assert (assign(crit.points + 10.0, [m.vertices], 0.7) == -1).all()
+
+
+def test_paths_beyond_the_bound_decline():
+    lk = pentagon((1, 1, 1, 1, 1))
+    w = height_witnesses(Surface(lk), np.ones(lk.n_free), np.random.default_rng(0),
+                         paths_max=512)
+    assert not w.success and "1024 paths exceed" in w.message and w.paths == 1024
