@@ -14,6 +14,7 @@ from __future__ import annotations
 import email.message
 import json
 import sys
+import time
 from collections.abc import Callable, Coroutine
 from typing import Any
 
@@ -120,6 +121,7 @@ class JsonBodyRoute(APIRoute):
             return handler
 
         async def json_body_handler(request: Request) -> Response:
+            request.state.arrived_at = time.monotonic()
             content_type = request.headers.get("content-type")
             if content_type is not None and not is_json(content_type):
                 return problem(415, "unsupported-media-type", "Unsupported media type",

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Annotated
 
-from fastapi import Depends, FastAPI
+from fastapi import Depends, FastAPI, Request
 
 from engine.model.linkage import Limits
 
@@ -172,6 +172,11 @@ class Settings:
     max_answer_mb: int = 256
     time_limit_s: float = 30.0
     search_time_s: float = 4.0
+    #: ``time.monotonic()`` when the request being answered arrived (set per request by
+    #: :func:`service.bodies.with_arrival`, not from the environment): a search's deadline
+    #: counts from there, so parsing, validating and sending a large body to a worker spend
+    #: the request's budget too
+    arrived_at: float | None = None
     workers: int = field(default_factory=default_workers)
     max_queue: int = 64
     worker_memory_mb: int | None = None  # None: default_worker_memory_mb(workers)
@@ -251,3 +256,11 @@ def app_settings(app: FastAPI) -> Settings:
     environment's (what :data:`SettingsDep` gives its routes)."""
     provider: Callable[[], Settings] = app.dependency_overrides.get(get_settings, get_settings)
     return provider()
+
+
+def with_arrival(request: Request, settings: Settings) -> Settings:
+    """``settings`` with the time ``request`` arrived (before its body was read and parsed:
+    :class:`service.bodies.JsonBodyRoute`), from which a search's deadline counts
+    (:func:`service.jobs.search_deadline`)."""
+    arrived = getattr(request.state, "arrived_at", None)
+    return settings if arrived is None else settings.replace(arrived_at=arrived)

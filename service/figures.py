@@ -16,7 +16,7 @@ Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests ca
 space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
 (critical values);
 ``ray-<b>-<r>``, ``split-<b>-<i>-<j>`` (splitting: branch point ``b``, ray ``r``, joined rays
-``i``, ``j``).
+``i``, ``j``; ``panels-left-out-<k>`` where the time left drew only the first panels).
 
 Only the object-oriented API is used (``Figure``, no ``pyplot``): no global figure state, so
 figures may be drawn in any thread or process. An SVG's text is ``<text>`` (``svg.fonttype``
@@ -45,6 +45,7 @@ from service.figure_drawing import (
     _draw_space,
     _draw_splitting,
     _rotors,
+    panels_in_time,
 )
 from service.figure_formats import MEDIA_TYPES, check_pixels, check_png_before_drawing, negotiate
 from service.schemas import space
@@ -58,6 +59,9 @@ from service.schemas.figures import (
 )
 
 SVG = MEDIA_TYPES["svg"]
+#: Seconds past the search's deadline that drawing a figure may take (a share of the margin
+#: an answer may come after its time budget).
+DRAW_SECONDS = 0.5
 
 
 # -- jobs (run in the engine worker pool) -----------------------------------------------------
@@ -124,8 +128,13 @@ def splitting_figure(body: SplittingFigureRequest, settings: Settings,
                      deadline: Deadline | None = None) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
     _format("splitting", body)
+    deadline = deadline or jobs.search_deadline(body.options, settings, None)
     ans, points = jobs.splitting_with_points(body, settings, deadline)
-    return _render(body, _draw_splitting, body, ans, points)
+    # the panels that fit the time left and the drawing's share of the margin past it (all
+    # without a finite deadline)
+    left = deadline.remaining()
+    panels = None if left == float("inf") else panels_in_time(left + DRAW_SECONDS)
+    return _render(body, _draw_splitting, body, ans, points, panels)
 
 
 # -- shared ------------------------------------------------------------------------------------

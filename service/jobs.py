@@ -8,13 +8,15 @@ problem+json in :mod:`service.errors`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from engine.design.critical_values import critical_value_slice
 from engine.design.design import check_request, design, verify
 from engine.design.robustness import robustness
 from engine.design.splitting import length_change, split
 from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
-from engine.model.budget import Deadline
+from engine.model.budget import Deadline, answer_values
 from engine.model.constraints import ProjectionResult, on_constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage as EngineLinkage
@@ -74,8 +76,10 @@ def search_deadline(
     engine reports the seconds granted as ``search.time_budget_s``)."""
     if given is not None:
         return given
-    return Deadline.after(
-        settings.search_seconds(options.time_budget_s if options is not None else None))
+    seconds = settings.search_seconds(options.time_budget_s if options is not None else None)
+    if settings.arrived_at is not None:  # counted from the request's arrival
+        return Deadline(settings.arrived_at + seconds, budget_s=seconds)
+    return Deadline.after(seconds)
 
 
 def critical_points(
@@ -100,8 +104,9 @@ def configuration_space(
         return _surfaces(body, settings, at, proj, tol, dl)
     # the response carries no near misses: where the closed form certifies, or the rotor-chain
     # rules prove, that there is no critical point, the critical-point search is skipped
-    res = explore(at, tol, mappers.space_options_in(body.options), near_misses=False,
-                  deadline=dl)
+    # the search stops at the values (points x vertices) mapped in time past the deadline
+    opt = replace(mappers.space_options_in(body.options), max_values=answer_values(dl))
+    res = explore(at, tol, opt, near_misses=False, deadline=dl)
     points = sum(len(c.points) for c in res.components)
     if points > settings.max_points:
         raise InvalidRequest(

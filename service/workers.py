@@ -60,7 +60,7 @@ from starlette.responses import Response
 from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
 from service import forkserver, serialise
-from service.config import Settings
+from service.config import Settings, with_arrival
 from service.spill import SPILL_MIN_BYTES, SpillFiles, write_spill
 
 T = TypeVar("T")
@@ -431,6 +431,7 @@ async def engine_call(request: Request, settings: Settings,
     """The JSON answer of the job ``fn(body, settings)`` for an endpoint (the route's
     ``response_model`` documents it): in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
+    settings = with_arrival(request, settings)  # (searches count their time from there)
     if light:
         pool = engine_pool(request)
         with pool.light_lane(settings.time_limit_s):

@@ -91,3 +91,27 @@ NEVER = Deadline()
 def granted(deadline: Deadline) -> float | None:
     """The seconds ``deadline`` was given, rounded for a report (None without a limit)."""
     return None if deadline.budget_s is None else round(deadline.budget_s, 3)
+
+
+#: Seconds to map and serialise one value of a configuration-space answer (one vertex of one
+#: traced point: its coordinates in the answer's per-vertex lists, and its share of the rotor
+#: angles), measured with ``bench/bench_points.py``-like runs on the shared test machine (the
+#: "objects" form, the costlier, at 400 rotors: 1.1 to 3 us per value from 6.4 million values
+#: in 7 to 20 s, 25 us with cProfile on a machine at load 12 on 2 cores), for a loaded machine.
+ANSWER_SECONDS_PER_VALUE: Final = 1e-5
+#: Seconds of a deadline's answer left to mapping and serialising the points found (a part of
+#: the margin past the deadline that an answer may take).
+ANSWER_TIME_S: Final = 0.5
+
+
+def answer_values(deadline: Deadline) -> int | None:
+    """The budget of values (points x vertices) an answer under ``deadline`` may carry, so that
+    mapping and serialising them takes at most ``ANSWER_TIME_S`` past the deadline (None
+    without a deadline: the in-process caller maps nothing, or waits).
+
+    >>> answer_values(NEVER) is None, answer_values(Deadline.after(4.0))
+    (True, 50000)
+    """
+    if deadline.at == float("inf"):
+        return None
+    return int(ANSWER_TIME_S / ANSWER_SECONDS_PER_VALUE)

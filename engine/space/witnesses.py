@@ -56,6 +56,10 @@ SINGULAR_IMAG_TOL = 1e-3
 FAR_REACH = 1e2
 #: Singular values of the quadratic parts below this (relative) make a combination linear.
 LINEAR_RTOL = 1e-10
+#: Floating-point operations per second assumed of the system's set-up (the SVD of the
+#: (E, M^2) quadratic parts, about E^2 M^2 of them: ~1 s at M = 200 on the shared test machine,
+#: 1.6e9 of them), conservative: set-up that would not fit the time left is not started.
+SETUP_FLOPS_PER_S = 1e9
 
 
 @dataclass(frozen=True)
@@ -265,10 +269,19 @@ def witness_points(linkage: Linkage, cons: Constraints | None = None, seed: int 
         return Witnesses(empty, empty, 0, {"quadrics_at_least": least}, False,
                          f"at least {least} quadrics: at least {2**least * least} paths exceed "
                          f"the bound of {paths_max}")
+    e, m = cons.n_constraints, cons.n_free
+    setup_s = float(e) ** 2 * float(m) ** 2 / SETUP_FLOPS_PER_S
+    if deadline.expired() or setup_s > deadline.remaining():
+        return Witnesses(empty, empty, 0, {"quadrics_at_least": least}, False,
+                         f"the deadline: the system's set-up (about {setup_s:.2g} s) does not "
+                         f"fit the {deadline.remaining():.2g} s left")
     rng = np.random.default_rng(seed)
     c = rng.normal(size=cons.n_free)
     system = LinkageSystem(linkage, cons, c)
     counts = {"quadrics": system.r, "linear": cons.n_constraints - system.r}
+    if deadline.expired():
+        return Witnesses(empty, empty, 0, counts, False,
+                         "the deadline passed while the system was set up")
     if system.r == 0:
         return Witnesses(empty, empty, 0, counts, False, "no quadric: the space is a line")
     if system.paths > paths_max:

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Request, Response
 
 from service import figure_formats, figures
 from service.bodies import JsonBodyRoute
-from service.config import Settings, SettingsDep
+from service.config import Settings, SettingsDep, with_arrival
 from service.errors import problem, problem_responses
 from service.schemas.figures import (
     CriticalValuesFigureRequest,
@@ -56,7 +56,8 @@ async def _figure(request: Request, settings: Settings, figure: str,
                        [{"loc": ["header", "accept"], "msg": err.detail}])
     figure_formats.check_png_before_drawing(figure, choice.format, body.dpi)
     body = body.model_copy(update={"format": choice.format})
-    data = await engine_pool(request).run(settings.time_limit_s, fn, body, settings)
+    data = await engine_pool(request).run(settings.time_limit_s, fn, body,
+                                          with_arrival(request, settings))
     name = f"{figure}{figure_formats.SUFFIXES[choice.format]}"
     return Response(data, media_type=choice.media_type, headers={
         "content-disposition": f'inline; filename="{name}"', "vary": "accept"})

@@ -95,33 +95,9 @@ def test_a_deep_failing_assembly_tree_answers_within_its_budget(api):
     assert_in_time(r, took, 1.0)
 
 
-#: Open (issue 23, item 4): a configuration-space answer carries every traced point's V
-#: positions and is mapped and serialised after the search. A 4 s search of a 400-rotor chain
-#: traces ~8000 points: 170 MB (compact) to 250 MB (objects) of JSON, 7 to 20 s to answer; the
-#: 100-rotor parallel chain 15 to 65 MB, 3 to 8 s. LINKAGE_MAX_POINTS bounds configurations,
-#: not values: the answer needs a budget of values (points x V) the search stops at.
-ANSWER_SIZE = pytest.mark.xfail(reason="the answer's size (points x V) is not bounded by the "
-                                "deadline: mapping and serialising it takes seconds")
-#: Open: matplotlib draws one panel per branch point found (twelve for the three-rotor), 6 to
-#: 16 s on the shared test machine whatever the search's budget.
-FIGURE_PANELS = pytest.mark.xfail(reason="the splitting figure's drawing is not bounded by "
-                                  "the deadline")
-#: Open: at 20000 rotors the request's own handling (a 40000-vertex body parsed, validated and
-#: sent to the worker) and the first seed's sparse null space (shift-invert Lanczos) do not
-#: look at the deadline: 200 after 6 to 9 s where the budget is 4 s (before: 504 after 30 s).
-#: Open (since the merge of issue 23's items 1-2): the witness system's set-up
-#: (engine/space/witnesses.py: quad (E, M+1, M+1) and the SVD of its (E, M^2) quadratic
-#: parts, about 1 s at M = 200) runs before the path bound and the deadline are looked at.
-WITNESS_SETUP = pytest.mark.xfail(reason="the witness system is built before the deadline "
-                                  "is looked at")
-SIZE_LIMIT = pytest.mark.xfail(reason="request handling and the first sparse null space of a "
-                               "40000-vertex linkage run outside the deadline")
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("path", [
-    pytest.param("/v1/analysis/configuration-space", marks=ANSWER_SIZE),
-    "/v1/analysis/critical-points"])
+@pytest.mark.parametrize("path", ["/v1/analysis/configuration-space",
+                                  "/v1/analysis/critical-points"])
 def test_the_parallel_100_rotor_chain_answers_within_its_budget(api, path):
     # a = l: every cell of the chain a parallelogram
     linkage = api.get("/v1/presets/kl-chain?n=100&a=1&l=1&r=1.5").json()
@@ -143,13 +119,10 @@ def kl_bodies(linkage: Json) -> dict[str, Json]:
 
 
 KL_PATHS = list(kl_bodies({}))
-#: the paths whose answers carry the traced points (ANSWER_SIZE)
-POINTS_PATHS = ("/v1/analysis/configuration-space", "/v1/figures/configuration-space")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", [pytest.param(p, marks=ANSWER_SIZE) if p in POINTS_PATHS
-                                  else p for p in KL_PATHS])
+@pytest.mark.parametrize("path", KL_PATHS)
 def test_a_400_rotor_chain_answers_every_search_within_its_budget(api, path):
     linkage = api.get("/v1/presets/kl-chain?n=400").json()
     r, took = timed_post(api, path, kl_bodies(linkage)[path])
@@ -162,7 +135,6 @@ def largest_chain(api: ApiClient) -> Json:
 
 
 @pytest.mark.slow
-@SIZE_LIMIT
 @pytest.mark.parametrize("path", KL_PATHS)
 def test_a_chain_at_the_size_limit_answers_every_search_within_its_budget(api, largest_chain,
                                                                           path):
@@ -215,9 +187,9 @@ def hard_bodies(api: ApiClient) -> dict[str, Json]:
 HARD_PATHS = ["/v1/analysis/configuration-space", "/v1/analysis/critical-points",
               "/v1/analysis/robustness", "/v1/analysis/critical-values",
               "/v1/analysis/splitting", "/v1/design/splitting",
-              pytest.param("/v1/figures/configuration-space", marks=WITNESS_SETUP),
+              "/v1/figures/configuration-space",
               "/v1/figures/critical-values",
-              pytest.param("/v1/figures/splitting", marks=FIGURE_PANELS)]
+              "/v1/figures/splitting"]
 
 
 @pytest.mark.slow
@@ -230,3 +202,15 @@ def test_no_search_answers_later_than_its_budget_plus_the_margin(api, path):
         assert took <= SMALL_BUDGET_S + MARGIN_S
         return
     assert_in_time(r, took, SMALL_BUDGET_S, search=not path.startswith("/v1/figures"))
+
+
+def test_a_search_deadline_counts_from_the_request_s_arrival():
+    # parsing, validating and sending the body to a worker spend the request's budget too
+    from service.jobs import search_deadline
+
+    settings = Settings.from_env().replace(search_time_s=SEARCH_S,
+                                           arrived_at=time.monotonic() - 1.5)
+    deadline = search_deadline(None, settings, None)
+    assert deadline.budget_s == SEARCH_S  # (what the answer reports as time_budget_s)
+    assert SEARCH_S - 1.5 - 0.5 < deadline.remaining() <= SEARCH_S - 1.5
+    assert search_deadline(None, settings.replace(arrived_at=None), None).remaining() > 3.5

@@ -192,6 +192,28 @@ def test_splitting_figure_joins_the_rays_the_answer_says(client: Any) -> None:
         assert drawn == sorted(b["connects"])
 
 
+def test_splitting_figure_draws_the_panels_that_fit_and_names_those_left_out(client: Any
+                                                                             ) -> None:
+    from service import figures, jobs
+    from service.config import Settings
+    from service.figure_drawing import _draw_splitting, panels_in_time
+    from service.schemas.figures import SplittingFigureRequest
+
+    assert panels_in_time(0.0) == 1 and panels_in_time(100.0) > panels_in_time(1.0)
+    body = SplittingFigureRequest.model_validate(
+        {"linkage": preset(client, "four-bar"), "perturbation": {"L2": 0.01}})
+    ans, points = jobs.splitting_with_points(body, Settings.from_env())
+    assert len(ans.branch_points) == 3
+    for panels, left_out in ((1, 2), (3, 0), (None, 0)):
+        root = ET.fromstring(figures._render(body, _draw_splitting, body, ans, points, panels))
+        ids = [el.get("id", "") for el in root.iter()]
+        drawn = ans.branch_points[:3 - left_out]
+        assert sorted(with_prefix(ids, "ray-")) == sorted(
+            f"ray-{b.index}-{r}" for b in drawn for r in range(4))
+        assert with_prefix(ids, "panels-left-out-") == (
+            [f"panels-left-out-{left_out}"] if left_out else [])
+
+
 # -- bad input -------------------------------------------------------------------------------
 
 

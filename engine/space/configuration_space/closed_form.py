@@ -110,6 +110,13 @@ def closed_form_answer(
         ex.report["closed_form"] = cf.report["closed_form"]
         return None
     walks = cf.components  # free coordinates (n, M)
+    allowed = ex.values_in_time()
+    values = sum(len(w) + 1 for w in walks) * lk.n_vertices
+    if allowed is not None and values > allowed:
+        ex.report["method"] = "tracer"  # (which stops at the answer's budget of values)
+        ex.report["closed_form"] = (f"declined: {values} values (points x vertices), more "
+                                    f"than the {allowed} the time left maps")
+        return None
     # distances to the start, once (they order the walks and mark the one through the start)
     dist = [] if start is None else [walk_distance(w, start, ex.h_max) for w in walks]
     if dist:  # as the tracer, which starts there: the given one first (a stable sort)

@@ -7,13 +7,21 @@ from __future__ import annotations
 import itertools
 import re
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.local.rigidity import first_order
 from engine.model.batched import BATCH_MAX_FREE, BatchedConstraints
-from engine.model.budget import NEVER, Argument, Deadline, granted
+from engine.model.budget import (
+    ANSWER_SECONDS_PER_VALUE,
+    ANSWER_TIME_S,
+    NEVER,
+    Argument,
+    Deadline,
+    granted,
+)
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
@@ -28,6 +36,7 @@ from engine.space.configuration_space.results import (
 from engine.space.trace import (
     STOP_TIME,
     Curve,
+    TraceOptions,
     correct,
     trace_curve,
 )
@@ -35,6 +44,10 @@ from engine.space.trace import (
 #: Above this many free coordinates the zero mode at a seed comes from the sparse first-order
 #: method (measured faster than the dense SVD from about 100 rotors of a chain).
 SPARSE_SEED_RIGIDITY_MIN_FREE = 128
+#: Seconds per free coordinate of that sparse zero mode (shift-invert Lanczos), measured on
+#: the shared test machine (3.1 s at M = 40000, a 20000-rotor chain, at load 10 on 2 cores),
+#: rounded up: a seed whose zero mode would not fit the time left is not traced.
+SPARSE_SEED_SECONDS_PER_FREE = 1e-4
 
 
 #: Why a traced curve stopped, when that was a count running out (see ``trace_curve``).
@@ -113,6 +126,43 @@ class Explorer:
         #: points and tangents as arrays and their k-d tree, built once for every seed chunk
         #: :meth:`on_curve` tests against it
         self._curve_arrays: dict[int, tuple[Curve, np.ndarray, np.ndarray, cKDTree]] = {}
+        #: points the answer may still carry (``options.max_values`` over the vertex count;
+        #: None: no budget), spent by every traced curve and segment
+        self.points_left: int | None = None if options.max_values is None else \
+            max(0, options.max_values // max(1, len(linkage.vertex_ids)))
+
+    def trace_options(self) -> TraceOptions:
+        """The trace options of the next curve or segment: ``max_points`` no more than the
+        points the answer may still carry."""
+        if self.points_left is None or self.points_left >= self.opt.trace.max_points:
+            return self.opt.trace
+        return replace(self.opt.trace, max_points=max(1, self.points_left))
+
+    def spend(self, points: int) -> None:
+        """``points`` more in the answer; once its budget of values is spent the search
+        stops for size (``answer_size_reached``: reason ``budget``)."""
+        if self.points_left is None:
+            return
+        self.points_left -= points
+        if self.points_left <= 1:
+            self.report["answer_size_reached"] = True
+            self.report["answer_values_max"] = self.opt.max_values
+
+    def values_in_time(self) -> int | None:
+        """The values an answer made now may carry (None: no budget): its budget, or what
+        maps in the time left and ``ANSWER_TIME_S`` past the deadline where that is more (a
+        closed form's walks, made in a moment; traced curves keep to the budget, since
+        tracing spends the time left)."""
+        if self.opt.max_values is None:
+            return None
+        left = self.deadline.remaining()
+        if left == float("inf"):
+            return self.opt.max_values
+        return max(self.opt.max_values, int((left + ANSWER_TIME_S) / ANSWER_SECONDS_PER_VALUE))
+
+    def size_reached(self) -> bool:
+        """True once the answer's budget of values is spent (nothing more is traced)."""
+        return bool(self.report.get("answer_size_reached"))
 
     def out_of_time(self) -> bool:
         """True (and remembered) once the deadline has passed: the search stops there."""
@@ -121,9 +171,10 @@ class Explorer:
         return self.timed_out
 
     def _trace(self, u: np.ndarray, t: np.ndarray, close: bool = True) -> Curve:
-        curve = trace_curve(self.cons, u, t, self.tol, self.opt.trace, close=close,
+        curve = trace_curve(self.cons, u, t, self.tol, self.trace_options(), close=close,
                             deadline=self.deadline)
         self.timed_out = self.timed_out or curve.stop == STOP_TIME
+        self.spend(len(curve.points) + 1)  # (+1: a closed walk repeats its first point)
         return curve
 
     def finish(self, degenerate: bool, segments_done: bool = True, agreed: bool = True,
@@ -146,6 +197,7 @@ class Explorer:
                                 argument_detail=argument[1])
         budget = bool((seeds_needed and (self.report.get("component_budget_reached")
                                          or self.report.get("assemblies_truncated")))
+                      or self.size_reached()
                       or any(BUDGET_STOPS.search(c.stop) for c in self.curves))
         unresolved = bool(self.report.get("open_curves", 0)) or not segments_done or not agreed
         return SearchReport({**self.report, **details}, timed_out=self.timed_out, budget=budget,
@@ -257,13 +309,16 @@ class Explorer:
         # The zero mode at a seed: on large linkages by the engine's sparse method (shift-invert
         # Lanczos, same rank rule), a dense SVD costs O(M^3) per traced curve (0.1-0.2 s at
         # M = 200 to 400, more than tracing the curve).
+        sparse = self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
+        if sparse and self.cons.n_free * SPARSE_SEED_SECONDS_PER_FREE > self.deadline.remaining():
+            self.timed_out = True  # (the zero mode alone would run past the deadline)
+            return None
         rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
-                          sparse=True if self.cons.n_free > SPARSE_SEED_RIGIDITY_MIN_FREE
-                          else None)
+                          sparse=True if sparse else None)
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = self._trace(u, rig.zero_modes[0])
-        if curve.stop != "closed":
+        if curve.stop != "closed" and not self.size_reached() and not self.out_of_time():
             back = self._trace(u, -rig.zero_modes[0], close=False)
             curve = Curve(
                 points=back.points[::-1][:-1] + curve.points,
@@ -393,7 +448,7 @@ class Explorer:
                 n += 1
 
         for n, u in points():
-            if self.out_of_time():
+            if self.out_of_time() or self.size_reached():
                 break
             # progress: seeds tested (all known for small linkages) or components traced
             done = max(n / len(stack) if batch else 0.0,

@@ -11,6 +11,7 @@ and the answer is incomplete with reason ``searched``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,6 +83,24 @@ def uncovered_seeds(ex: Explorer, proof: Proof) -> int:
     return sum(not ex.on_traced(u) for u in proof.seeds)
 
 
+#: Largest count written out in digits in a sentence (``str`` refuses more than 4300 digits).
+COUNT_DIGITS_MAX = 1000
+
+
+def count_text(n: int) -> str:
+    """``n`` for a sentence: its digits, or ``2^k`` (a 20000-rotor chain has 2^19999
+    components, 6021 digits: ``str`` refuses them), or its order of magnitude.
+
+    >>> count_text(12), count_text(2**19999), count_text(3**20000)
+    ('12', '2^19999', 'about 10^9542')
+    """
+    if n.bit_length() <= COUNT_DIGITS_MAX * 3:  # (below 10^903: far below the limit)
+        return str(n)
+    if n > 0 and n & (n - 1) == 0:
+        return f"2^{n.bit_length() - 1}"
+    return f"about 10^{int(math.log10(n))}"
+
+
 def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],
              count: ChainCount | None = None, traced: int | None = None,
              components: bool = True) -> tuple[Argument | None, str | None]:
@@ -89,7 +108,7 @@ def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],
     False for the critical-point search, which needs no seed on every component."""
     if count is not None and not crit and (traced == count.components or not components):
         return ARGUMENT_DERIVED, (
-            f"{count.rule}: {count.components} components and no critical point"
+            f"{count.rule}: {count_text(count.components)} components and no critical point"
             + (f"; {traced} traced" if components else ""))
     if proof is None:
         return None, None

@@ -49,6 +49,11 @@ class SpaceOptions:
     #: (:mod:`engine.space.witnesses`); 0 skips it (the answer is then at best ``searched``,
     #: unless a closed form or the chain rules derive it).
     homotopy_paths_max: int = PATHS_MAX
+    #: Budget of values (points x vertices) of the traced curves and segments an answer carries
+    #: (:func:`engine.model.budget.answer_values`: what can be mapped and serialised in the
+    #: time left after the deadline); the search stops for size there (reason ``budget``,
+    #: ``answer_size_reached``). None: no budget.
+    max_values: int | None = None
 
 
 @dataclass(frozen=True)

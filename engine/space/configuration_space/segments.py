@@ -36,7 +36,7 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
         for r, ray in enumerate(rays(cp)):
             if any((i, r) in key for key in seen):
                 continue
-            if ex.out_of_time():
+            if ex.out_of_time() or ex.size_reached():
                 complete = False
                 break
             v = cp.u + h0 * ray
@@ -50,9 +50,10 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
                 j = captured(a, b, centres, capture, _i, _w, 2 * h0)
                 return None if j is None else f"critical:{j}"
 
-            curve = trace_curve(ex.cons, w, ray, ex.tol, ex.opt.trace, stop=stop,
+            curve = trace_curve(ex.cons, w, ray, ex.tol, ex.trace_options(), stop=stop,
                                 close=False, deadline=ex.deadline)
             ex.timed_out = ex.timed_out or curve.stop == STOP_TIME
+            ex.spend(len(curve.points) + 1)
             if not curve.stop.startswith("critical:"):
                 complete = False
                 continue

@@ -13,7 +13,13 @@ import pytest
 from engine.catalogue.presets import build_preset
 from engine.design.critical_values import critical_value_slice
 from engine.local.rigidity import first_order
-from engine.model.budget import Deadline
+from engine.model.budget import (
+    ANSWER_SECONDS_PER_VALUE,
+    ANSWER_TIME_S,
+    NEVER,
+    Deadline,
+    answer_values,
+)
 from engine.model.constraints import Constraints
 from engine.model.tolerances import Tolerances
 from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
@@ -130,3 +136,10 @@ def test_a_fraction_of_a_deadline_is_a_share_of_what_remains(share):
     part = d.fraction(share)
     assert part.remaining() == pytest.approx(share * d.remaining(), abs=0.5)
     assert part.stop is d.stop and part.progress is d.progress
+
+
+def test_the_answer_budget_of_values_is_what_maps_in_its_share_of_the_margin():
+    assert answer_values(NEVER) is None
+    values = answer_values(Deadline.after(4.0))
+    assert values is not None and values > 0
+    assert values * ANSWER_SECONDS_PER_VALUE <= ANSWER_TIME_S

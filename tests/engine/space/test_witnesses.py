@@ -11,6 +11,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from engine.catalogue.presets import build_preset
+from engine.model.budget import Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 from engine.space.configuration_space import SpaceOptions, explore, find_critical_points
@@ -268,3 +269,21 @@ def test_the_paper_three_rotor_has_twelve_critical_points_proved():
     h = res.search["homotopy"]
     assert h["regular"] + h["singular"] + h["far"] + h["failed"] == h["paths"] == 160
     assert h["failed"] == 0 and h["critical_candidates"] >= 2 * 12
+
+
+def test_the_set_up_looks_at_the_deadline_first():
+    # an expired deadline: nothing is built or tracked, and the message names the deadline
+    lk = build_preset("three-rotor")
+    w = witness_points(lk, deadline=Deadline.after(0.0))
+    assert not w.success and w.paths == 0 and "deadline" in w.message
+    assert len(w.seeds) == 0 and len(w.critical_starts) == 0
+
+
+def test_the_chain_rules_sentence_writes_counts_of_any_size():
+    # a 20000-rotor chain has 2^19999 components: str() refuses its 6021 digits
+    from engine.space.configuration_space.proof import count_text
+
+    assert count_text(12) == "12"
+    assert count_text(2**99) == "633825300114114700748351602688"
+    assert count_text(2**19999) == "2^19999"
+    assert count_text(10**5000 + 7) == "about 10^5000"

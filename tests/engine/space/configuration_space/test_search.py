@@ -299,3 +299,41 @@ def test_a_count_that_disagrees_with_the_chain_rule_is_unresolved(monkeypatch):
     assert len(res.components) != res.search["components_total"]
     assert not res.search["complete"] and res.search["reason"] == "unresolved"
     assert "components_disagree" in res.search
+
+
+@pytest.mark.parametrize("preset, params", [("kl-chain", {"n": 12}),
+                                            ("four-bar", {"L2": 1.2})])
+def test_a_budget_of_values_stops_the_search_for_size_and_keeps_what_was_found(preset, params):
+    # the answer's values (points x vertices), counted here from the components themselves
+    lk = build_preset(preset, params)
+    v = lk.n_vertices
+    full = explore(lk, TOL, FAST, near_misses=False)
+    full_values = v * sum(len(c.points) for c in full.components)
+    budget = full_values // 4
+    res = explore(lk, TOL, replace(FAST, max_values=budget), near_misses=False)
+    values = v * sum(len(c.points) for c in res.components)
+    assert 0 < values <= budget
+    assert res.search.reason == "budget" and not res.search.complete
+    assert res.search.details["answer_size_reached"] is True
+    assert res.search.details["answer_values_max"] == budget
+    # a budget the whole answer fits in changes nothing
+    roomy = explore(lk, TOL, replace(FAST, max_values=2 * full_values), near_misses=False)
+    assert "answer_size_reached" not in roomy.search.details
+    assert [len(c.points) for c in roomy.components] == [len(c.points) for c in full.components]
+    assert roomy.search.reason == full.search.reason
+
+
+def test_a_closed_form_answer_keeps_the_values_the_time_left_maps():
+    # the crank-rocker, dense: ~35000 points of 4 vertices, above a budget of 50000 values, made
+    # in a moment: the time left maps them, and the closed form answers in full
+    from engine.model.budget import ANSWER_SECONDS_PER_VALUE, Deadline
+    from engine.space.trace import TraceOptions
+
+    lk = build_preset("four-bar", {"L1": 0.5, "L2": 1.2, "L3": 1.0})
+    opt = SpaceOptions(trace=TraceOptions(step_max=2.5e-4, max_points=200_000),
+                       max_values=50_000)
+    deadline = Deadline.after(4.0)
+    res = explore(lk, TOL, opt, near_misses=False, deadline=deadline)
+    values = lk.n_vertices * sum(len(c.points) for c in res.components)
+    assert res.search.details["method"] == "closed form" and res.search.complete
+    assert 50_000 < values <= (4.0 + 0.5) / ANSWER_SECONDS_PER_VALUE
