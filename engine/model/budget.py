@@ -95,13 +95,16 @@ def granted(deadline: Deadline) -> float | None:
 
 #: Seconds to map and serialise one value of a configuration-space answer (one vertex of one
 #: traced point: its coordinates in the answer's per-vertex lists, and its share of the rotor
-#: angles), measured with ``bench/bench_points.py``-like runs on the shared test machine (the
-#: "objects" form, the costlier, at 400 rotors: 1.1 to 3 us per value from 6.4 million values
-#: in 7 to 20 s, 25 us with cProfile on a machine at load 12 on 2 cores), for a loaded machine.
-ANSWER_SECONDS_PER_VALUE: Final = 1e-5
+#: angles), for a loaded machine: the mapping and orjson take 0.29 us per value in the
+#: "objects" form (0.07 compact; the default kl-chain's 189,460 values in 55 ms, idle 2-core
+#: machine), the whole path through a worker and HTTP 1.1 to 3 us per value (400 rotors, 6.4
+#: million values in 7 to 20 s on the shared machine): the upper end of the whole path.
+ANSWER_SECONDS_PER_VALUE: Final = 3e-6
 #: Seconds of a deadline's answer left to mapping and serialising the points found (a part of
-#: the margin past the deadline that an answer may take).
-ANSWER_TIME_S: Final = 0.5
+#: the margin past the deadline that an answer may take): 333,333 values, so that the default
+#: answers (the 10-rotor chain's 32 traced components: 189,460 values; the gated chain's 32:
+#: 53,810) are not cut.
+ANSWER_TIME_S: Final = 1.0
 
 
 def answer_values(deadline: Deadline) -> int | None:
@@ -110,7 +113,7 @@ def answer_values(deadline: Deadline) -> int | None:
     without a deadline: the in-process caller maps nothing, or waits).
 
     >>> answer_values(NEVER) is None, answer_values(Deadline.after(4.0))
-    (True, 50000)
+    (True, 333333)
     """
     if deadline.at == float("inf"):
         return None
