@@ -24,7 +24,12 @@ from service.main import create_app
 from service.mappers import linkage_out
 from service.schemas.common import AnalysisRequest
 from service.schemas.space import SpaceRequest
-from tests.service.test_hardening import SLOW_CHAIN, assert_problem, client_for, slow_body
+from tests.service.test_hardening import (
+    OVERRUN_PATH,
+    assert_problem,
+    client_for,
+    overrun_body,
+)
 
 SPACE = "/v1/analysis/configuration-space"
 # the closed form, dense: ~35,000 points, some 3 MB of compact JSON and 5 MB of default JSON
@@ -145,11 +150,10 @@ def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
 def test_a_request_stopped_at_the_time_limit_leaves_no_file(tmp_path, monkeypatch):
     monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
     app = create_app(Settings(workers=1, time_limit_s=1.5))
-    chain = _linkage("kl-chain", n=SLOW_CHAIN)
 
     async def scenario() -> Any:
         async with client_for(app) as c:
-            return await c.post(SPACE, json=slow_body(chain))
+            return await c.post(OVERRUN_PATH, json=overrun_body())
 
     try:
         slow = asyncio.run(scenario())

@@ -23,7 +23,13 @@ from bench.bench_memory import floppy_chain
 from service.config import Settings, default_worker_memory_mb, machine_memory_mb
 from service.main import create_app
 from service.workers import WORKER_NICE, EnginePool, MemoryLimit, WorkerFailed
-from tests.service.test_hardening import assert_problem, client_for
+from tests.service.test_hardening import (
+    OVERRUN_PATH,
+    assert_problem,
+    busy_body,
+    client_for,
+    overrun_body,
+)
 
 # An application with its own worker process per test: seconds each.
 pytestmark = pytest.mark.slow
@@ -347,22 +353,14 @@ def test_a_worker_killed_between_requests_is_replaced(four_bar):
 def test_an_idle_worker_killed_beside_a_busy_one(four_bar):
     """The busy worker's request finishes (at its time limit); the idle one is replaced by
     pebble itself (a task was running) and later requests are served."""
-    from engine.catalogue.presets import build_preset
-    from service.mappers import linkage_out
-
-    chain = linkage_out(build_preset("kl-chain", {"n": 300})).model_dump(mode="json")
-    # an answer limit far above the work's (hundreds of MB): the request must still be running
-    # in its worker at the time limit, not refused for its size
-    app = create_app(Settings(workers=2, time_limit_s=4, max_answer_mb=8192))
+    app = create_app(Settings(workers=2, time_limit_s=1.5))
     pool = app.state.engine_pool
 
     async def scenario() -> tuple[httpx.Response, list[httpx.Response], int]:
         async with client_for(app) as c:
             pool.start()
-            slow = asyncio.create_task(c.post(
-                "/v1/analysis/configuration-space",
-                json={"linkage": chain, "options": {"max_components": 1000}}))
-            await asyncio.sleep(1.0)
+            slow = asyncio.create_task(c.post(OVERRUN_PATH, json=overrun_body()))
+            await asyncio.sleep(0.5)
             busy, idle = busy_and_idle(pool.worker_pids())
             kill([idle])
             small = await critical_points(c, four_bar)
@@ -385,10 +383,6 @@ def test_an_idle_worker_killed_beside_a_busy_one(four_bar):
 
 
 def test_a_busy_worker_killed_fails_its_request_and_the_next_is_served(four_bar):
-    from engine.catalogue.presets import build_preset
-    from service.mappers import linkage_out
-
-    chain = linkage_out(build_preset("kl-chain", {"n": 300})).model_dump(mode="json")
     app = create_app(Settings(workers=1, time_limit_s=30))
     pool = app.state.engine_pool
 
@@ -396,8 +390,7 @@ def test_a_busy_worker_killed_fails_its_request_and_the_next_is_served(four_bar)
         async with client_for(app) as c:
             pool.start()
             slow = asyncio.create_task(c.post(
-                "/v1/analysis/configuration-space",
-                json={"linkage": chain, "options": {"max_components": 1000}}))
+                "/v1/analysis/configuration-space", json=busy_body(20.0)))
             await asyncio.sleep(1.0)
             kill(pool.worker_pids())
             failed = await slow
