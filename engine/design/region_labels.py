@@ -22,6 +22,7 @@ from engine.model.budget import ARGUMENT_DERIVED, Argument
 from engine.model.linkage import Linkage
 from engine.space.chain_count import exact_components, gate_decision, gated_chain
 from engine.space.configuration_space import SpaceResult, rotor_angles, winding
+from engine.space.configuration_space.proof import count_text
 from engine.space.four_bar_cells import FourBarCell, four_bar_cells
 
 
@@ -94,7 +95,7 @@ def label_signature(label: RegionLabel, result: SpaceResult
     else:
         argument = result.search.argument if result.search.complete else None
     if label.components_exact:
-        shown = f"{label.components}"
+        shown = count_text(label.components)
         if label.traced != label.components:
             shown += f" ({label.traced} traced)"
     else:

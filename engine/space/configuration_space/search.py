@@ -23,7 +23,7 @@ from engine.space.configuration_space.closed_form import (
 )
 from engine.space.configuration_space.critical_search import critical_points, resolve
 from engine.space.configuration_space.explorer import Explorer
-from engine.space.configuration_space.proof import Proof, argument, gather
+from engine.space.configuration_space.proof import Proof, argument, count_text, gather
 from engine.space.configuration_space.results import (
     CriticalSearch,
     SpaceOptions,
@@ -94,7 +94,8 @@ def find_critical_points(
     if sample and count is not None:
         ex.report["near_misses_from"] = (
             f"the component through the given configuration: the chain rules ({count.rule}) "
-            f"prove that none of the {count.components} components has a critical point")
+            f"prove that none of the {count_text(count.components)} components has a "
+            "critical point")
     extra = proof.critical_starts if proof is not None else None
     crit, misses, degenerate = critical_points(ex, extra)
     _gate_details(ex.report, linkage)
@@ -196,7 +197,8 @@ def explore(
             or len(components) == count.components
         if not agreed:  # a second method disagrees: never a confident count (unresolved)
             ex.report["components_disagree"] = (
-                f"traced {len(components)} components, {count.rule} gives {count.components}")
+                f"traced {len(components)} components, {count.rule} gives "
+                f"{count_text(count.components)}")
     why = argument(ex, proof, crit, count, len(components))
     _gate_details(ex.report, linkage)
     search = ex.finish(degenerate, seg_complete, agreed, why,
