@@ -54,7 +54,7 @@ from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, 
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
-from engine.model.report import SearchReport
+from engine.model.report import SearchReport, count_text
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
 from engine.space.configuration_space import SpaceOptions, find_critical_points
 
@@ -206,7 +206,8 @@ def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
     planned = 2
     if paths > paths_max:
         return Scan([], planned, 0,
-                    f"{paths} paths per sweep exceed the bound of {paths_max}", tracing.h_max)
+                    f"{count_text(paths)} paths per sweep exceed the bound of {paths_max}",
+                    tracing.h_max)
     lines: list[Scanline] = []
     for fixed in range(2):
         lo, hi = (float(v) for v in box[fixed])

@@ -23,6 +23,7 @@ True
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -112,3 +113,21 @@ class SearchReport(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self.as_dict())
+
+
+#: Largest count written out in digits in a sentence (``str`` refuses more than 4300 digits).
+COUNT_DIGITS_MAX = 1000
+
+
+def count_text(n: int) -> str:
+    """``n`` for a sentence: its digits, or ``2^k`` (a 20000-rotor chain has 2^19999
+    components, 6021 digits: ``str`` refuses them), or its order of magnitude.
+
+    >>> count_text(12), count_text(2**19999), count_text(3**20000)
+    ('12', '2^19999', 'about 10^9542')
+    """
+    if n.bit_length() <= COUNT_DIGITS_MAX * 3:  # (below 10^903: far below the limit)
+        return str(n)
+    if n > 0 and n & (n - 1) == 0:
+        return f"2^{n.bit_length() - 1}"
+    return f"about 10^{int(math.log10(n))}"

@@ -40,6 +40,7 @@ from scipy.sparse.csgraph import connected_components
 from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
+from engine.model.report import count_text
 from engine.space.homotopy import FAR, REGULAR, SINGULAR, track
 
 #: Largest number of paths tracked (``2^r r``, ``r`` quadrics; 160 for ``r = 5``, 896 for
@@ -286,7 +287,7 @@ def witness_points(linkage: Linkage, cons: Constraints | None = None, seed: int 
         return Witnesses(empty, empty, 0, counts, False, "no quadric: the space is a line")
     if system.paths > paths_max:
         return Witnesses(empty, empty, system.paths, counts, False,
-                         f"{system.paths} paths exceed the bound of {paths_max}")
+                         f"{count_text(system.paths)} paths exceed the bound of {paths_max}")
     reach = _reach(linkage, cons, system.scale)
     res = track(system, system.degrees, rng, deadline, far=FAR_REACH * reach)
     x0 = res.ends[:, 0]

@@ -11,7 +11,6 @@ and the answer is incomplete with reason ``searched``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +18,7 @@ import numpy as np
 from engine.local.critical import CriticalPoint
 from engine.model.budget import ARGUMENT_DERIVED, ARGUMENT_PROVED, Argument
 from engine.model.constraints import project
+from engine.model.report import count_text
 from engine.space.chain_count import ChainCount
 from engine.space.configuration_space.explorer import Explorer
 from engine.space.witnesses import Witnesses, witness_points
@@ -81,24 +81,6 @@ def unresolved_starts(ex: Explorer, proof: Proof, crit: list[CriticalPoint]) -> 
 def uncovered_seeds(ex: Explorer, proof: Proof) -> int:
     """Real regular ends that lie on no traced curve."""
     return sum(not ex.on_traced(u) for u in proof.seeds)
-
-
-#: Largest count written out in digits in a sentence (``str`` refuses more than 4300 digits).
-COUNT_DIGITS_MAX = 1000
-
-
-def count_text(n: int) -> str:
-    """``n`` for a sentence: its digits, or ``2^k`` (a 20000-rotor chain has 2^19999
-    components, 6021 digits: ``str`` refuses them), or its order of magnitude.
-
-    >>> count_text(12), count_text(2**19999), count_text(3**20000)
-    ('12', '2^19999', 'about 10^9542')
-    """
-    if n.bit_length() <= COUNT_DIGITS_MAX * 3:  # (below 10^903: far below the limit)
-        return str(n)
-    if n > 0 and n & (n - 1) == 0:
-        return f"2^{n.bit_length() - 1}"
-    return f"about 10^{int(math.log10(n))}"
 
 
 def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],

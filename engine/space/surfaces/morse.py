@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
+from engine.model.report import count_text
 from engine.space.homotopy import FAR, REGULAR, SINGULAR, track
 from engine.space.surfaces.geometry import Surface
 from engine.space.witnesses import FAR_REACH, REAL_TOL, _reach, bar_quadrics, bounded
@@ -187,7 +188,7 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
     system = LagrangeSystem(lk, cons, c)
     if system.paths > paths_max:
         return HeightWitnesses(empty, system.paths, {}, False,
-                               f"{system.paths} paths exceed the bound of {paths_max}")
+                               f"{count_text(system.paths)} paths exceed the bound of {paths_max}")
     reach = _reach(lk, cons, system.scale)
     # a failed path (its step fell below the floor) is a matter of the random gamma and patch:
     # the homotopy is tracked once more with new ones before the argument is given up
