@@ -135,7 +135,7 @@ def test_async_job_cancelled_with_its_task(app: TestClient) -> None:
             job = await client.create_sweep(
                 preset="gated-kl-chain", parameters=GATED, samples={"D": {"mean": 2.5,
                                                                            "sd": 0.25}},
-                count=60, seed=2, compute=["components", "critical"], options=QUICK)
+                count=2000, seed=2, compute=["components", "critical"], options=QUICK)
             waiting = asyncio.create_task(client.wait(job, poll_s=0.1))
             await asyncio.sleep(1.0)
             waiting.cancel()

@@ -143,8 +143,14 @@ def test_figure_writes_pdf_tikz_and_dxf_in_process(tmp_path: Path) -> None:
 
 def test_figure_search_stops_at_the_time_limit(tmp_path: Path) -> None:
     """In-process figures search under --time-limit (the job's deadline): a second is too
-    short for the three-rotor's space, and the figure says its search is incomplete."""
-    tikz, report = probe("figure", "configuration-space", "--preset", "three-rotor",
+    short for the space of the deep-failing assembly tree (tests/service/test_bounded.py, whose
+    enumeration fails below every partial assembly until the deadline), and the figure says its
+    search is incomplete."""
+    from tests.service.test_bounded import deep_failing_chain
+
+    request = tmp_path / "deep.json"
+    request.write_text(json.dumps({"linkage": deep_failing_chain()}))
+    tikz, report = probe("figure", "configuration-space", str(request),
                          "--time-limit", "1", "--format", "tikz", cwd=tmp_path)
     assert report == {"rc": 0, "dask": [], "children": 0}
     assert "(search incomplete: time)" in tikz

@@ -400,7 +400,7 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
     manager.settings = kept.replace(job_time_limit_s=1.0, job_ttl_s=1.0)
     try:
         r = api.post("/v1/jobs", json={"operation": "sweeps", "body": gated_sweep(
-            seed=2, count=60, critical=True)})
+            seed=2, count=2000, critical=True)})
         assert r.status_code == 202
         job = wait(api, r.headers["location"])
         assert job["status"] == "failed" and job["error"]["title"] == "Time limit exceeded"
@@ -409,8 +409,8 @@ def test_time_limit_fails_the_job_and_finished_jobs_expire(api):
         # the points finished within the limit are kept, marked partial
         assert job["partial"] is True and job["result"]["partial"] is True
         rows = job["result"]["rows"]
-        assert 1 <= len(rows) < 60 and job["result"]["summary"]["points"] == len(rows)
-        assert_rows_of_the_gated_sample(rows, seed=2, count=60)
+        assert 1 <= len(rows) < 2000 and job["result"]["summary"]["points"] == len(rows)
+        assert_rows_of_the_gated_sample(rows, seed=2, count=2000)
         assert (when(job["expires"]) - when(job["finished"])).total_seconds() \
             == pytest.approx(1.0)
         time.sleep(1.2)
