@@ -249,7 +249,7 @@ async function loadRegionFieldDocs() {
   return regionFieldDocs;
 }
 
-/** The legend of the labels' extra fields (tau signs, gated, argument, ...): each field that a
+/** The legend of the labels' extra fields (tau signs, gated, windings, ...): each field that a
  * region of the answer has, with the service's description of it and how the label shows it. */
 async function showRegionFields(answer) {
   const box = $("region-fields");

@@ -24,6 +24,7 @@ MODELS = {
     "CriticalPointOut": models.CriticalPoint, "NearMissOut": models.NearMiss,
     "CriticalPointsResponse": models.CriticalPointsResult, "ComponentOut": models.Component,
     "SegmentOut": models.Segment, "SpaceResponse": models.SpaceResult,
+    "SurfaceOut": models.Surface, "HeightCriticalOut": models.HeightCritical,
     "BranchSplitOut": models.BranchSplit, "SplittingResponse": models.SplittingResult,
     "RobustnessSearch": models.RobustnessSearch, "RobustnessResponse": models.RobustnessResult,
     "RegionOut": models.Region, "CellSigns": models.CellSigns, "SliceSearch": models.SliceSearch,
@@ -122,3 +123,25 @@ def test_unknown_answer_keys_are_ignored_and_kept_on_raw() -> None:
               "tolerances": {"rank_rtol": 1e-8, "residual_atol": 1e-9, "q_rtol": 1e-6}}
     result = models.SplittingResult.from_json(answer)
     assert result.raw["new_field"] == 1 and result.search.complete is True
+
+
+def test_surfaces_decode_alike_from_packed_and_lists() -> None:
+    """A two-degree-of-freedom answer's surface: positions ``(mesh vertices, V, d)`` from
+    either form, triangles an ``(F, 3)`` int array, the height's critical points typed."""
+    rng = np.random.default_rng(2)
+    mesh = rng.normal(size=(4, 2, 2))
+    surface = {"closed": False, "triangles": [[0, 1, 2], [0, 2, 3]], "euler": 1,
+               "orientable": True, "betti_z2": [1, 0, 0], "betti_q": [1, 0, 0], "genus": None,
+               "defects": {"open_edges": 4}, "inverted_triangles": 0,
+               "tangent_angle_max": 1.5, "morse_sum": None, "morse_agrees": False,
+               "critical_points": []}
+    height = {"configuration": {"a": [0.0, 1.0], "b": [1.0, 0.0]}, "index": 2, "surface": 0}
+    series = models.Surface.from_json(
+        {**surface, "positions": {k: mesh[:, i].tolist() for i, k in enumerate("ab")}})
+    compact = models.Surface.from_json({**surface, "positions": packed(mesh, ["a", "b"])})
+    for s in (series, compact):
+        assert np.array_equal(s.positions.array, mesh) and s.positions.ids == ("a", "b")
+        assert s.triangles.shape == (2, 3) and s.triangles.dtype.kind == "i"
+        assert s.betti_q == [1, 0, 0] and s.genus is None and s.defects == {"open_edges": 4}
+    h = models.HeightCritical.from_json(height)
+    assert h.index == 2 and h.surface == 0 and h.configuration["b"].tolist() == [1.0, 0.0]

@@ -553,23 +553,27 @@ def test_map_regions_margin_disc_and_loading_a_region(base_url: str, browser: An
                " cells: 4, tau: '+-', gated: true}), regionLabel({point: [1, 2],"
                " components: null, signature: null, cells: 0, gated: false})];")
     assert label == ["2 components, tau +-, gated", "? (not explored in time), ungated"]
-    # and the legend names each field the regions carry, with the service's own description
-    # (its OpenAPI RegionOut) where it has one
+    # and the legend names each extra field the regions carry, with the service's own
+    # description (its OpenAPI RegionOut) where it has one; the fields the label shows by its
+    # own rules (the count's: argument, components_exact, ...) are not extra: the merge of the
+    # Fig. 5b labels made the count say whether it is exact, so argument left the legend
     spec = httpx.get(f"{base_url}/openapi.json", trust_env=False).json()
     docs = spec["components"]["schemas"]["RegionOut"]["properties"]
     js(browser, "mapView.answer = {regions: [{point: [1, 2], components: 2, signature: 's',"
-       " cells: 4, tau: '+-', gated: true, argument: 'proved'}], curves: []};"
+       " cells: 4, tau: '+-', gated: true, windings: ['r0:1,D:0'], argument: 'proved',"
+       " components_exact: true}], curves: []};"
        " showRegions();")
     wait_for(lambda: len(browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")) == 3, 10,
              "the legend of the regions' fields")
     terms = {dt.text: dt.find_element(By.XPATH, "following-sibling::dd[1]").text
              for dt in browser.find_elements(By.CSS_SELECTOR, "#region-fields dt")}
-    assert set(terms) == {"tau", "gated", "argument"}
+    assert set(terms) == {"tau", "gated", "windings"}
     for field, meaning in terms.items():
         described = docs.get(field, {}).get("description", "").replace("``", "")
         assert meaning.startswith(described or "as the service gives it"), (field, meaning)
     assert terms["gated"].endswith('(shown as "gated" or "ungated")')
     assert terms["tau"].endswith('(shown as "tau <value>")')
+    assert terms["windings"].endswith('(shown as "turns <pattern>")')
     assert js(browser, CONTRAST) == []
     element_shot(browser, "map-panel", "map-panel-fields")
 

@@ -20,6 +20,7 @@ from linkage_client.models.analysis import (
     CriticalValuesResult,
     DesignResult,
     DualCertificate,
+    HeightCritical,
     NearMiss,
     Predicted,
     Region,
@@ -33,6 +34,7 @@ from linkage_client.models.analysis import (
     SpaceResult,
     SplittingResult,
     StressCertificate,
+    Surface,
 )
 from linkage_client.models.jobs import (
     FINISHED,
@@ -63,12 +65,12 @@ from linkage_client.models.linkage import (
 
 __all__ = [
     "FINISHED", "RESULTS", "Bar", "BranchSplit", "CellSigns", "Component", "Conflict",
-    "CriticalPoint",
-    "CriticalPointsResult", "CriticalValuesResult", "DesignResult", "DualCertificate", "Health",
+    "CriticalPoint", "CriticalPointsResult", "CriticalValuesResult", "DesignResult",
+    "DualCertificate", "Health", "HeightCritical",
     "Job", "JobError", "JobSummary", "Linkage", "NearMiss", "Operation", "PresetInfo", "Predicted",
     "Progress", "Readiness", "Region", "RigidityResult", "RobustnessResult", "RobustnessSearch",
     "SearchReport", "SecondOrderFlex", "SecondOrderResult", "Segment", "SliceSearch",
-    "SpaceResult", "SplittingResult", "StressCertificate", "SweepResult", "SweepRow",
+    "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SweepResult", "SweepRow",
     "SweepSummary", "TangentForm", "TolerancesUsed", "Vertex", "linkage_json", "result_of",
     "sequence",
 ]

@@ -150,13 +150,8 @@ class Component(Model):
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Self:
-        def points(value: Mapping[str, Any]) -> Labelled:
-            if "base64" in value:
-                return Labelled.from_packed(value)
-            return Labelled.from_series(value)
-
         return cls(closed=data["closed"], through_start=data["through_start"],
-                   positions=points(data["positions"]), angles=points(data["angles"]),
+                   positions=_points(data["positions"]), angles=_points(data["angles"]),
                    winding=dict(data["winding"]), critical_points=list(data["critical_points"]))
 
 
@@ -169,9 +164,68 @@ class Segment(Model):
     to_ray: int
 
 
+def _points(value: Mapping[str, Any]) -> Labelled:
+    """Points along a walk or at mesh vertices: ids on axis 1, from the compact (PackedArray)
+    or the default (per-id lists) form alike."""
+    if "base64" in value:
+        return Labelled.from_packed(value)
+    return Labelled.from_series(value)
+
+
+@dataclass(frozen=True)
+class HeightCritical(Model):
+    """A critical point of the generic height of the Morse check (two degrees of freedom):
+    ``index`` 0 minimum, 1 saddle, 2 maximum, -1 degenerate; ``surface`` -1 for none."""
+
+    configuration: Labelled
+    index: int
+    surface: int
+
+
+@dataclass(frozen=True)
+class Surface(Model):
+    """One compact component of a two-degree-of-freedom configuration space, triangulated:
+    ``positions`` a ``(mesh vertices, V, d)`` array, ``triangles`` an ``(F, 3)`` int array.
+
+    Decoded alike from the compact (packed base64) and the default (per-vertex lists) answer.
+    """
+
+    closed: bool
+    positions: Labelled
+    triangles: np.ndarray
+    euler: int | None
+    orientable: bool | None
+    betti_z2: list[int] | None
+    betti_q: list[int] | None
+    genus: int | None
+    defects: dict[str, int]
+    inverted_triangles: int
+    tangent_angle_max: float
+    morse_sum: int | None
+    morse_agrees: bool
+    critical_points: list[int]
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Self:
+        def optional_list(key: str) -> list[int] | None:
+            value = data.get(key)
+            return None if value is None else list(value)
+
+        triangles = np.asarray(data["triangles"], dtype=np.int64).reshape(-1, 3)
+        return cls(closed=data["closed"], positions=_points(data["positions"]),
+                   triangles=triangles, euler=data.get("euler"),
+                   orientable=data.get("orientable"), betti_z2=optional_list("betti_z2"),
+                   betti_q=optional_list("betti_q"), genus=data.get("genus"),
+                   defects=dict(data["defects"]), inverted_triangles=data["inverted_triangles"],
+                   tangent_angle_max=data["tangent_angle_max"], morse_sum=data.get("morse_sum"),
+                   morse_agrees=data["morse_agrees"],
+                   critical_points=list(data["critical_points"]))
+
+
 @dataclass(frozen=True)
 class SpaceResult(Model):
-    """``POST /v1/analysis/configuration-space``."""
+    """``POST /v1/analysis/configuration-space``: ``surfaces`` and ``height_critical_points``
+    for two degrees of freedom (None for one)."""
 
     projection_residual: float
     input_residual: float
@@ -183,6 +237,8 @@ class SpaceResult(Model):
     degenerate: bool
     search: SearchReport
     tolerances: TolerancesUsed
+    surfaces: list[Surface] | None = None
+    height_critical_points: list[HeightCritical] | None = None
     raw: JSON = _raw()
 
 

@@ -256,7 +256,9 @@ def test_the_batched_refinement_stops_at_the_deadline():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "params", "axes"), [
-    ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)]),
+    # bars of the chain's cells, not of its gate: the gate's lengths (D, L2, L1) are drawn in
+    # closed form (test_gate_slice_is_closed_form_and_complete below), without any refinement
+    ("gated-kl-chain", {"n": 4, "gate": 2}, [("l1", 1.0, 2.5), ("r1", 1.0, 2.5)]),
     ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)]),
 ])
 def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
@@ -280,6 +282,25 @@ def test_slice_through_the_batched_refinement(name, params, axes, monkeypatch):
                 <= 1e-3 * step
     assert [(r.point, r.components, r.signature, r.cells) for r in fast.regions] == \
         [(r.point, r.components, r.signature, r.cells) for r in slow.regions]
+
+
+def test_gate_slice_is_closed_form_and_complete(monkeypatch):
+    """The gated chain driven from its gate rotor, in its gate's lengths: the curves are the
+    gate four-bar's critical lines (closed form), no start is refined, and with every region's
+    count exact the slice is complete by a derived argument."""
+    from engine.design.critical_values import critical_value_slice
+
+    def refined(*args, **kwargs):
+        raise AssertionError("a closed-form slice refines no start")
+
+    monkeypatch.setattr(critical_batched, "refine_critical_batch", refined)
+    lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
+    s = critical_value_slice(lk, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], resolution=16, options=opt)
+    assert s.search["method"] == "closed form"
+    assert s.search["complete"] is True and s.search["reason"] is None
+    assert s.search["argument"] == "derived"
+    assert s.curves and all(r.components is not None for r in s.regions)
 
 
 @pytest.mark.parametrize(("name", "params", "axes"), [
