@@ -386,7 +386,10 @@ class _CurveTracing:
         followed unless a curve traced before it (from this or an earlier seed) has it."""
         if not starts or not sum(len(s) for s in starts):
             return
-        xs = _onto_solutions_batch(self.sys, np.concatenate(starts))
+        if self.deadline.expired():  # (not even moved onto G = 0: seconds of dense algebra)
+            self.timed_out = True
+            return
+        xs = _onto_solutions_batch(self.sys, np.concatenate(starts), deadline=self.deadline)
         for x in xs:
             if self.deadline.expired():  # (every start left would be followed a little)
                 self.timed_out = True
