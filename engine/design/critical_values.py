@@ -57,6 +57,7 @@ from engine.model.linkage import Linkage, changeable_bar
 from engine.model.report import SearchReport
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
 from engine.space.configuration_space import SpaceOptions, find_critical_points
+from engine.space.configuration_space.proof import count_text
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -206,7 +207,8 @@ def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
     planned = 2
     if paths > paths_max:
         return Scan([], planned, 0,
-                    f"{paths} paths per sweep exceed the bound of {paths_max}", tracing.h_max)
+                    f"{count_text(paths)} paths per sweep exceed the bound of {paths_max}",
+                    tracing.h_max)
     lines: list[Scanline] = []
     for fixed in range(2):
         lo, hi = (float(v) for v in box[fixed])
