@@ -43,11 +43,10 @@ from service.figure_drawing import (
     _draw_critical_values,
     _draw_linkage,
     _draw_space,
-    _draw_splitting,
     _rotors,
-    panels_in_time,
 )
 from service.figure_formats import MEDIA_TYPES, check_pixels, check_png_before_drawing, negotiate
+from service.figure_splitting import _draw_splitting, panels_in_time
 from service.schemas import space
 from service.schemas.common import AnalysisRequest
 from service.schemas.figures import (

@@ -57,6 +57,7 @@ from engine.model.linkage import Linkage, changeable_bar
 from engine.model.report import SearchReport, count_text
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
 from engine.space.configuration_space import SpaceOptions, find_critical_points
+from engine.space.configuration_space.proof import count_text
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -387,7 +388,10 @@ class _CurveTracing:
         followed unless a curve traced before it (from this or an earlier seed) has it."""
         if not starts or not sum(len(s) for s in starts):
             return
-        xs = _onto_solutions_batch(self.sys, np.concatenate(starts))
+        if self.deadline.expired():  # (not even moved onto G = 0: seconds of dense algebra)
+            self.timed_out = True
+            return
+        xs = _onto_solutions_batch(self.sys, np.concatenate(starts), deadline=self.deadline)
         for x in xs:
             if self.deadline.expired():  # (every start left would be followed a little)
                 self.timed_out = True

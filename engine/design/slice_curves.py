@@ -117,11 +117,38 @@ def _correct(sys: _System, v: np.ndarray, t: np.ndarray) -> np.ndarray | None:
     return x if np.max(np.abs(sys.g(x))) <= 1e-10 else None
 
 
-def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndarray:
+class _OutOfTime(Exception):
+    """The deadline passed inside the least squares of :func:`_least_squares_onto`."""
+
+
+def _least_squares_onto(sys: _System, x0: np.ndarray, deadline: Deadline) -> np.ndarray:
+    """The least-squares (trust region) fallback of :func:`_onto_solutions` from ``x0``, the
+    deadline looked at on every evaluation (each one a dense SVD of ``dG``: about 30 ms at 100
+    rotors, 200 of them without it); ``x0`` itself once it has passed (the caller's check of
+    ``|G|`` then leaves the start out)."""
+    if deadline.expired():
+        return x0
+
+    def g_in_time(x: np.ndarray) -> np.ndarray:
+        if deadline.expired():
+            raise _OutOfTime
+        return sys.g(x)
+
+    try:
+        sol = least_squares(g_in_time, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15,
+                            gtol=1e-15, max_nfev=200)
+    except _OutOfTime:
+        return x0
+    return np.asarray(sol.x)
+
+
+def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30,
+                    deadline: Deadline = NEVER) -> np.ndarray:
     """A solution of ``G = 0`` near ``x0``: Gauss-Newton with minimum-norm steps (``G`` has two
     more unknowns than equations, so its solutions near a regular point form a curve and the
     iteration converges quadratically onto it); where that does not converge, least squares
-    (trust region) from ``x0`` as before. Either way the caller checks ``|G| <= 1e-9``."""
+    (trust region) from ``x0`` as before. Either way the caller checks ``|G| <= 1e-9`` (once
+    ``deadline`` has passed, the iteration stops where it is: the check leaves it out)."""
     x = x0.copy()
     for _ in range(max_iter):
         g = sys.g(x)
@@ -129,12 +156,12 @@ def _onto_solutions(sys: _System, x0: np.ndarray, max_iter: int = 30) -> np.ndar
             break
         if np.max(np.abs(g)) <= 1e-13:
             return x
+        if deadline.expired():
+            return x
         x = x - np.linalg.lstsq(sys.dg(x), g, rcond=None)[0]
     if np.all(np.isfinite(g := sys.g(x))) and np.max(np.abs(g)) <= 1e-12:
         return x
-    sol = least_squares(sys.g, x0, jac=sys.dg, method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15,
-                        max_nfev=200)
-    return np.asarray(sol.x)
+    return _least_squares_onto(sys, x0, deadline)
 
 
 class _BatchedSystem:
@@ -197,20 +224,23 @@ def _min_norm_steps(mats: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return out
 
 
-def _onto_solutions_batch(sys: _System, x0s: np.ndarray, max_iter: int = 30) -> np.ndarray:
+def _onto_solutions_batch(sys: _System, x0s: np.ndarray, max_iter: int = 30,
+                          deadline: Deadline = NEVER) -> np.ndarray:
     """:func:`_onto_solutions` from every row of ``x0s`` at once (small linkages): the same
     Gauss-Newton iteration with minimum-norm steps, the rows that converge leaving it, and the
     least-squares fallback of :func:`_onto_solutions` for every row that does not converge
-    (the tests compare the two)."""
+    (the tests compare the two). ``deadline`` is looked at between iterations and rows (large
+    linkages: one dense ``lstsq`` or SVD each); the rows not reached keep their starts."""
     if sys.m > BATCH_MAX_FREE or len(x0s) < 2:
-        return np.array([_onto_solutions(sys, x0, max_iter) for x0 in x0s]).reshape(x0s.shape)
+        return np.array([x0 if deadline.expired() else _onto_solutions(sys, x0, max_iter, deadline)
+                         for x0 in x0s]).reshape(x0s.shape)
     batched = _BatchedSystem(sys)
     xs = np.array(x0s, dtype=float)
     live = np.ones(len(xs), dtype=bool)
     done = np.zeros(len(xs), dtype=bool)
     for _ in range(max_iter):
         idx = np.flatnonzero(live)
-        if not len(idx):
+        if not len(idx) or deadline.expired():
             break
         g = batched.g(xs[idx])
         finite = np.all(np.isfinite(g), axis=1)
@@ -226,8 +256,7 @@ def _onto_solutions_batch(sys: _System, x0s: np.ndarray, max_iter: int = 30) -> 
         g = batched.g(xs[rest])
         fine = np.all(np.isfinite(g), axis=1) & (np.max(np.abs(g), axis=1) <= 1e-12)
         for k in rest[~fine]:
-            xs[k] = least_squares(sys.g, x0s[k], jac=sys.dg, method="trf", xtol=1e-15,
-                                  ftol=1e-15, gtol=1e-15, max_nfev=200).x
+            xs[k] = _least_squares_onto(sys, x0s[k], deadline)
     return xs
 
 

@@ -196,7 +196,7 @@ def test_splitting_figure_draws_the_panels_that_fit_and_names_those_left_out(cli
                                                                              ) -> None:
     from service import figures, jobs
     from service.config import Settings
-    from service.figure_drawing import _draw_splitting, panels_in_time
+    from service.figure_splitting import _draw_splitting, panels_in_time
     from service.schemas.figures import SplittingFigureRequest
 
     assert panels_in_time(0.0) == 1 and panels_in_time(100.0) > panels_in_time(1.0)

@@ -280,3 +280,54 @@ def test_a_four_bar_map_keeps_a_region_thinner_than_a_cell():
     strip = [r for r in res.regions if abs(r.point[1] - r.point[0]) < 0.01 and r.point[0] > 1.1]
     assert strip and all(r.components == 2 and r.cells == 0 for r in strip)
     assert res.search["complete"] and res.search["thin_unresolved"] == 0
+
+
+def test_moving_starts_onto_the_critical_set_stops_at_the_deadline():
+    """Moving a slice's starts onto ``G = 0`` (a dense ``lstsq`` per Gauss-Newton step and a
+    dense SVD per least-squares evaluation: seconds for a 100-rotor chain) looks at the
+    deadline on every step: once it has passed, the starts come back as they were (off
+    ``G = 0``, so the tracing leaves them out), and a least squares it ends midway gives its
+    start back."""
+    from engine.design.critical_values import _validate
+    from engine.design.slice_curves import (
+        _least_squares_onto,
+        _onto_solutions,
+        _onto_solutions_batch,
+    )
+    from engine.model.budget import Deadline
+
+    lk = build_preset("four-bar", {"L2": 1.2})
+    ax = _validate(lk, [("L2", 0.5, 1.5), ("L3", 0.5, 1.5)])
+    sys = _System(lk, ax)
+    rng = np.random.default_rng(1)
+    x0s = rng.normal(size=(3, sys.n))
+    gone = Deadline.after(0.0)
+    np.testing.assert_array_equal(_onto_solutions(sys, x0s[0], deadline=gone), x0s[0])
+    np.testing.assert_array_equal(_onto_solutions_batch(sys, x0s, deadline=gone), x0s)
+    calls = []
+
+    def stop() -> bool:  # the deadline passes at the third evaluation
+        calls.append(1)
+        return len(calls) > 2
+
+    got = _least_squares_onto(sys, x0s[0], Deadline.after(None, stop=stop))
+    np.testing.assert_array_equal(got, x0s[0])
+    assert len(calls) == 3
+
+
+@pytest.mark.slow
+def test_a_100_rotor_chain_s_map_answers_within_its_budget():
+    """The Kane-Lubensky chain of 100 rotors over +-20 % of its first two free bars (the
+    preset matrix's request): its starts took 10 s of dense algebra past a 4 s deadline."""
+    import time
+
+    from engine.model.budget import Deadline
+
+    lk = build_preset("kl-chain", {"n": 100})
+    free = np.flatnonzero(lk.active)  # (the bars with a free end, in request order)
+    axes = [(lk.bar_ids[k], 0.8 * lk.lengths[k], 1.2 * lk.lengths[k]) for k in free[:2]]
+    t0 = time.monotonic()
+    s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0))
+    took = time.monotonic() - t0
+    assert took <= 4.0 + 2.0, f"answered after {took:.2f} s"
+    assert s.search["complete"] is False and s.search["reason"] == "time"
