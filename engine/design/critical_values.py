@@ -57,7 +57,6 @@ from engine.model.linkage import Linkage, changeable_bar
 from engine.model.report import SearchReport, count_text
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
 from engine.space.configuration_space import SpaceOptions, find_critical_points
-from engine.space.configuration_space.proof import count_text
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
