@@ -17,15 +17,13 @@ from engine.space.homotopy import (
     FAILED,
     H_MAX,
     H_MIN,
-    NEWTON_LOOSE,
-    NEWTON_TOL,
     REGULAR,
     RUNNING,
     SINGULAR,
     T_END,
     TRUST,
+    _Homotopy,
     _jumped,
-    _solve,
 )
 
 
@@ -37,50 +35,28 @@ class ParameterSystem(Protocol):
     def dw(self, x: np.ndarray) -> np.ndarray: ...
 
 
-class Parameter:
+class Parameter(_Homotopy):
     """The parameter homotopy ``F(X; w(t)) = 0``, ``w(t) = w_1 + t (w_0 - w_1) + i b t (1 - t)``,
-    on the patch ``a . X = 1`` (as :class:`engine.space.homotopy._Homotopy`, with
+    on the patch ``a . X = 1`` (as :class:`engine.space.homotopy._Homotopy`, whose predictor
+    velocity and Newton corrector it takes, with
     ``H_t = F_w w'(t)``): a segment, bent off the real line by ``b`` (a sweep along real
     lengths passes the points where two real solutions meet at a distance, instead of through
     them)."""
 
     def __init__(self, system: ParameterSystem, w0: complex, w1: complex, patch: np.ndarray,
                  bump: float = 0.0) -> None:
-        self.system, self.w0, self.w1, self.patch, self.bump = system, w0, w1, patch, bump
+        self.equations, self.w0, self.w1, self.patch, self.bump = system, w0, w1, patch, bump
 
     def w(self, t: np.ndarray) -> np.ndarray:
         return self.w1 + t * (self.w0 - self.w1) + 1j * self.bump * t * (1.0 - t)
 
     def parts(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f, fx = self.system(x, self.w(t))
+        f, fx = self.equations(x, self.w(t))
         full = np.concatenate([fx, np.broadcast_to(self.patch, (len(x), 1, len(self.patch)))],
                               axis=1)
         value = np.concatenate([f, (x @ self.patch - 1.0)[:, None]], axis=1)
         rate = (self.w0 - self.w1) + 1j * self.bump * (1.0 - 2.0 * t)
-        return value, full, self.system.dw(x) * rate[:, None]
-
-    def velocity(self, x: np.ndarray, t: np.ndarray) -> np.ndarray:
-        _, full, ht = self.parts(x, t)
-        return -_solve(full, np.concatenate([ht, np.zeros((len(x), 1))], axis=1))
-
-    def newton(self, x: np.ndarray, t: np.ndarray, iterations: int = 3
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """As :meth:`engine.space.homotopy._Homotopy.newton`."""
-        first = np.zeros(len(x))
-        done = np.zeros(len(x), dtype=bool)
-        before = np.full(len(x), np.inf)
-        for k in range(iterations):
-            value, full, _ = self.parts(x, t)
-            dx = -_solve(full, value)
-            size = np.linalg.norm(dx, axis=1) / np.maximum(np.linalg.norm(x, axis=1), 1.0)
-            if k == 0:
-                first = size
-            x = x + dx
-            done = (size <= NEWTON_TOL) | ((size <= NEWTON_LOOSE) & (size <= 0.25 * before))
-            before = size
-            if done.all():
-                break
-        return x, done, first
+        return value, full, self.equations.dw(x) * rate[:, None]
 
 
 #: ``watch(paths, points, t)``: called with the paths (K,) that took a step, their new points
