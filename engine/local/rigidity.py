@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from engine.local.sparse_null import SPARSE_MAX_NULLITY, _sparse_null_spaces
+from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.errors import LimitExceeded, NumericalFailure
 from engine.model.linkage import Linkage
@@ -285,7 +286,8 @@ def plan_first_order(linkage: Linkage, sparse: bool | None = None) -> FirstOrder
 
 
 def _null_spaces(
-    linkage: Linkage, cons: Constraints, u: np.ndarray, plan: FirstOrderPlan, tol: Tolerances
+    linkage: Linkage, cons: Constraints, u: np.ndarray, plan: FirstOrderPlan, tol: Tolerances,
+    deadline: Deadline = NEVER,
 ) -> tuple[
     np.ndarray | sp.csr_matrix, bool, str, tuple[int, np.ndarray, np.ndarray, np.ndarray]
 ]:
@@ -296,7 +298,7 @@ def _null_spaces(
     jac = cons.jacobian(u, sparse=use_sparse)
     if use_sparse:
         try:
-            return jac, use_sparse, method, _sparse_null_spaces(jac, tol.rank_rtol)
+            return jac, use_sparse, method, _sparse_null_spaces(jac, tol.rank_rtol, deadline)
         except NumericalFailure as err:
             if cons.n_free > DENSE_FALLBACK_MAX_FREE:
                 raise NumericalFailure(
@@ -314,6 +316,7 @@ def first_order(
     linkage: Linkage,
     tolerances: Tolerances | None = None,
     sparse: bool | None = None,
+    deadline: Deadline = NEVER,
 ) -> RigidityResult:
     """Rank, zero modes, self-stresses and trivial motions of ``J`` at the given positions.
 
@@ -334,6 +337,8 @@ def first_order(
     MemoryLimitExceeded
         When the method's estimated peak memory (:func:`first_order_memory`) exceeds what this
         process may allocate; both before any work.
+    OutOfTime
+        When ``deadline`` passes inside the sparse method (never without a deadline).
 
     Examples
     --------
@@ -348,7 +353,7 @@ def first_order(
     plan = plan_first_order(linkage, sparse)
     check_memory(plan.memory, plan.what)
     jac, use_sparse, method, (rank, svals, right, left) = _null_spaces(
-        linkage, cons, u, plan, tol
+        linkage, cons, u, plan, tol, deadline
     )
 
     trivial = trivial_motions(linkage)

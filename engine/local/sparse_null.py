@@ -11,11 +11,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from engine.model.budget import NEVER, Deadline, OutOfTime
 from engine.model.errors import NumericalFailure
 
 
 def _sparse_null_spaces(
-    jac: sp.csr_matrix, rtol: float
+    jac: sp.csr_matrix, rtol: float, deadline: Deadline = NEVER
 ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """As :func:`_dense_null_spaces`, by deflated shift-invert Lanczos on the augmented matrix.
 
@@ -25,7 +26,9 @@ def _sparse_null_spaces(
     found so far projected out (deflation) until the nearest remaining eigenvalue lies above the
     threshold, and then completed by block inverse iteration (:func:`_complete_null_space`),
     which also finds copies that every Lanczos round missed. Raises :class:`NumericalFailure`
-    when the counts are inconsistent.
+    when the counts are inconsistent, and :class:`~engine.model.budget.OutOfTime` when
+    ``deadline`` passes during the Lanczos rounds (each operator application checks it: on a
+    100-rotor chain of parallelograms one ``eigsh`` took 1.5 s, past a search's deadline).
     """
     ea, m = jac.shape
     n = ea + m
@@ -52,6 +55,8 @@ def _sparse_null_spaces(
         basis = found
 
         def apply(x: np.ndarray, basis: np.ndarray = basis) -> np.ndarray:
+            if deadline.expired():
+                raise OutOfTime("the sparse null space ran past the deadline")
             if basis.shape[1]:
                 x = x - basis @ (basis.T @ x)
             y = lu.solve(x)

@@ -88,6 +88,12 @@ class Deadline:
 NEVER = Deadline()
 
 
+class OutOfTime(RuntimeError):
+    """Raised from inside one unit of work that checks its deadline as it goes (e.g. the
+    Lanczos iterations of a sparse null space): the caller that handed the deadline down
+    catches it and stops its search with the reason ``"time"``."""
+
+
 def granted(deadline: Deadline) -> float | None:
     """The seconds ``deadline`` was given, rounded for a report (None without a limit)."""
     return None if deadline.budget_s is None else round(deadline.budget_s, 3)

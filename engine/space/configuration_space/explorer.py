@@ -20,6 +20,7 @@ from engine.model.budget import (
     NEVER,
     Argument,
     Deadline,
+    OutOfTime,
     granted,
 )
 from engine.model.constraints import Constraints
@@ -313,8 +314,12 @@ class Explorer:
         if sparse and self.cons.n_free * SPARSE_SEED_SECONDS_PER_FREE > self.deadline.remaining():
             self.timed_out = True  # (the zero mode alone would run past the deadline)
             return None
-        rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)), self.tol,
-                          sparse=True if sparse else None)
+        try:
+            rig = first_order(self.linkage.with_positions(self.linkage.positions_of(u)),
+                              self.tol, sparse=True if sparse else None, deadline=self.deadline)
+        except OutOfTime:
+            self.timed_out = True
+            return None
         if rig.critical or rig.zero_modes.shape[0] != 1:
             return None
         curve = self._trace(u, rig.zero_modes[0])

@@ -10,6 +10,7 @@ import pytest
 
 from engine.catalogue.presets import build_preset
 from engine.local.rigidity import FIRST_ORDER_DENSE_MAX_FREE, first_order
+from engine.model.budget import Deadline, OutOfTime
 from engine.model.constraints import Constraints
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 from engine.model.lu import Factor, parity
@@ -192,3 +193,15 @@ def test_parity_matches_cycle_count(n):
         perm = np.arange(n)
         perm[[0, n - 1]] = perm[[n - 1, 0]]
         assert parity(perm) == -1
+
+
+def test_the_sparse_method_stops_at_its_deadline():
+    # the Lanczos rounds check the deadline at every operator application: a search's zero
+    # mode at a seed (a 100-rotor chain of parallelograms: one eigsh took 1.5 s) stops with
+    # OutOfTime instead of running past the search's deadline; without one it answers
+    chain = build_preset("kl-chain", {"n": 100, "a": 1.0, "l": 1.0, "r": 1.5})
+    with pytest.raises(OutOfTime):
+        first_order(chain, sparse=True, deadline=Deadline.after(0.0))
+    res = first_order(chain, sparse=True, deadline=Deadline.after(60.0))
+    assert res.dof == 1 and not res.critical
+    check_invariants(chain, res)
