@@ -339,6 +339,9 @@ def projected_random_starts(
 
 #: ``report["seeding"]`` of a seed generation that the deadline stopped.
 STOPPED_BY_TIME = "stopped: time"
+#: Bytes of assemblies a rotor sweep holds at once (:func:`iter_seeds` enumerates its angles in
+#: chunks of at most this many assemblies' coordinates, ``budget`` per angle).
+SWEEP_CHUNK_BYTES = 1 << 26
 
 
 @dataclass(frozen=True)
@@ -377,6 +380,7 @@ def iter_seeds(
     ends = linkage.ends[cons.bars]
     targets = linkage.lengths[cons.bars]
     free = ~np.asarray(linkage.fixed, dtype=bool)
+    base_values = int(np.asarray(linkage.positions).size)  # one assembly's coordinates
     swept: list[str] = []
     offset = (np.sqrt(5) - 1) / 2  # irrational offset: avoid symmetric (often critical) angles
     grid = 2 * np.pi * (np.arange(angles) + offset) / angles
@@ -402,35 +406,48 @@ def iter_seeds(
             continue
         swept.append(linkage.bar_ids[rotor])
         report["angles_per_rotor"] = angles
-        # every angle's assemblies enumerated at once (the same ones, in the same order, as
-        # assemblies_at angle by angle) and checked at once (the same residual as
-        # cons.max_residual of their coordinates, one vectorised expression); the report still
-        # follows the consumer angle by angle
-        swept_angles = assemblies_at_angles(linkage, rotor, plan, grid, budget, deadline)
-        if deadline.expired():  # (the sweep may be cut anywhere: its seeds are not used)
-            report["seeding"] = STOPPED_BY_TIME
-            return
-        everything = [a for found, _ in swept_angles for a in found]
-        if everything:
-            stack = np.array(everything, dtype=float)  # (F, V, d)
-            vec = stack[:, ends[:, 0]] - stack[:, ends[:, 1]]
-            res = np.max(np.abs(np.sqrt(np.einsum("kij,kij->ki", vec, vec)) - targets), axis=1,
-                         initial=0.0)
-            good = res <= max(1e3 * tol.residual_atol, 1e-7)
-            us = stack[:, free]
-        start = 0
-        for found, cut in swept_angles:
-            if cut:
-                report["assemblies_truncated"] = True
-            stop = start + len(found)
-            for k in range(start, stop):
-                if good[k]:
-                    counts["seeds"] += 1
-                    report.update(counts)
-                    yield us[k]
-            start = stop
+        # the angles' assemblies enumerated a chunk of angles at once (the same ones, in the
+        # same order, as assemblies_at angle by angle) and checked at once (the same residual
+        # as cons.max_residual of their coordinates, one vectorised expression); a chunk holds
+        # at most SWEEP_CHUNK_BYTES of assemblies (a 20,000-rotor chain's 90 angles x 64
+        # assemblies held 3.7 GB at once), and the report still follows the consumer angle by
+        # angle
+        chunk = max(1, SWEEP_CHUNK_BYTES // max(1, 8 * budget * base_values))
+        for first in range(0, len(grid), chunk):
+            swept_angles = assemblies_at_angles(linkage, rotor, plan, grid[first:first + chunk],
+                                                budget, deadline)
+            if deadline.expired():  # (the sweep may be cut anywhere: its seeds are not used)
+                report["seeding"] = STOPPED_BY_TIME
+                return
+            yield from _good_seeds(swept_angles, ends, targets, free, tol, report, counts)
     if with_random:
         yield from iter_random_seeds(linkage, tol, report, random_starts, seed, deadline)
+
+
+def _good_seeds(swept_angles: list[tuple[list[np.ndarray], bool]], ends: np.ndarray,
+                targets: np.ndarray, free: np.ndarray, tol: Tolerances,
+                report: dict[str, object], counts: dict[str, int]) -> Iterator[np.ndarray]:
+    """The free coordinates of the assemblies of ``swept_angles`` (one chunk of a rotor's
+    angles) whose bars have their lengths, angle by angle, counted in ``report``."""
+    everything = [a for found, _ in swept_angles for a in found]
+    if everything:
+        stack = np.array(everything, dtype=float)  # (F, V, d)
+        vec = stack[:, ends[:, 0]] - stack[:, ends[:, 1]]
+        res = np.max(np.abs(np.sqrt(np.einsum("kij,kij->ki", vec, vec)) - targets), axis=1,
+                     initial=0.0)
+        good = res <= max(1e3 * tol.residual_atol, 1e-7)
+        us = stack[:, free]
+    start = 0
+    for found, cut in swept_angles:
+        if cut:
+            report["assemblies_truncated"] = True
+        stop = start + len(found)
+        for k in range(start, stop):
+            if good[k]:
+                counts["seeds"] += 1
+                report.update(counts)
+                yield us[k]
+        start = stop
 
 
 def iter_random_seeds(
