@@ -276,6 +276,34 @@ class Problem(BaseModel):
 SearchReason = Literal["time", "budget", "degenerate", "unresolved", "searched"]
 
 
+class CountClaim(BaseModel):
+    """How many of a kind an answer found, and whether that is all of them."""
+
+    count: int | str = Field(
+        description="how many (a decimal string beyond 2^53 - 1, e.g. a long chain's "
+        "components counted by the chain rules)"
+    )
+    exact: bool = Field(
+        description="true: exactly this many (the answer is complete, or an argument covers "
+        "this part alone); false: at least this many (what was found)"
+    )
+
+
+class ProvedSoFar(BaseModel):
+    """What an answer proves, also when it is incomplete (``search.proved``)."""
+
+    critical_points: CountClaim | None = Field(
+        None, description="the critical points: exact when the answer is complete, or when the "
+        "homotopy (every singular solution refined to a critical point of the answer) or the "
+        "chain rules (none) prove them all while another part of the search was cut short"
+    )
+    components: CountClaim | None = Field(
+        None, description="the components (configuration-space answers only): exact when the "
+        "answer is complete or the chain rules count them (``components_total``), else the "
+        "number traced, a lower bound"
+    )
+
+
 class SearchReport(BaseModel):
     """What a search did and whether its answer is complete (``engine.model.report.SearchReport``).
     ``complete`` and ``reason`` are always there; the method's own counts (``method``,
@@ -311,4 +339,9 @@ class SearchReport(BaseModel):
     time_budget_s: float | None = Field(
         None, description="seconds the search was given (options.time_budget_s or "
         "LINKAGE_SEARCH_TIME_S; a job's own time limit)"
+    )
+    proved: ProvedSoFar | None = Field(
+        None, description="what the answer proves so far, also when incomplete: the critical "
+        "points and components found, each exact or a lower bound (configuration-space and "
+        "critical-point searches)"
     )

@@ -116,3 +116,25 @@ def argument(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],
         f"{c['real']} real regular solutions on the traced curves, "
         f"{c['critical_candidates']} singular ones near the reals refined to the "
         f"{len(crit)} critical points")
+
+
+def proved_so_far(ex: Explorer, proof: Proof | None, crit: list[CriticalPoint],
+                  count: ChainCount | None, degenerate: bool, complete: bool,
+                  components: int | None = None, agreed: bool = True
+                  ) -> dict[str, dict[str, object]]:
+    """What an answer proves even when it is incomplete (issue 23, item 5): for the critical
+    points and (``components`` traced, None for the critical-point search) the components,
+    ``{"count": N, "exact": bool}``: exactly N where the answer is complete or an argument
+    covers that part alone (the homotopy proves the critical points complete while tracing ran
+    out of time; the chain rules count the components whatever was traced), else at least N
+    (what was found: each critical point and traced component is one)."""
+    crit_exact = complete or (
+        not degenerate and argument(ex, proof, crit, count, components=False)[0] is not None)
+    out: dict[str, dict[str, object]] = {
+        "critical_points": {"count": len(crit), "exact": bool(crit_exact)}}
+    if components is not None:
+        if count is not None and agreed:
+            out["components"] = {"count": count.components, "exact": True}
+        else:
+            out["components"] = {"count": components, "exact": bool(complete)}
+    return out

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -23,7 +24,13 @@ from engine.space.configuration_space.closed_form import (
 )
 from engine.space.configuration_space.critical_search import critical_points, resolve
 from engine.space.configuration_space.explorer import Explorer
-from engine.space.configuration_space.proof import Proof, argument, count_text, gather
+from engine.space.configuration_space.proof import (
+    Proof,
+    argument,
+    count_text,
+    gather,
+    proved_so_far,
+)
 from engine.space.configuration_space.results import (
     CriticalSearch,
     SpaceOptions,
@@ -77,13 +84,13 @@ def find_critical_points(
     if opt.closed_form and opt.critical_closed_form:
         fast = closed_form_critical(ex)
         if fast is not None:
-            return fast
+            return _with_found(fast)
         if opt.near_misses_closed_form and ex.report.get("closed_form") == NO_CANDIDATE:
             # certified: no critical point; the near misses from the closed form's walks (as
             # explore finds them), instead of tracing the curves
             space = closed_form_answer(ex, start, near_misses=True)
             if space is not None:
-                return CriticalSearch([], space.near_misses, space.search, False)
+                return _with_found(CriticalSearch([], space.near_misses, space.search, False))
     if opt.critical_closed_form:
         ex.report["method"] = "tracer"
         ex.report.setdefault("closed_form", "off")
@@ -102,7 +109,25 @@ def find_critical_points(
     search = ex.finish(degenerate, argument=argument(ex, proof, crit, count, components=False),
                        curves_needed=False, critical_points_found=len(crit), step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
+    search = search.with_details(proved=proved_so_far(ex, proof, crit, count, degenerate,
+                                               search.complete))
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
+
+
+R = TypeVar("R", SpaceResult, CriticalSearch)
+
+
+def _with_found(res: R) -> R:
+    """A closed form's answer with its ``proved`` claims: what it found, exactly where it is
+    complete (the closed form's certificate), else at least (see :func:`proved_so_far`)."""
+    exact = bool(res.search.complete)
+    found: dict[str, dict[str, object]] = {
+        "critical_points": {"count": len(res.critical_points), "exact": exact}}
+    if isinstance(res, SpaceResult):
+        total = res.search.get("components_total")  # (the chain rules' count: exact)
+        found["components"] = ({"count": len(res.components), "exact": exact} if total is None
+                               else {"count": total, "exact": True})
+    return replace(res, search=res.search.with_details(proved=found))
 
 
 def _gate_details(report: dict[str, object], linkage: Linkage) -> None:
@@ -163,7 +188,7 @@ def explore(
     if opt.closed_form:
         fast = closed_form_answer(ex, start, near_misses)
         if fast is not None:
-            return fast
+            return _with_found(fast)
     # -- general path ---------------------------------------------------------------------
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
@@ -194,7 +219,7 @@ def explore(
         ex.report["components_total_rule"] = count.rule
         # (a search cut by its budget or deadline says so itself)
         agreed = ex.timed_out or bool(ex.report.get("component_budget_reached")) \
-            or len(components) == count.components
+            or ex.size_reached() or len(components) == count.components
         if not agreed:  # a second method disagrees: never a confident count (unresolved)
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives "
@@ -206,4 +231,6 @@ def explore(
                        critical_points_found=len(crit),
                        segments_complete=seg_complete, step_max=ex.h_max,
                        strain_tol=opt.trace.strain_tol)
+    search = search.with_details(proved=proved_so_far(ex, proof, crit, count, degenerate,
+                                               search.complete, len(components), agreed))
     return SpaceResult(components, crit, segs, misses if not crit else [], search, degenerate)
