@@ -32,7 +32,8 @@ MODELS = {
     "ConflictOut": models.Conflict, "DesignResponse": models.DesignResult,
     "Progress": models.Progress, "JobError": models.JobError, "JobOut": models.Job,
     "JobSummary": models.JobSummary, "Readiness": models.Readiness,
-    "OperationOut": models.Operation,
+    "OperationOut": models.Operation, "CountClaim": models.CountClaim,
+    "ProvedSoFar": models.ProvedSoFar,
 }
 
 

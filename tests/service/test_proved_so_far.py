@@ -83,3 +83,14 @@ def test_complete_answers_claim_exactly_what_they_list(client, preset, branch_po
             assert proved["critical_points"]["count"] == branch_points
         if "components" in r:
             assert proved["components"] == {"count": len(r["components"]), "exact": True}
+
+
+def test_the_client_reads_the_claims(client):
+    from linkage_client.models import CountClaim, ProvedSoFar, SpaceResult
+
+    lk = client.get("/v1/presets/kl-chain?n=100").json()
+    data = client.post("/v1/analysis/configuration-space", json={"linkage": lk}).json()
+    proved = SpaceResult.from_json(data).search.proved
+    assert isinstance(proved, ProvedSoFar)
+    assert proved.components == CountClaim(count=str(2**99), exact=True)
+    assert proved.critical_points == CountClaim(count=0, exact=True)

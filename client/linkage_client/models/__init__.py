@@ -51,9 +51,11 @@ from linkage_client.models.jobs import (
 )
 from linkage_client.models.linkage import (
     Bar,
+    CountClaim,
     Health,
     Linkage,
     PresetInfo,
+    ProvedSoFar,
     Readiness,
     SearchReport,
     TangentForm,
@@ -65,9 +67,10 @@ from linkage_client.models.linkage import (
 
 __all__ = [
     "FINISHED", "RESULTS", "Bar", "BranchSplit", "CellSigns", "Component", "Conflict",
-    "CriticalPoint", "CriticalPointsResult", "CriticalValuesResult", "DesignResult",
+    "CountClaim", "CriticalPoint", "CriticalPointsResult", "CriticalValuesResult", "DesignResult",
     "DualCertificate", "Health", "HeightCritical",
     "Job", "JobError", "JobSummary", "Linkage", "NearMiss", "Operation", "PresetInfo", "Predicted",
+    "ProvedSoFar",
     "Progress", "Readiness", "Region", "RigidityResult", "RobustnessResult", "RobustnessSearch",
     "SearchReport", "SecondOrderFlex", "SecondOrderResult", "Segment", "SliceSearch",
     "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SweepResult", "SweepRow",

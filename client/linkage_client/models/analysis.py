@@ -10,7 +10,12 @@ import numpy as np
 
 from linkage_client._build import Model
 from linkage_client.labelled import Labelled
-from linkage_client.models.linkage import SearchReport, TangentForm, TolerancesUsed
+from linkage_client.models.linkage import (
+    ProvedSoFar,
+    SearchReport,
+    TangentForm,
+    TolerancesUsed,
+)
 
 JSON = dict[str, Any]
 
@@ -338,6 +343,7 @@ class SliceSearch(Model):
     time_budget_s: float | None = None
     argument: str | None = None
     argument_detail: str | None = None
+    proved: ProvedSoFar | None = None
 
 
 @dataclass(frozen=True)

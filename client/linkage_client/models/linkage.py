@@ -137,12 +137,29 @@ class TolerancesUsed(Model):
 
 
 @dataclass(frozen=True)
+class CountClaim(Model):
+    """How many were found; ``exact`` False: at least that many."""
+
+    count: int | str
+    exact: bool
+
+
+@dataclass(frozen=True)
+class ProvedSoFar(Model):
+    """What an answer proves, also when incomplete (``search.proved``)."""
+
+    critical_points: CountClaim | None = None
+    components: CountClaim | None = None
+
+
+@dataclass(frozen=True)
 class SearchReport(Model):
     complete: bool
     reason: str | None
     time_budget_s: float | None = None
     argument: str | None = None
     argument_detail: str | None = None
+    proved: ProvedSoFar | None = None
 
 
 @dataclass(frozen=True)
