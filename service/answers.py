@@ -10,6 +10,8 @@ points of a 300-vertex chain is 6 * 10^7 numbers, gigabytes as Python floats bef
 
 from __future__ import annotations
 
+import numpy as np
+
 from engine.model.errors import InvalidRequest, LimitExceeded
 from engine.model.linkage import Linkage
 from service.config import Settings
@@ -51,6 +53,19 @@ def check_first_order(linkage: Linkage, settings: Settings) -> None:
             f"{int(linkage.active.sum())} bars: its zero modes and self-stresses)", settings,
             "brace or split the linkage, or ask for /v1/analysis/second-order (no self-stress "
             "basis)")
+
+
+def check_null_spaces(zero_modes: np.ndarray, self_stresses: np.ndarray,
+                      settings: Settings) -> None:
+    """Refuse (422) a first- or second-order answer whose computed zero modes and
+    self-stresses (each a vector per vertex or bar) would exceed ``LINKAGE_MAX_ANSWER_MB``,
+    before they are mapped: the sizes alone (:func:`check_first_order`) bound them from below
+    only (a straight 1000-rotor chain: 2,001 zero modes and 999 self-stresses)."""
+    numbers = int(zero_modes.size + self_stresses.size)
+    _refuse(numbers * ANSWER_BYTES_PER_NUMBER,
+            f"{zero_modes.shape[0]:,} zero modes and {self_stresses.shape[0]:,} self-stresses "
+            f"({numbers:,} numbers)", settings,
+            "brace or split the linkage, or move it off this (highly degenerate) configuration")
 
 
 def check_points(linkage: Linkage, points: int, critical: int, compact: bool,

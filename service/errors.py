@@ -12,6 +12,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
+from engine.model.budget import OutOfTime
 from engine.model.errors import (
     EngineError,
     InvalidLinkage,
@@ -121,6 +122,16 @@ async def _numerical(request: Request, exc: Exception) -> JSONResponse:
     )
 
 
+async def _out_of_time(request: Request, exc: Exception) -> JSONResponse:
+    # an analysis without a search (rigidity, second order) that would not end before the
+    # request's time limit stops before it, with a 422 instead of the 504 at the limit
+    loc = ["body", "linkage"]
+    msg = (f"the analysis would not finish within the request's time limit "
+           f"(LINKAGE_TIME_LIMIT_S): {exc}; ask for a smaller linkage or raise the limit")
+    return problem(422, "too-costly", "Analysis too costly for the time limit",
+                   f"{_loc_str(loc)}: {msg}", [{"loc": loc, "msg": msg}])
+
+
 async def _fault(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ServiceFault)
     headers = {"retry-after": str(exc.retry_after)} if exc.retry_after else None
@@ -178,6 +189,7 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _validation)
     app.add_exception_handler(EngineError, _engine)
     app.add_exception_handler(NumericalFailure, _numerical)
+    app.add_exception_handler(OutOfTime, _out_of_time)
     app.add_exception_handler(ServiceFault, _fault)
     app.add_exception_handler(MemoryError, _out_of_memory)
     app.add_exception_handler(StarletteHTTPException, _http)

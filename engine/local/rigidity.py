@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from engine.local.sparse_null import SPARSE_MAX_NULLITY, _sparse_null_spaces
-from engine.model.budget import NEVER, Deadline
+from engine.model.budget import NEVER, Deadline, OutOfTime
 from engine.model.constraints import Constraints
 from engine.model.errors import LimitExceeded, NumericalFailure
 from engine.model.linkage import Linkage
@@ -287,18 +287,24 @@ def plan_first_order(linkage: Linkage, sparse: bool | None = None) -> FirstOrder
 
 def _null_spaces(
     linkage: Linkage, cons: Constraints, u: np.ndarray, plan: FirstOrderPlan, tol: Tolerances,
-    deadline: Deadline = NEVER,
+    deadline: Deadline = NEVER, handover: bool = True,
 ) -> tuple[
     np.ndarray | sp.csr_matrix, bool, str, tuple[int, np.ndarray, np.ndarray, np.ndarray]
 ]:
     """``J`` at ``u``, whether it is sparse, the method used, and (rank, singular values, right
     null basis (k, M), left null basis (s, Ea)) by the ``plan``'s method; a sparse search that
-    fails falls back to the dense SVD where that is allowed (its memory checked first)."""
+    fails falls back to the dense SVD where that is allowed (its memory checked first), and
+    with ``handover`` (the method was not forced) so does one that finds a large null space."""
     use_sparse, method = plan.sparse, plan.method
     jac = cons.jacobian(u, sparse=use_sparse)
     if use_sparse:
         try:
-            return jac, use_sparse, method, _sparse_null_spaces(jac, tol.rank_rtol, deadline)
+            # where the dense fallback is allowed, a null space larger than a share of M goes
+            # to it at once (a straight 1000-rotor chain: over 70 s sparse, 13 s dense)
+            most = (max(LARGE_NULLITY_MIN, int(LARGE_NULLITY_SHARE * cons.n_free))
+                    if handover and cons.n_free <= DENSE_FALLBACK_MAX_FREE else None)
+            return jac, use_sparse, method, _sparse_null_spaces(jac, tol.rank_rtol, deadline,
+                                                                most)
         except NumericalFailure as err:
             if cons.n_free > DENSE_FALLBACK_MAX_FREE:
                 raise NumericalFailure(
@@ -309,7 +315,32 @@ def _null_spaces(
             plan = plan_first_order(linkage, sparse=False)
             check_memory(plan.memory, plan.what)
             jac = cons.jacobian(u, sparse=False)
+    dense_in_time(jac.shape, deadline)
     return jac, use_sparse, method, _dense_null_spaces(np.asarray(jac), tol.rank_rtol)
+
+
+#: Where the dense fallback is allowed, the sparse method hands over to it once it has found
+#: more null vectors than this share of M (at least ``LARGE_NULLITY_MIN``): block inverse
+#: iteration on ``k`` null vectors costs about ``(E + M) k^2`` a step, the SVD ``M^3`` in all
+#: (a straight 150-rotor chain, 450 null vectors at M = 300: 0.64 s sparse, 0.04 s dense).
+LARGE_NULLITY_SHARE = 0.05
+LARGE_NULLITY_MIN = 64
+
+#: Seconds of a full dense SVD per ``max(E, M)^3``, for the estimate before one is started:
+#: twice what one core of a loaded machine took (M = 2000 in 12.8 s, 1000 in 1.5 s, 500 in
+#: 0.24 s), as the load varies.
+DENSE_SVD_SECONDS_PER_CUBE = 3.2e-9
+
+
+def dense_in_time(shape: tuple[int, int], deadline: Deadline) -> None:
+    """Raise :class:`OutOfTime` before a dense SVD of ``shape`` that would not end before
+    ``deadline`` (it cannot be stopped once started)."""
+    seconds = DENSE_SVD_SECONDS_PER_CUBE * float(max(shape)) ** 3
+    if seconds > deadline.remaining():
+        raise OutOfTime(
+            f"a dense SVD of a {shape[0]} x {shape[1]} Jacobian takes about {seconds:.0f} s, "
+            f"more than the {deadline.remaining():.1f} s left"
+        )
 
 
 def first_order(
@@ -338,7 +369,8 @@ def first_order(
         When the method's estimated peak memory (:func:`first_order_memory`) exceeds what this
         process may allocate; both before any work.
     OutOfTime
-        When ``deadline`` passes inside the sparse method (never without a deadline).
+        When ``deadline`` passes inside the sparse method, or before a dense SVD estimated to
+        end after it (never without a deadline).
 
     Examples
     --------
@@ -353,7 +385,7 @@ def first_order(
     plan = plan_first_order(linkage, sparse)
     check_memory(plan.memory, plan.what)
     jac, use_sparse, method, (rank, svals, right, left) = _null_spaces(
-        linkage, cons, u, plan, tol, deadline
+        linkage, cons, u, plan, tol, deadline, handover=sparse is None
     )
 
     trivial = trivial_motions(linkage)

@@ -23,6 +23,7 @@ import numpy as np
 
 from engine.local.prestress import PrestressResult, prestress
 from engine.local.rigidity import RigidityResult, first_order, plan_first_order
+from engine.model.budget import NEVER, Deadline, OutOfTime
 from engine.model.constraints import DENSE_MAX_FREE, Constraints, project
 from engine.model.linkage import Linkage
 from engine.model.memory import check_memory
@@ -90,6 +91,11 @@ def _stays_critical(
     return True
 
 
+def _in_time(deadline: Deadline, what: str) -> None:
+    if deadline.expired():
+        raise OutOfTime(f"the deadline passed before {what}")
+
+
 def branch_coefficients(eigenvalues: np.ndarray) -> np.ndarray:
     """Real solutions ``c`` (unit, (n, k)) of ``sum_n lam_n c_n^2 = 0`` in the eigenbasis.
 
@@ -125,9 +131,13 @@ def second_order_memory(linkage: Linkage, sparse: bool | None = None) -> tuple[i
 
 
 def second_order(
-    linkage: Linkage, tolerances: Tolerances | None = None, sparse: bool | None = None
+    linkage: Linkage, tolerances: Tolerances | None = None, sparse: bool | None = None,
+    deadline: Deadline = NEVER,
 ) -> SecondOrderResult:
     """Classify the configuration (taken as given, see ``on_constraints``) to second order.
+
+    ``deadline``: checked by the first-order analysis and between the steps after it
+    (:class:`~engine.model.budget.OutOfTime` once it has passed).
 
     Examples
     --------
@@ -140,8 +150,10 @@ def second_order(
     """
     tol = tolerances or Tolerances()
     check_memory(*second_order_memory(linkage, sparse))
-    rig = first_order(linkage, tol, sparse=sparse)
+    rig = first_order(linkage, tol, sparse=sparse, deadline=deadline)
+    _in_time(deadline, "the prestress analysis")
     pre = prestress(linkage, rig, tol)
+    _in_time(deadline, "the second-order classification")
 
     if not rig.critical:
         return _result(rig, pre, "regular")

@@ -16,7 +16,8 @@ from engine.model.errors import NumericalFailure
 
 
 def _sparse_null_spaces(
-    jac: sp.csr_matrix, rtol: float, deadline: Deadline = NEVER
+    jac: sp.csr_matrix, rtol: float, deadline: Deadline = NEVER,
+    max_nullity: int | None = None,
 ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """As :func:`_dense_null_spaces`, by deflated shift-invert Lanczos on the augmented matrix.
 
@@ -29,7 +30,11 @@ def _sparse_null_spaces(
     when the counts are inconsistent, and :class:`~engine.model.budget.OutOfTime` when
     ``deadline`` passes during the Lanczos rounds (each operator application checks it: on a
     100-rotor chain of parallelograms one ``eigsh`` took 1.5 s, past a search's deadline).
+    ``max_nullity`` (default :data:`SPARSE_MAX_NULLITY`): more null vectors than that raise
+    :class:`NumericalFailure` as soon as they are found (the caller's dense SVD is then faster:
+    block inverse iteration costs ``O((E + M) k^2)`` a step for ``k`` null vectors).
     """
+    most = SPARSE_MAX_NULLITY if max_nullity is None else min(max_nullity, SPARSE_MAX_NULLITY)
     ea, m = jac.shape
     n = ea + m
     if jac.nnz == 0 or not np.any(jac.data):
@@ -78,16 +83,26 @@ def _sparse_null_spaces(
             q, r = np.linalg.qr(new)
             keep = np.abs(np.diag(r)) > 1e-6
             found = np.hstack([found, q[:, keep]])
+            if found.shape[1] > most:
+                raise NumericalFailure(f"null space larger than {most} for the sparse search")
         others.append(vecs[:, ~null])
         if not null.all():
             break  # the nearest remaining eigenvalue is above the threshold
-        k = min(2 * k, n - 2)
+        # every Ritz value null: the null space may be large. Lanczos converges badly on a
+        # cluster of that many equal eigenvalues (a straight 150-rotor chain, 450 null vectors:
+        # 22 s with k doubled each round), block inverse iteration well: it completes the null
+        # space, and the next round, with all of it deflated, finds the nearest others
+        found = _complete_null_space(aug, lu, found, thresh, rng, deadline=deadline,
+                                     most=most)
     else:
         raise NumericalFailure("sparse null-space search did not terminate")
-    found = _complete_null_space(aug, lu, found, thresh, rng)
+    found = _complete_null_space(aug, lu, found, thresh, rng, deadline=deadline,
+                                     most=most)
     for _ in range(2):  # polish: block inverse iteration damps other directions by >= 1e-4 a step
         if found.shape[1]:
             found = np.linalg.qr(lu.solve(found))[0]
+    if deadline.expired():
+        raise OutOfTime("the sparse null space ran past the deadline")
     small = _smallest_nonzero(aug, lu, found, np.hstack(others), s_max, rng)
     left, right = _span_rows(found[:ea].T), _span_rows(found[ea:].T)
     rank = m - right.shape[0]
@@ -174,6 +189,8 @@ def _complete_null_space(
     rng: np.random.Generator,
     block: int = 8,
     steps: int = 3,
+    deadline: Deadline = NEVER,
+    most: int = SPARSE_MAX_NULLITY,
 ) -> np.ndarray:
     """Add the null vectors of ``aug`` that the Lanczos rounds missed to ``found`` (n, k).
 
@@ -188,9 +205,17 @@ def _complete_null_space(
     """
     n = aug.shape[0]
     while True:
+        if deadline.expired():
+            raise OutOfTime("the sparse null space's completion ran past the deadline")
         p = min(block, n - found.shape[1])
         if p <= 0:
             return found
+        # one round: about 2 + 2 steps deflations (4 n k p flops each) and QRs (2 n p^2)
+        seconds = BLOCK_SECONDS_PER_FLOP * (2 * steps + 2) * n * p * (4 * found.shape[1] + 2 * p)
+        if seconds > deadline.remaining():
+            raise OutOfTime(f"a round of the sparse null space's completion ({found.shape[1]} "
+                            f"null vectors found, a block of {p}) would take about "
+                            f"{seconds:.1f} s, more than the {deadline.remaining():.1f} s left")
 
         x = np.linalg.qr(_deflate(rng.normal(size=(n, p)), found))[0]
         for _ in range(steps):
@@ -204,12 +229,16 @@ def _complete_null_space(
         new = _deflate(x @ w[:, null], found)
         q, r = np.linalg.qr(new)
         found = np.hstack([found, q[:, np.abs(np.diag(r)) > 1e-6]])
-        if found.shape[1] > SPARSE_MAX_NULLITY:
-            raise NumericalFailure(
-                f"null space larger than {SPARSE_MAX_NULLITY} for the sparse search"
-            )
+        if found.shape[1] > most:
+            raise NumericalFailure(f"null space larger than {most} for the sparse search")
         if null.all():
             block *= 2
+
+
+#: Seconds per floating-point operation of the dense block algebra, for the estimate of a round
+#: of :func:`_complete_null_space` before it starts (4 GFLOP/s: one core of a loaded machine;
+#: measured 3 to 10).
+BLOCK_SECONDS_PER_FLOP = 2.5e-10
 
 
 def _largest_singular_value(jac: sp.csr_matrix, rng: np.random.Generator, steps: int = 60) -> float:

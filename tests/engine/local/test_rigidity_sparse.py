@@ -5,6 +5,8 @@ large chains, where only invariants can be checked."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -205,3 +207,33 @@ def test_the_sparse_method_stops_at_its_deadline():
     res = first_order(chain, sparse=True, deadline=Deadline.after(60.0))
     assert res.dof == 1 and not res.critical
     check_invariants(chain, res)
+
+
+@pytest.mark.parametrize("n", [150])
+def test_a_large_null_space_goes_to_the_dense_svd(n):
+    # a straight chain (pins, rotors and couplers on one line): n zero modes and n - 1
+    # self-stresses, far more than 5 % of M: the sparse method (chosen by default above
+    # 200 free coordinates) hands over to the dense SVD (a straight 150-rotor chain took 22 s
+    # of Lanczos rounds; now about 0.1 s), whose answer is checked by its invariants and
+    # against the counts of the straight chain
+    chain = straight_kl_chain(n)
+    res = first_order(chain)
+    assert res.method.startswith("dense-svd")
+    assert (res.dof, res.self_stresses.shape[0]) == (n, n - 1)
+    check_invariants(chain, res)
+
+
+def test_a_dense_svd_that_would_not_end_in_time_is_not_started():
+    chain = straight_kl_chain(1000)  # M = 2000: a dense SVD of about 10 s or more
+    t0 = time.monotonic()
+    with pytest.raises(OutOfTime):
+        first_order(chain, deadline=Deadline.after(1.0))
+    assert time.monotonic() - t0 < 5.0  # (the sparse rounds before it stop at the deadline)
+
+
+def test_a_round_of_the_completion_that_would_not_end_in_time_is_not_started():
+    # 20,000 straight rotors: too large for the dense fallback; the block inverse iteration's
+    # next round is estimated before it starts
+    chain = straight_kl_chain(20000)
+    with pytest.raises(OutOfTime):
+        first_order(chain, sparse=True, deadline=Deadline.after(2.0))
