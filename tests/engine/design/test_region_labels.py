@@ -214,9 +214,13 @@ def test_gate_slice_regions_are_derived_and_agree_with_sampling():
 def test_derived_label_is_the_traced_label():
     """A second method: where the rules give the turns, the derived label of a 10-rotor chain
     (and of a gated chain, gated and not) says what the traced exploration's label says."""
-    for lk in (build_preset("kl-chain", {"n": 10}),
+    from tests.engine.space.test_chain_count import chain
+
+    driven_by_a_four_bar = chain([1.0] * 3, [1.2, 1.25, 1.5, 1.5], [1.5] * 3)
+    for lk in (build_preset("kl-chain", {"n": 10}), driven_by_a_four_bar,
                build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0}),
                build_preset("gated-kl-chain", {"n": 4, "gate": 2})):
+        assert lk is not None
         row = derive(lk)
         assert row is not None
         derived = derived_label(lk, row)
