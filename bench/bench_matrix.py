@@ -114,7 +114,12 @@ def in_process_runner() -> Callable[[str, Json], tuple[int, str, bytes]]:
     from service.schemas.common import AnalysisRequest
     from service.schemas.critical_values import CriticalValuesRequest
     from service.schemas.design import DesignRequest
-    from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
+    from service.schemas.figures import (
+        CriticalValuesFigureRequest,
+        LinkageFigureRequest,
+        SpaceFigureRequest,
+        SplittingFigureRequest,
+    )
     from service.schemas.robustness import RobustnessRequest
     from service.schemas.space import SpaceRequest
     from service.schemas.splitting import SplittingRequest
@@ -131,8 +136,9 @@ def in_process_runner() -> Callable[[str, Json], tuple[int, str, bytes]]:
         "/v1/figures/linkage": (figures.linkage_figure, LinkageFigureRequest),
         "/v1/figures/configuration-space": (figures.configuration_space_figure,
                                             SpaceFigureRequest),
-        "/v1/figures/critical-values": (figures.critical_values_figure, CriticalValuesRequest),
-        "/v1/figures/splitting": (figures.splitting_figure, SplittingRequest),
+        "/v1/figures/critical-values": (figures.critical_values_figure,
+                                        CriticalValuesFigureRequest),
+        "/v1/figures/splitting": (figures.splitting_figure, SplittingFigureRequest),
     }
     settings = Settings.from_env()
 

@@ -76,7 +76,9 @@ SAME_WAY = 0.2
 SEED_MAX_POINTS = 2000
 
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
-#: chains (the four-bar family) from their closed-form critical lines and traces the rest;
+#: chains (the four-bar family), of a gated chain in its gate's lengths and of rotor chains
+#: whose cells cannot combine (:mod:`.chain_planes`) from their closed-form critical lines and
+#: traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
 
@@ -119,10 +121,10 @@ def critical_value_slice(
     Once ``deadline`` has passed the seeding and tracing stop, and regions not yet explored
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
-    ``method="auto"`` takes the curves of a one-dyad planar chain (the four-bar family) from
-    its closed-form critical lines (:func:`engine.design.dyad_margin.critical_planes`), sampled at
-    the
-    tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
+    ``method="auto"`` takes the curves from closed-form critical lines where they are known
+    (a one-dyad planar chain, the four-bar family; a gated chain in its gate's lengths; a rotor
+    chain whose four-bar cells cannot combine in the box: :func:`_closed_form_curves`), sampled
+    at the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
@@ -244,7 +246,7 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
                     scan: Scan | None = None, thin_unresolved: int = 0, planes_of: str = ""
                     ) -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box (the closed
-    form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
+    form: critical hyperplanes met with the plane) and every region's
     count is exact (its exploration complete, with an argument). A traced slice says what is
     proved so far: which curves the sweeps guarantee, how many regions are exact."""
     inexact = sum(r.argument is None for r in regions)
