@@ -114,7 +114,12 @@ def in_process_runner() -> Callable[[str, Json], tuple[int, str, bytes]]:
     from service.schemas.common import AnalysisRequest
     from service.schemas.critical_values import CriticalValuesRequest
     from service.schemas.design import DesignRequest
-    from service.schemas.figures import LinkageFigureRequest, SpaceFigureRequest
+    from service.schemas.figures import (
+        CriticalValuesFigureRequest,
+        LinkageFigureRequest,
+        SpaceFigureRequest,
+        SplittingFigureRequest,
+    )
     from service.schemas.robustness import RobustnessRequest
     from service.schemas.space import SpaceRequest
     from service.schemas.splitting import SplittingRequest
@@ -131,8 +136,9 @@ def in_process_runner() -> Callable[[str, Json], tuple[int, str, bytes]]:
         "/v1/figures/linkage": (figures.linkage_figure, LinkageFigureRequest),
         "/v1/figures/configuration-space": (figures.configuration_space_figure,
                                             SpaceFigureRequest),
-        "/v1/figures/critical-values": (figures.critical_values_figure, CriticalValuesRequest),
-        "/v1/figures/splitting": (figures.splitting_figure, SplittingRequest),
+        "/v1/figures/critical-values": (figures.critical_values_figure,
+                                        CriticalValuesFigureRequest),
+        "/v1/figures/splitting": (figures.splitting_figure, SplittingFigureRequest),
     }
     settings = Settings.from_env()
 
@@ -211,14 +217,17 @@ WHY_INCOMPLETE = [
     "22,528): the answer says so in `argument_detail`.",
     "- `searched` or `time` on `robustness` (not the four-bar family): the margin is a "
     "multistart's upper bound (`guarantee: upper-bound`); no argument bounds it from below.",
-    "- `time` or `searched` on `critical-values` (maps) of chains: the curves are traced from "
-    "seed lengths, and no argument proves that every critical curve crossing the box was "
-    "found (`engine/design/critical_values.py`); the time goes into exploring every region "
-    "of the raster. For the gated chain the gate's critical lengths are the gate four-bar's "
-    "flat conditions (`D = +-r +-L2 +-L1`), lines in the (L2, D) plane, and the region "
-    "counts are derived by `gated_chain_components`: a closed form of those lines would make "
-    "the gate slice complete in a fraction of a second (the maps' modules, another "
-    "engineer's area at the time of writing).",
+    "- `time` or `searched` on `critical-values` (maps) of linkages without a closed form: the "
+    "curves are traced from seed lengths, and no argument proves that every critical curve "
+    "crossing the box was found (`engine/design/critical_values.py`). The four-bar family, "
+    "the gate four-bar's own lengths (the gate slice) and rotor chains (`kl-chain`: the flat "
+    "planes of their four-bar cells where no two cells' alignments can combine in the box, "
+    "`engine/design/chain_planes.py`) are closed form, and their regions are counted by the "
+    "chain rules without tracing. The gated chains mapped in two rotor lengths (`r0` x `r1`) "
+    "are still traced: with the gate four-bar hanging on the chain the planes hold only while "
+    "the gate rotor cranks the gate four-bar, and in the regions where no rotor drives the "
+    "chain (a four-bar does) no rule counts a gated chain yet; the three-rotor's map belongs "
+    "to the slice proofs (`slice_scan.py`).",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
     "vertices each (40-90 MB of JSON as objects): mapping and serialising it takes seconds "
     "beyond the search budget; `options.points = \"compact\"` sends it as packed arrays.",

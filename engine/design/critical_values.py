@@ -38,7 +38,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.design.dyad_margin import critical_planes, gate_planes
+from engine.design.chain_planes import chain_planes
+from engine.design.dyad_margin import CriticalPlanes, critical_planes, gate_planes
 from engine.design.slice_curves import Axis, _continue, _onto_solutions_batch, _System, _tangent
 from engine.design.slice_regions import (
     THIN_REFINE,
@@ -75,7 +76,9 @@ SAME_WAY = 0.2
 SEED_MAX_POINTS = 2000
 
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
-#: chains (the four-bar family) from their closed-form critical lines and traces the rest;
+#: chains (the four-bar family), of a gated chain in its gate's lengths and of rotor chains
+#: whose cells cannot combine (:mod:`.chain_planes`) from their closed-form critical lines and
+#: traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
 
@@ -118,10 +121,10 @@ def critical_value_slice(
     Once ``deadline`` has passed the seeding and tracing stop, and regions not yet explored
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
-    ``method="auto"`` takes the curves of a one-dyad planar chain (the four-bar family) from
-    its closed-form critical lines (:func:`engine.design.dyad_margin.critical_planes`), sampled at
-    the
-    tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
+    ``method="auto"`` takes the curves from closed-form critical lines where they are known
+    (a one-dyad planar chain, the four-bar family; a gated chain in its gate's lengths; a rotor
+    chain whose four-bar cells cannot combine in the box: :func:`_closed_form_curves`), sampled
+    at the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
@@ -142,7 +145,8 @@ def critical_value_slice(
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
     span = box[:, 1] - box[:, 0]
     h_max = float(min(span)) / resolution
-    lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
+    closed = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
+    lines, planes_of = closed if closed is not None else (None, "")
     scan: Scan | None = None
     if lines is not None:
         raw, seeds, timed_out = lines, 0, False
@@ -187,7 +191,8 @@ def critical_value_slice(
         "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved))
+    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved,
+                                                   planes_of))
     return Slice(curves, regions, search)
 
 
@@ -238,10 +243,10 @@ def _scan_details(scan: Scan | None) -> dict[str, object]:
 
 
 def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
-                    scan: Scan | None = None, thin_unresolved: int = 0
+                    scan: Scan | None = None, thin_unresolved: int = 0, planes_of: str = ""
                     ) -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box (the closed
-    form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
+    form: critical hyperplanes met with the plane) and every region's
     count is exact (its exploration complete, with an argument). A traced slice says what is
     proved so far: which curves the sweeps guarantee, how many regions are exact."""
     inexact = sum(r.argument is None for r in regions)
@@ -268,40 +273,67 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
                       f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
                       "may be missing (a finer resolution resolves it)")
     return ARGUMENT_DERIVED, (
-        "every critical curve in the box is a critical hyperplane of the one-dyad chain or of "
-        f"the gate four-bar (closed form) met with the plane; every one of the {len(regions)} "
+        f"every critical curve in the box is a critical hyperplane of {planes_of} (closed form) "
+        f"met with the plane; every one of the {len(regions)} "
         "regions' component counts is exact ("
         + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
 
 
 def _closed_form_curves(
     linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, step: float, tol: Tolerances,
-) -> list[np.ndarray] | None:
-    """The slice's curves of a one-dyad planar chain: every critical hyperplane
-    ``n . (r, ra, rb) = D`` of :func:`engine.design.dyad_margin.critical_planes` met with the plane
-    of
-    the two axes (the other length as given) is a line; its piece inside the box (lengths at
-    least the shortest critical bar) sampled at most ``step`` apart. None when the linkage is
-    not such a chain or an axis is none of its three bars."""
+) -> tuple[list[np.ndarray], str] | None:
+    """The slice's curves where the critical value set is known in closed form, and whose
+    planes they are: every critical hyperplane ``n . (x_1, x_2, x_3) = D`` (of a one-dyad
+    planar chain, :func:`engine.design.dyad_margin.critical_planes`; of the gate four-bar,
+    :func:`~engine.design.dyad_margin.gate_planes`; of the flat cells of a rotor chain,
+    :func:`engine.design.chain_planes.chain_planes`) met with the plane of the two axes (the
+    other lengths as given) is a line; its piece inside the box (lengths at least the shortest
+    critical bar) sampled at most ``step`` apart. None when no closed form applies (or a plane
+    holds the whole box: every length there critical)."""
     found = critical_planes(linkage)
-    pl = found[1] if found is not None else gate_planes(linkage)
-    if pl is None:
+    gate = gate_planes(linkage) if found is None else None
+    # (those planes are the whole critical value set in their own three lengths only)
+    mine = [pl for pl in ([found[1]] if found is not None else []) + ([gate] if gate else [])
+            if all(a.bar in pl.bars for a in ax)]
+    planes: list[CriticalPlanes] | None
+    if found is not None or gate is not None:
+        planes = mine or None
+        what = "the one-dyad chain" if found is not None else "the gate four-bar"
+    else:
+        planes = chain_planes(linkage, (ax[0].bar, ax[1].bar), box)
+        what = ("a four-bar cell of the rotor chain flat (no two cells' alignments combine in "
+                "the box)")
+    if planes is None:
         return None
-    cols = [np.flatnonzero(pl.bars == a.bar) for a in ax]
-    if any(len(c) != 1 for c in cols):
-        return None
-    i, j = int(cols[0][0]), int(cols[1][0])
-    k = 3 - i - j  # the third bar keeps its length
-    other = float(linkage.lengths[pl.bars[k]])
+    curves: list[np.ndarray] = []
+    for pl in planes:
+        lines = _plane_lines(linkage, pl, ax, box, step, tol)
+        if lines is None:
+            return None
+        curves += lines
+    return curves, what
+
+
+def _plane_lines(linkage: Linkage, pl: CriticalPlanes, ax: tuple[Axis, Axis], box: np.ndarray,
+                 step: float, tol: Tolerances) -> list[np.ndarray] | None:
+    """The pieces in the box of the planes ``pl`` met with the plane of the two axes (None: a
+    plane holds the whole box)."""
     shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
     lo = np.maximum(box[:, 0], shortest)
+    at = [np.flatnonzero(pl.bars == a.bar) for a in ax]  # each axis's column (or none)
+    fixed = np.array([k for k in range(len(pl.bars)) if not any(k in c for c in at)], dtype=int)
+    others = linkage.lengths[pl.bars[fixed]].astype(float)
     curves = []
     for normal in pl.normals:  # at most 8 planes
-        if normal[k] != 0 and other < shortest:
-            continue  # the third bar would be degenerate: no critical configuration there
-        n = normal[[i, j]]
+        if np.any((normal[fixed] != 0) & (others < shortest)):
+            continue  # a fixed bar would be degenerate: no critical configuration there
+        n = np.array([float(normal[c[0]]) if len(c) else 0.0 for c in at])
+        c = pl.dist - float(normal[fixed] @ others)
+        if not n.any():  # (a plane of fixed lengths only: all of the box, or none of it)
+            if abs(c) <= MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol:
+                return None
+            continue
         # the line n . p = c, as p0 + t d with |d| = 1, cut to the box (slab by slab)
-        c = pl.dist - normal[k] * other
         p0 = n * c / float(n @ n)
         d = np.array([-n[1], n[0]]) / float(np.hypot(*n))
         t_lo, t_hi = -np.inf, np.inf

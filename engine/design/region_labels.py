@@ -12,12 +12,16 @@ A region is explored at one sample point; its label says what designers ask of i
   the gate four-bar and the chain's cells (:func:`engine.space.chain_count.gate_decision`), not from
   what was traced; None with the reason where that cannot be decided;
 * ``windings``: the distinct patterns of the rotors' full turns on the traced components.
+
+Where the chain rules also give every component's turns (:func:`engine.design.sweep_rules.
+derive`), :func:`derived_label` labels the point from them without any tracing.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from engine.design.sweep_rules import DerivedRow
 from engine.model.budget import ARGUMENT_DERIVED, Argument
 from engine.model.linkage import Linkage
 from engine.model.report import count_text
@@ -29,11 +33,12 @@ from engine.space.four_bar_cells import FourBarCell, four_bar_cells
 @dataclass(frozen=True)
 class RegionLabel:
     """What a region's sample point is (see the module docstring): ``traced`` components were
-    traced; ``components_rule`` names the rule that counts them exactly (None: no rule)."""
+    traced (None: none was, the label is derived); ``components_rule`` names the rule that
+    counts them exactly (None: no rule)."""
 
     components: int
     components_exact: bool
-    traced: int
+    traced: int | None
     components_rule: str | None
     cells: tuple[FourBarCell, ...]
     gated: bool | None
@@ -85,10 +90,38 @@ def label_region(linkage: Linkage, result: SpaceResult, axes: tuple[str, ...] = 
                        winding_patterns(linkage, result))
 
 
-def label_signature(label: RegionLabel, result: SpaceResult
+def derived_label(linkage: Linkage, row: DerivedRow, axes: tuple[str, ...] = ()
+                  ) -> RegionLabel | None:
+    """The label of a sample point from the chain rules alone (``row``: the components, the
+    rule and every component's rotor turns), nothing traced; None where the rules do not give
+    the turns (the point is then explored).
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> from engine.design.sweep_rules import derive
+    >>> lk = build_preset("gated-kl-chain", {"n": 3, "gate": 1, "D": 3.0})
+    >>> lab = derived_label(lk, derive(lk))
+    >>> lab.components, lab.traced, lab.windings, lab.gated
+    (8, None, ('r0:0,r1:0,r2:0,D:0',), True)
+    """
+    windings = row.windings
+    if windings is None:
+        return None
+    cells = tuple(c for c in four_bar_cells(linkage) if not axes or c.touches(set(axes)))
+    gate = gated_chain(linkage) is not None  # (label_region's gated: chains with a gate only)
+    return RegionLabel(row.components, True, None, row.rule, cells, row.gated if gate else None,
+                       row.gated_reason if gate else None, windings)
+
+
+def label_signature(label: RegionLabel, result: SpaceResult | None
                     ) -> tuple[str, Argument | None]:
     """A region's ``signature`` (its count, exact or a bound, and the winding patterns: it tells
-    topologies apart) and the argument that makes its count exact (None: a lower bound)."""
+    topologies apart) and the argument that makes its count exact (None: a lower bound);
+    ``result`` None for a :func:`derived_label`."""
+    if result is None:
+        return (f"components={count_text(label.components)}; turns={'|'.join(label.windings)}",
+                ARGUMENT_DERIVED)
     if label.components_exact and label.components_rule is not None:
         argument: Argument | None = (result.search.argument if result.search.complete
                                      else ARGUMENT_DERIVED)
@@ -96,7 +129,7 @@ def label_signature(label: RegionLabel, result: SpaceResult
         argument = result.search.argument if result.search.complete else None
     if label.components_exact:
         shown = count_text(label.components)
-        if label.traced != label.components:
+        if label.traced is not None and label.traced != label.components:
             shown += f" ({label.traced} traced)"
     else:
         shown = f">={label.traced} (incomplete: {result.search.reason})"

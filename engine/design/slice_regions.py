@@ -14,8 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from engine.design.region_labels import RegionLabel, label_region, label_signature
+from engine.design.region_labels import (
+    RegionLabel,
+    derived_label,
+    label_region,
+    label_signature,
+)
 from engine.design.slice_curves import Axis
+from engine.design.sweep_rules import derive
 from engine.model.budget import NEVER, Argument, Deadline
 from engine.model.linkage import Linkage
 from engine.model.tolerances import CELL_EDGE_TOL, NORM_FLOOR, Tolerances
@@ -39,6 +45,13 @@ def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
                tol: Tolerances, deadline: Deadline = NEVER, axes: tuple[str, ...] = ()
                ) -> tuple[int, str, Argument | None, RegionLabel]:
     at = linkage.with_lengths(lengths)
+    # where the chain rules give the count and every component's rotor turns, nothing is traced
+    # (a gated chain's region took 0.4-0.7 s of exploration, 6 regions most of a 4 s budget)
+    row = derive(at)
+    derived = None if row is None else derived_label(at, row, axes)
+    if derived is not None:
+        signature, argument = label_signature(derived, None)
+        return derived.components, signature, argument, derived
     # the components only: no near misses (where the closed form or the chain rules certify
     # that there is no critical point, the critical-point search is then skipped)
     res = explore(at, tol, options, start_on_space=False, near_misses=False, deadline=deadline)

@@ -18,6 +18,8 @@ or one generic four-bar) or of a chain with the paper's gate, the row's count is
   ``D`` to the slider never turns (the slider has at most two places).
 * one generic four-bar (``n = 2``): in each of the two circuits of a Grashof four-bar a rotor
   turns once iff it or the ground is the shortest side; no rotor turns in a non-Grashof one.
+  A chain driven from one of its four-bars (:func:`engine.space.chain_count.chain_components`):
+  that four-bar's rotors so, and the others outwards from them as from a driver rotor.
 
 Every component then has the same pattern, so the row's ``windings`` is that one pattern.
 A four-bar of the chain (the gate four-bar, or the single four-bar) whose longest side is
@@ -96,6 +98,18 @@ def _chain_turns(r: np.ndarray, a: np.ndarray, driver: int, driver_turns: int) -
     return turns
 
 
+def _cell_turns(r: np.ndarray, a: np.ndarray, k: int, cell: list[int]) -> list[int]:
+    """Turns of each rotor of a chain driven from its four-bar ``k`` whose rotors turn
+    ``cell`` (2,) times: outwards as from a driver rotor (:func:`_chain_turns`)."""
+    turns = [0] * len(r)
+    turns[k], turns[k + 1] = cell
+    for m in range(k + 1, len(r) - 1):
+        turns[m + 1] = turns[m] if r[m] > a[m] else 0
+    for m in range(k - 1, -1, -1):
+        turns[m] = turns[m + 1] if r[m + 1] > a[m] else 0
+    return turns
+
+
 def _four_bar_turns(r: np.ndarray, a: np.ndarray, coupler: float) -> list[int]:
     sides = [float(a[0]), float(r[0]), coupler, float(r[1])]
     srt = sorted(sides)
@@ -135,15 +149,16 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
     r, a = _cells(linkage, count.rotors)
     if count.driver is not None:  # (driven cells assemble at every angle of the driver)
         turns = _chain_turns(r, a, count.driver, 1)
-    else:  # one generic four-bar: its coupler is the bar between the two tips
-        tips = {int(v) for b in count.rotors for v in linkage.ends[linkage.bar_ids.index(b)]
-                if not linkage.fixed[v].all()}
-        coupler = next(float(linkage.lengths[k]) for k, (i, j) in enumerate(linkage.ends)
-                       if {int(i), int(j)} == tips)
-        sides = [float(a[0]), float(r[0]), coupler, float(r[1])]
+    else:  # a generic four-bar (the chain's driving one): its coupler joins the two tips
+        k = count.cell or 0
+        tips = {int(v) for b in count.rotors[k:k + 2]
+                for v in linkage.ends[linkage.bar_ids.index(b)] if not linkage.fixed[v].all()}
+        coupler = next(float(linkage.lengths[j]) for j, (u, v) in enumerate(linkage.ends)
+                       if {int(u), int(v)} == tips)
+        sides = [float(a[k]), float(r[k]), coupler, float(r[k + 1])]
         if not _closes(sides):
             return _never_closes(sides, "the four-bar")
-        turns = _four_bar_turns(r, a, coupler)
+        turns = _cell_turns(r, a, k, _four_bar_turns(r[k:k + 2], a[k:k + 1], coupler))
     by_bar = _ordered(linkage, dict(zip(count.rotors, turns, strict=True)))
     if by_bar is None:
         return DerivedRow(count.components, count.rule, None, None,

@@ -20,6 +20,15 @@ Two cases are counted, both without any tracing:
   left of it. Then each four-bar relation is two disjoint graphs of smooth functions outward
   from ``m``, so every choice of one graph per four-bar is one circle (a graph over
   ``theta_m``): ``2^(n-1)`` components. The spinner chain (``r = l = 3a/2``) is of this kind.
+* any ``n >= 3``, when some four-bar ``k`` (generic: not flat) *drives* the chain: every
+  four-bar to its right is driven by its left rotor and every one to its left by its right
+  rotor, as above. The four-bar's relation in ``(theta_k, theta_(k+1))`` is its own
+  configuration space, 1 or 2 smooth circles (Grashof's rule; 0 where it does not close), and
+  each further four-bar outwards is two disjoint graphs over the angle it is driven by: every
+  circle of the four-bar times every choice of one graph per other four-bar is one component,
+  ``c_k 2^(n-2)``. (A tip's velocity sees a stress on its two bars only where they are
+  collinear; outwards of four-bar ``k`` the drive conditions exclude it, tip by tip inwards,
+  and four-bar ``k`` alone is never flat: no critical point.)
 
 Any other linkage (not a pure chain, sliders, 3D, non-generic or other length regimes) gets
 None: the count is then not known in closed form and the explorer's answer stands alone.
@@ -49,12 +58,14 @@ class ChainCount:
 
     ``rotors`` are the rotor bar ids from one end of the chain to the other; ``driver`` the
     index (in that order) of the rotor whose angle parametrises every component, or None for
-    the single four-bar rule."""
+    the four-bar rules; ``cell`` the index of the driving four-bar (rotors ``cell`` and
+    ``cell + 1``) where a four-bar drives the chain (None: a rotor drives it, or ``n = 2``)."""
 
     components: int
     rotors: tuple[str, ...]
     driver: int | None
     rule: str
+    cell: int | None = None
 
 
 def _chain_order(linkage: Linkage) -> tuple[list[int], list[int], list[int]] | None:
@@ -144,19 +155,36 @@ def chain_components(linkage: Linkage) -> ChainCount | None:
             return ChainCount(2 ** (n - 1), ids, m, "driver rotor: two assembly modes per "
                               "four-bar, each a graph outward from the driver")
     if n == 2:
-        sides = np.array([a[0], r[0], lc[0], r[1]])
-        signs = np.array(np.meshgrid(*[[1.0, -1.0]] * 3, indexing="ij")).reshape(3, -1).T
-        sums = sides[0] + signs @ sides[1:]
-        if np.min(np.abs(sums)) <= GENERIC_RTOL * scale:
+        cell = _four_bar_circuits(np.array([a[0], r[0], lc[0], r[1]]), scale)
+        if cell is None:
             return None  # a flat configuration exists: not generic
-        srt = np.sort(sides)
-        if srt[3] > srt[0] + srt[1] + srt[2]:
-            return ChainCount(0, ids, None, "four-bar: its longest side exceeds the sum of the "
-                              "other three: it does not assemble")
-        grashof = srt[0] + srt[3] < srt[1] + srt[2]
-        return ChainCount(2 if grashof else 1, ids, None,
-                          "four-bar: Grashof (2 components) or not (1)")
+        return ChainCount(cell[0], ids, None, cell[1])
+    for k in range(n - 1):  # a four-bar driving the chain (rotor drivers are tried above)
+        if all(backward[:k]) and all(forward[k + 1:]):
+            cell = _four_bar_circuits(np.array([a[k], r[k], lc[k], r[k + 1]]), scale)
+            if cell is not None:
+                kind = {0: "it does not close", 1: "not Grashof: 1 circuit",
+                        2: "Grashof: 2 circuits"}[cell[0]]
+                return ChainCount(cell[0] * 2 ** (n - 2), ids, None,
+                                  f"driving four-bar {ids[k]}-{ids[k + 1]} ({kind}), two "
+                                  "assembly modes per other four-bar, each a graph outward "
+                                  "from it", cell=k)
     return None
+
+
+def _four_bar_circuits(sides: np.ndarray, scale: float) -> tuple[int, str] | None:
+    """The circuits of a four-bar with ``sides`` (ground, rotor, coupler, rotor) and the rule
+    that counts them; None where a flat configuration exists (not generic)."""
+    signs = np.array(np.meshgrid(*[[1.0, -1.0]] * 3, indexing="ij")).reshape(3, -1).T
+    sums = sides[0] + signs @ sides[1:]
+    if np.min(np.abs(sums)) <= GENERIC_RTOL * scale:
+        return None
+    srt = np.sort(sides)
+    if srt[3] > srt[0] + srt[1] + srt[2]:
+        return 0, ("four-bar: its longest side exceeds the sum of the other three: it does not "
+                   "assemble")
+    grashof = srt[0] + srt[3] < srt[1] + srt[2]
+    return 2 if grashof else 1, "four-bar: Grashof (2 components) or not (1)"
 
 
 def exact_components(linkage: Linkage) -> ChainCount | None:

@@ -35,7 +35,9 @@ pytestmark = pytest.mark.slow
 REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 #: Cells complete by an argument that takes no search time (closed forms of the one- and
 #: two-dyad chains; the chain rules of engine/space/chain_count.py, which prove that a spinner
-#: chain has no critical point): complete on any machine, however loaded.
+#: chain has no critical point; the maps of rotor chains and the gate slice, whose curves are
+#: flat four-bar planes and whose regions the chain rules count): complete on any machine,
+#: however loaded.
 MUST_COMPLETE = {
     ("four-bar", path) for path in (
         "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
@@ -46,8 +48,9 @@ MUST_COMPLETE = {
         "/v1/analysis/critical-points", "/v1/analysis/splitting", DESIGN)
 } | {
     (chain, path) for chain in ("kl-chain", "kl-chain?n=100")
-    for path in ("/v1/analysis/critical-points", "/v1/analysis/splitting")
-}
+    for path in ("/v1/analysis/critical-points", "/v1/analysis/splitting",
+                 "/v1/analysis/critical-values")
+} | {("gated-kl-chain?n=4&gate=2", "gate slice")}
 
 
 @pytest.fixture(scope="module")

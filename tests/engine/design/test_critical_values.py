@@ -318,7 +318,9 @@ def test_moving_starts_onto_the_critical_set_stops_at_the_deadline():
 @pytest.mark.slow
 def test_a_100_rotor_chain_s_map_answers_within_its_budget():
     """The Kane-Lubensky chain of 100 rotors over +-20 % of its first two free bars (the
-    preset matrix's request): its starts took 10 s of dense algebra past a 4 s deadline."""
+    preset matrix's request): traced, its starts took 10 s of dense algebra past a 4 s
+    deadline; now the traced map stops at its deadline, and the default method draws the
+    first four-bar's flat planes and counts the regions by the chain rules (complete)."""
     import time
 
     from engine.model.budget import Deadline
@@ -327,7 +329,11 @@ def test_a_100_rotor_chain_s_map_answers_within_its_budget():
     free = np.flatnonzero(lk.active)  # (the bars with a free end, in request order)
     axes = [(lk.bar_ids[k], 0.8 * lk.lengths[k], 1.2 * lk.lengths[k]) for k in free[:2]]
     t0 = time.monotonic()
-    s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0))
+    s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0), method="traced")
     took = time.monotonic() - t0
     assert took <= 4.0 + 2.0, f"answered after {took:.2f} s"
     assert s.search["complete"] is False and s.search["reason"] == "time"
+    s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0))
+    assert s.search["complete"] and s.search["argument"] == "derived"
+    assert s.search["method"] == "closed form" and len(s.curves) == 3
+    assert sorted(r.components for r in s.regions) == [2**98] * 3 + [2**99]

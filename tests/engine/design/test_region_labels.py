@@ -13,7 +13,8 @@ import pytest
 from engine.catalogue.presets import build_preset
 from engine.design.critical_values import critical_value_slice
 from engine.design.dyad_margin import gate_planes
-from engine.design.region_labels import label_region, label_signature
+from engine.design.region_labels import derived_label, label_region, label_signature
+from engine.design.sweep_rules import derive
 from engine.model.errors import InvalidParameter
 from engine.model.linkage import Linkage
 from engine.space.chain_count import exact_components, gate_decision
@@ -188,3 +189,48 @@ def test_gate_planes_only_where_they_are_every_critical_value():
     assert gate_planes(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "r": 0.9, "l": 0.9,
                                                        "D": 2.0, "L1": 1.5, "L2": 1.5})) is None
     assert gate_planes(build_preset("kl-chain", {"n": 3})) is None
+
+
+def test_gate_slice_regions_are_derived_and_agree_with_sampling():
+    """The gate slice of issue 30 (4 rotors, gate 2, L2 in [1, 3] x D in [1, 3.5]) labels its
+    regions from the chain rules alone (nothing traced): each region's count and whether a
+    rotor turns agree with the configuration space sampled densely with closed-form circle
+    intersections, and the turns are the same on every component (one pattern)."""
+    lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    s = critical_value_slice(lk, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)])
+    assert s.search.complete and s.search.argument == "derived"
+    assert len(s.regions) == 6
+    for region in s.regions:
+        l2, d = region.point
+        label = region.label
+        assert label is not None and label.traced is None and label.components_exact
+        assert region.argument == "derived" and len(label.windings) == 1
+        components, turns = sampled_gated_chain(4, 1.0, 1.5, 1.5, 2, d, 2.0, l2, samples=2000)
+        assert region.components == components, region
+        turning = any(int(w.split(":")[1]) for w in label.windings[0].split(","))
+        assert turning is turns, region
+
+
+def test_derived_label_is_the_traced_label():
+    """A second method: where the rules give the turns, the derived label of a 10-rotor chain
+    (and of a gated chain, gated and not) says what the traced exploration's label says."""
+    from tests.engine.space.test_chain_count import chain
+
+    driven_by_a_four_bar = chain([1.0] * 3, [1.2, 1.25, 1.5, 1.5], [1.5] * 3)
+    for lk in (build_preset("kl-chain", {"n": 10}), driven_by_a_four_bar,
+               build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0}),
+               build_preset("gated-kl-chain", {"n": 4, "gate": 2})):
+        assert lk is not None
+        row = derive(lk)
+        assert row is not None
+        derived = derived_label(lk, row)
+        res = explore(lk, options=SpaceOptions(max_components=8), near_misses=False)
+        traced = label_region(lk, res)
+        assert derived is not None and derived.traced is None
+        assert (derived.components, derived.components_exact, derived.components_rule,
+                derived.gated, derived.gated_reason, derived.cells) == (
+            traced.components, traced.components_exact, traced.components_rule, traced.gated,
+            traced.gated_reason, traced.cells)
+        assert derived.windings == traced.windings, lk
+        assert label_signature(derived, None) == (
+            f"components={derived.components}; turns={derived.windings[0]}", "derived")

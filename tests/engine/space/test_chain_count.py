@@ -53,6 +53,12 @@ COUNTED = [
     ("crank-rocker n=2", [2.0], [0.6, 1.8], [2.2]),
     ("Grashof double rocker n=2", [2.0], [2.2, 2.5], [0.8]),
     ("non-Grashof n=2", [1.0], [1.0, 1.2], [2.5]),
+    # no rotor drives: a four-bar does (non-Grashof: one circuit; rotors 1 and 2 drive the
+    # rest outwards), c_k 2^(n-2) components
+    ("driving four-bar, not Grashof, n=4", [1.0] * 3, [1.2, 1.25, 1.5, 1.5], [1.5] * 3),
+    ("driving four-bar, not Grashof, n=5", [1.0] * 4, [1.5, 1.5, 1.2, 1.25, 1.5], [1.5] * 4),
+    # a Grashof double rocker (its coupler the shortest side) in the middle: two circuits
+    ("driving four-bar, double rocker, n=4", [1.0] * 3, [1.5] * 4, [1.5, 0.4, 1.5]),
 ]
 
 
