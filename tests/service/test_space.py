@@ -333,3 +333,36 @@ def test_two_degrees_of_freedom_answer_size_is_estimated_first(app, client):
     assert "max_triangles" in r.json()["errors"][0]["msg"]
     assert ok.status_code == 200, ok.text
     assert sum(len(s["triangles"]) for s in ok.json()["surfaces"]) <= 1000 + 12
+
+
+def linkage_body(lk) -> dict:
+    """A Linkage as the API's body (vertices with their fixed axes, bars with lengths)."""
+    return {"vertices": [{"id": v, "position": [float(x) for x in p],
+                          "fixed": [bool(f) for f in fx]}
+                         for v, p, fx in zip(lk.vertex_ids, lk.positions, lk.fixed, strict=True)],
+            "bars": [{"id": b, "ends": [lk.vertex_ids[int(i)], lk.vertex_ids[int(j)]],
+                      "length": float(n)}
+                     for b, (i, j), n in zip(lk.bar_ids, lk.ends, lk.lengths, strict=True)]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("l1", [0.49, 1.4])
+def test_gated_chain_driven_from_another_rotor_through_http(client, l1):
+    """A 3-rotor gated chain given as bars, driven from rotor 0 (0.3, a crank) and not from its
+    gate rotor 1 (0.8, a rocker): the exploration's total and gated are the chain rules', equal
+    to dense sampling of rotor 0 with circle intersections (gated at L1 = 0.49, 4 components;
+    not at 1.4, 16)."""
+    from tests.engine.space.test_gate_transfer import build
+    from tests.gated_reference import sampled_general_chain
+
+    xs, r, couplers, gate, d, l2 = (0.0, 1.0, 2.0), (0.3, 0.8, 1.5), (1.0, 1.5), 1, 2.0, 2.0
+    lk, pins = build(xs, r, couplers, gate, d, l1, l2)
+    sliders = np.array([pins[gate] + [0.0, -d], pins[gate] + [0.0, d]])
+    comps, turns = sampled_general_chain(pins, np.array(r), np.array(couplers), gate, sliders,
+                                         l1, l2, samples=3000)
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": linkage_body(lk), "options": FAST})
+    search = body["search"]
+    assert search["components_total"] == comps
+    assert "driven from rotor r0" in search["components_total_rule"]
+    assert search["gated"] is (not turns), search["gated_reason"]
