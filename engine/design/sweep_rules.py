@@ -168,13 +168,13 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
 def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
     if not _closes(parts.sides):
         return _never_closes(parts.sides, "the gate four-bar (D, r, L2, L1)")
-    count = gated_chain_components(linkage)
+    count = gated_chain_components(linkage, parts)
     if count is None:
         return None
     if not count.components:  # (driven from another rotor: the gate closes nowhere on it)
         return DerivedRow(0, count.rule, {}, None, "no configuration: nothing turns and nothing "
                           "is gated", True)
-    decision = gate_decision(linkage)
+    decision = gate_decision(linkage, parts)
     if decision.gated is None:
         return None
     r, a = _cells(linkage, parts.rotors)

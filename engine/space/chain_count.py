@@ -359,10 +359,12 @@ def _drivers(chain: Linkage, found: tuple[list[int], list[int], list[int]]) -> l
     return [int(m) for m in np.flatnonzero(left_ok & right_ok)]
 
 
-def gated_chain_components(linkage: Linkage) -> ChainCount | None:
+def gated_chain_components(linkage: Linkage, parts: GatedChain | None = None
+                           ) -> ChainCount | None:
     """The exact number of components of a gated rotor chain, or None where the rule does not
     apply (not a gated chain, the chain driven from no rotor, critical lengths). Driven from
     another rotor than the gate's, the count is :mod:`engine.space.gate_transfer`'s.
+    ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it already.
 
     With the chain driven from the gate rotor (every cell's rotor turns fully outwards from it,
     its two assembly modes apart), each of the chain's ``2^(n-1)`` components is a graph over
@@ -381,7 +383,7 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
     ...                        ).components
     16
     """
-    parts = gated_chain(linkage)
+    parts = parts or gated_chain(linkage)
     if parts is None or parts.driver is None or parts.slider_positions != 2:
         return None
     n = len(parts.rotors)
@@ -412,7 +414,7 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
                       f"L1 {l1:g}) x 2 slider positions")
 
 
-def gate_decision(linkage: Linkage) -> GateDecision:
+def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDecision:
     """Whether the gate stops every rotor from completing a full turn on every component.
 
     Decided from the gate four-bar's Grashof type and the chain's cells, not from a trace: with
@@ -421,7 +423,8 @@ def gate_decision(linkage: Linkage) -> GateDecision:
     (its winding is that map's degree times 0), and the gate rotor itself turns iff it is a
     crank of the gate four-bar (Grashof, with ``r_g`` or ``D`` the shortest side).
     Otherwise ``gated`` is None with the reason (a neighbour cell could then turn fully while
-    the gate rotor rocks).
+    the gate rotor rocks). ``parts``: :func:`gated_chain` of ``linkage`` where the caller has
+    it already.
 
     Examples
     --------
@@ -429,7 +432,7 @@ def gate_decision(linkage: Linkage) -> GateDecision:
     >>> gate_decision(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0})).gated
     True
     """
-    parts = gated_chain(linkage)
+    parts = parts or gated_chain(linkage)
     if parts is None:
         return GateDecision(None, "", "not a planar rotor chain with the paper's gate")
     kind, turns = _gate_type(parts.sides, max(parts.sides))

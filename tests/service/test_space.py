@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -366,3 +368,34 @@ def test_gated_chain_driven_from_another_rotor_through_http(client, l1):
     assert search["components_total"] == comps
     assert "driven from rotor r0" in search["components_total_rule"]
     assert search["gated"] is (not turns), search["gated_reason"]
+
+
+def grashof_margin(a: float, lengths: np.ndarray) -> float:
+    """The four-bar's distance, moving L1, L2, L3, to its critical lengths: the planes
+    ``a = s1 L1 + s2 L2 + s3 L3`` (all joints on a line), ``|a - s . L| / sqrt(3)``, over the
+    planes whose foot keeps every length positive (asserted nearer than the others)."""
+    valid, blocked = [np.inf], [np.inf]
+    for signs in itertools.product((1.0, -1.0), repeat=3):
+        s = np.array(signs)
+        foot = lengths + (a - s @ lengths) / 3.0 * s
+        (valid if foot.min() > 0 else blocked).append(abs(a - s @ lengths) / np.sqrt(3.0))
+    assert min(valid) <= min(blocked)
+    return float(min(valid))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scale", [1e-3, 3.95, 1e3])
+def test_multistart_margin_through_http_is_scale_invariant(client, scale):
+    """The issue's case through HTTP: the multistart's margin on a four-bar drawn at scales
+    1e-3..1e3 is the Grashof margin (computed here) times the scale, names its guarantee (an
+    upper bound) and carries the exact closed-form margin it was compared with."""
+    a, lengths = 1.3, np.array([0.9, 1.5, 0.8])
+    lk = preset(client, "four-bar", a=a * scale, L1=lengths[0] * scale,
+                L2=lengths[1] * scale, L3=lengths[2] * scale, theta=0.4)
+    body = post(client, "/v1/analysis/robustness",
+                {"linkage": lk, "method": "multistart", "options": FAST})
+    expected = grashof_margin(a, lengths) * scale
+    assert body["method"] == "multistart" and body["success"], body
+    assert body["guarantee"] == "upper-bound" and body["guarantee_detail"]
+    assert body["margin"] == pytest.approx(expected, rel=1e-7)
+    assert body["exact_margin"] == pytest.approx(expected, rel=1e-9)
