@@ -399,3 +399,35 @@ def test_multistart_margin_through_http_is_scale_invariant(client, scale):
     assert body["guarantee"] == "upper-bound" and body["guarantee_detail"]
     assert body["margin"] == pytest.approx(expected, rel=1e-7)
     assert body["exact_margin"] == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_design_predictions_are_signed_only_where_resolved(client):
+    """Design with only r1 and L1 adjustable on the three-rotor: at the branch points where the
+    tip A is off the line P1-B (read here from the critical-points answer's configurations),
+    equilibrium at A leaves r1 and L1 unstressed, so no change of theirs moves Delta: a design
+    for one is infeasible with that reason, no sign claimed; an on-line target is signed beyond
+    its own error and verified by tracing."""
+    lk = preset(client, "three-rotor")
+    crit = post(client, "/v1/analysis/critical-points", {"linkage": lk, "options": FAST})
+    on_line = []
+    for cp in crit["critical_points"]:
+        pos = cp["configuration"]
+        p1, a, b = (np.array(pos[v]) for v in ("P1", "A", "B"))
+        (ex, ey), (fx, fy) = a - p1, b - a
+        on_line.append(bool(abs(ex * fy - ey * fx) < 1e-6))
+    signed = on_line.index(True)
+    body = post(client, "/v1/design/splitting", {
+        "linkage": lk, "targets": [{"branch_point": signed, "sign": 1}],
+        "adjustable": ["r1", "L1"], "options": FAST})
+    (p,) = body["predicted"]
+    assert p["branch_point"] == signed and p["sign"] == 1 and abs(p["delta"]) > p["delta_error"]
+    assert body["verified"] is True and p["connects"] == p["traced_connects"]
+    undecided = on_line.index(False)
+    body = post(client, "/v1/design/splitting", {
+        "linkage": lk, "targets": [{"branch_point": undecided, "sign": 1}],
+        "adjustable": ["r1", "L1"], "options": FAST})
+    assert body["feasible"] is False and body["predicted"] == [] and body["verified"] is None
+    (conflict,) = body["conflicts"]
+    assert conflict["branch_points"] == [undecided]
+    assert "do not change how this point splits" in conflict["reason"]
