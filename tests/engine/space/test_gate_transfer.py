@@ -155,3 +155,49 @@ def test_count_and_gated_against_dense_sampling(chain: int, pick: int):
         turning = {w for w in row.windings if any(p.split(":")[1] != "0"
                                                    for p in w.split(","))}
         assert bool(turning) is turns, row.windings
+
+
+@pytest.mark.parametrize("l1", [0.49, 1.4])
+def test_no_critical_point_where_the_crossings_are_transversal(l1: float):
+    """The rule says the chain has no critical point (the search then skips it): along the
+    configuration space, sampled densely from rotor 0 with circle intersections here (every
+    assembly mode, both slider places, both places of R, up to the folds), the rigidity
+    matrix written here (rows d(l^2)/du of every bar; free: the tips, R and the slider's y)
+    keeps full rank, its smallest singular value over its largest far from 0."""
+    xs, r, couplers, gate, d, l2 = CHAINS[0]
+    lk, pins = build(xs, r, couplers, gate, d, l1, l2)
+    assert gated_chain_components(lk) is not None
+    n = len(xs)
+    worst = np.inf
+    for theta in np.linspace(0, 2 * np.pi, 1500, endpoint=False):
+        for sides in itertools.product((1.0, -1.0), repeat=n + 1):
+            tips = chain_tips(pins, r, couplers, theta, sides[: n - 1])
+            g = pins[gate] + np.array([0.0, sides[n - 1] * d])
+            rk = None if tips is None else meet(tips[gate], l2, g, l1, sides[n])
+            if rk is None:
+                continue
+            # free coordinates: T_k (2n), R (2), G_y (1)
+            rows = []
+            for k in range(n):
+                row = np.zeros(2 * n + 3)
+                row[2 * k:2 * k + 2] = 2 * (tips[k] - pins[k])
+                rows.append(row)
+            for k in range(n - 1):
+                row = np.zeros(2 * n + 3)
+                diff = tips[k] - tips[k + 1]
+                row[2 * k:2 * k + 2], row[2 * k + 2:2 * k + 4] = 2 * diff, -2 * diff
+                rows.append(row)
+            row = np.zeros(2 * n + 3)  # D: P_g to G, G moves in y
+            row[-1] = 2 * (g - pins[gate])[1]
+            rows.append(row)
+            row = np.zeros(2 * n + 3)  # L1: G to R
+            row[2 * n:2 * n + 2] = 2 * (rk - g)
+            row[-1] = -2 * (rk - g)[1]
+            rows.append(row)
+            row = np.zeros(2 * n + 3)  # L2: T_g to R
+            row[2 * gate:2 * gate + 2] = 2 * (tips[gate] - rk)
+            row[2 * n:2 * n + 2] = -2 * (tips[gate] - rk)
+            rows.append(row)
+            sv = np.linalg.svd(np.array(rows), compute_uv=False)
+            worst = min(worst, sv[-1] / sv[0])
+    assert worst > 1e-3, worst
