@@ -201,3 +201,32 @@ def test_no_critical_point_where_the_crossings_are_transversal(l1: float):
             sv = np.linalg.svd(np.array(rows), compute_uv=False)
             worst = min(worst, sv[-1] / sv[0])
     assert worst > 1e-3, worst
+
+
+def shuffled(lk, seed: int):
+    """The same linkage with its vertices and bars listed in another order."""
+    rng = np.random.default_rng(seed)
+    vorder = rng.permutation(lk.n_vertices)
+    border = rng.permutation(lk.n_bars)
+    verts = [VertexSpec(lk.vertex_ids[i], [float(x) for x in lk.positions[i]],
+                        [bool(f) for f in lk.fixed[i]]) for i in vorder]
+    bars = [BarSpec(lk.bar_ids[k], (lk.vertex_ids[int(lk.ends[k, 1])],
+                                    lk.vertex_ids[int(lk.ends[k, 0])]), float(lk.lengths[k]))
+            for k in border]
+    return build_linkage(2, verts, bars)
+
+
+@pytest.mark.parametrize("l1", [0.347, 1.3866, 3.053])
+def test_count_and_gated_do_not_depend_on_the_order_of_the_lists(l1: float):
+    """Whichever rotor the vertex and bar lists put first (and whichever end of a bar), the
+    count, its driver and gated are the same."""
+    xs, r, couplers, gate, d, l2 = CHAINS[1]
+    lk, _ = build(xs, r, couplers, gate, d, l1, l2)
+    count, decision = gated_chain_components(lk), gate_decision(lk)
+    assert count is not None
+    for seed in range(4):
+        other = shuffled(lk, seed)
+        again = gated_chain_components(other)
+        assert again is not None and again.components == count.components
+        assert again.rotors[again.driver] == count.rotors[count.driver] == "r0"
+        assert gate_decision(other).gated is decision.gated
