@@ -105,6 +105,10 @@ def check_slice(curve_points: int, regions: int, settings: Settings) -> None:
             "lower options.resolution or narrow the axes", loc=("options",))
 
 
+#: Numbers of one four-bar cell's tau signs in a sweep's row: its four sides and three signs.
+CELL_NUMBERS = 7
+
+
 def check_sweep(points: int, axes: int, fields: int, settings: Settings) -> None:
     """Refuse (when the sweep is asked for) a sweep whose rows would hold more than the limit:
     each of its ``points`` rows holds its ``axes`` values and one value per computed field."""

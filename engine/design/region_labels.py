@@ -58,6 +58,30 @@ def winding_patterns(linkage: Linkage, result: SpaceResult) -> tuple[str, ...]:
     return tuple(sorted(patterns))
 
 
+def touched_cells(linkage: Linkage, names: tuple[str, ...] = ()) -> tuple[FourBarCell, ...]:
+    """The four-bar cells (:func:`engine.space.four_bar_cells.four_bar_cells`, the gate first)
+    whose sides one of ``names`` sets: a bar of a cell (or the gate's ground ``D``); a name
+    that is not a bar of ``linkage`` (a preset's parameter, e.g. the pin spacing ``a`` or the
+    rotors' ``r``) may set any side, so it touches every cell; no names: every cell. A map's
+    regions and a sweep's rows are labelled with these (the other cells have the same signs
+    at every point).
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> lk = build_preset("gated-kl-chain", {"n": 3, "gate": 1, "D": 3.0})
+    >>> [(c.name, c.signs) for c in touched_cells(lk, ("L2", "D"))]
+    [('gate', (1, 1, -1))]
+    >>> len(touched_cells(lk, ("a",)))
+    3
+    """
+    cells = four_bar_cells(linkage)
+    wanted = set(names)
+    if not wanted or wanted - set(linkage.bar_ids):
+        return tuple(cells)
+    return tuple(c for c in cells if c.touches(wanted))
+
+
 def label_region(linkage: Linkage, result: SpaceResult, axes: tuple[str, ...] = ()
                  ) -> RegionLabel:
     """The label of the region whose sample is ``linkage`` (at the sample's lengths), explored
@@ -85,7 +109,7 @@ def label_region(linkage: Linkage, result: SpaceResult, axes: tuple[str, ...] = 
     if gated_chain(linkage) is not None:
         decision = gate_decision(linkage)
         gated, reason = decision.gated, decision.reason
-    cells = tuple(c for c in four_bar_cells(linkage) if not axes or c.touches(set(axes)))
+    cells = touched_cells(linkage, axes)
     return RegionLabel(components, exact, traced, rule, cells, gated, reason,
                        winding_patterns(linkage, result))
 

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from engine.catalogue.presets import build_preset, resolve_parameters
+from engine.design.region_labels import touched_cells
 from engine.design.robustness import robustness
 from engine.design.sweep_rules import DerivedRow, derive
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, Argument, Deadline
@@ -49,6 +50,7 @@ from engine.space.configuration_space import (
     rotor_angles,
     winding,
 )
+from engine.space.four_bar_cells import FourBarCell
 
 #: What a sweep can compute at each point, in the order of the rows' columns.
 COMPUTE = ("components", "critical", "margin", "windings")
@@ -177,7 +179,10 @@ class PointResult:
     ``gated`` whether no rotor completes a turn on any component: from the chain rules where
     they apply, False where a traced component turns a rotor, True only where every component
     was traced and none does, else None; ``gated_reason`` says which, ``error`` why the point
-    has no answer."""
+    has no answer. ``tau_signs``: the four-bar cells whose sides a swept name sets, with their
+    tau signs at the point's lengths, the gate four-bar first, as a map labels its regions
+    (:func:`engine.design.region_labels.touched_cells`); None where the linkage has no such
+    cell (not a rotor chain) or no linkage was built at the point."""
 
     values: tuple[float, ...]
     components: int | None = None
@@ -189,6 +194,7 @@ class PointResult:
     gated: bool | None = None
     gated_reason: str | None = None
     error: str | None = None
+    tau_signs: tuple[FourBarCell, ...] | None = None
 
 
 def _turns(linkage: Linkage, res: SpaceResult, every: bool
@@ -244,7 +250,7 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
     if linkage is None and isinstance(family, PresetFamily):
         off = family.unassembled(values)
         empty = None if off is None else derive(off)
-        if empty is not None and empty.components == 0:  # the rules prove it empty
+        if off is not None and empty is not None and empty.components == 0:  # proved empty
             return PointResult(
                 point,
                 components=0 if "components" in want else None,
@@ -252,7 +258,8 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
                 argument=ARGUMENT_DERIVED if "components" in want else None,
                 critical_points=0 if "critical" in want else None,
                 windings=() if "windings" in want else None,
-                gated_reason=empty.gated_reason if "windings" in want else None)
+                gated_reason=empty.gated_reason if "windings" in want else None,
+                tau_signs=_cells(off, family.names))
     if linkage is None:  # empty configuration space
         return PointResult(
             point,
@@ -265,7 +272,7 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
                 "no configuration found (the preset assembles at none of its sampled angles)"
                 if "windings" in want else None),
         )
-    out: dict[str, Any] = {}
+    out: dict[str, Any] = {"tau_signs": _cells(linkage, family.names)}
     rule = derive(linkage) if want & {"components", "windings", "critical"} else None
     if rule is not None and "components" in want:
         out.update(components=rule.components, complete=True, argument=ARGUMENT_DERIVED)
@@ -309,6 +316,11 @@ def _evaluate(family: Family, values: np.ndarray, point: tuple[float, ...], want
             m = robustness(on_space, family.adjustable(), tol, opt)
             out["margin"] = float(m.margin) if m.success else None
     return PointResult(point, **out)
+
+
+def _cells(linkage: Linkage, names: tuple[str, ...]) -> tuple[FourBarCell, ...] | None:
+    """The row's ``tau_signs`` (see :class:`PointResult`)."""
+    return touched_cells(linkage, names) or None
 
 
 def _derived(rule: DerivedRow | None, out: dict[str, Any]) -> set[str]:

@@ -13,19 +13,23 @@ or one generic four-bar) or of a chain with the paper's gate, the row's count is
   when ``P_{k+1}`` lies inside the circle of ``T_k`` (``r_k > a_k``), never when outside
   (``r_k < a_k``; the rule excludes ``r_k = a_k``). Outwards to the left alike.
 * the driver itself turns once on every component of a rotor chain (each is a graph over its
-  angle); in a gated chain it is the gate rotor, which turns once on every component where it
-  is a crank of the gate four-bar and never where it rocks (:func:`gate_decision`); the bar
-  ``D`` to the slider never turns (the slider has at most two places).
+  angle); in a gated chain driven from its gate rotor, that rotor turns once on every
+  component where it is a crank of the gate four-bar and never where it rocks
+  (:func:`gate_decision`); driven from another rotor, it turns once on the components that
+  are graphs over its whole turn and nothing turns on those over an arc of it
+  (:mod:`engine.space.gate_transfer`): two patterns where both kinds exist. The bar ``D`` to
+  the slider never turns (the slider has at most two places).
 * one generic four-bar (``n = 2``): in each of the two circuits of a Grashof four-bar a rotor
   turns once iff it or the ground is the shortest side; no rotor turns in a non-Grashof one.
   A chain driven from one of its four-bars (:func:`engine.space.chain_count.chain_components`):
   that four-bar's rotors so, and the others outwards from them as from a driver rotor.
 
-Every component then has the same pattern, so the row's ``windings`` is that one pattern.
+Every component then has the same pattern but in that last case, so the row's ``windings``
+is that one pattern (or those two).
 A four-bar of the chain (the gate four-bar, or the single four-bar) whose longest side is
 longer than the other three together closes nowhere: the linkage then has no configuration
-(0 components, derived). Anything else (other linkages, critical lengths, a chain not driven
-from its gate) gets None here and the sweep explores the point.
+(0 components, derived). Anything else (other linkages, critical lengths, a chain driven
+from no rotor) gets None here and the sweep explores the point.
 """
 
 from __future__ import annotations
@@ -61,15 +65,21 @@ class DerivedRow:
     gated: bool | None
     gated_reason: str
     no_critical: bool
+    rocking_too: bool = False  # some other components turn no rotor (see windings)
 
     @property
     def windings(self) -> tuple[str, ...] | None:
-        """The rotor-turn patterns of the components, as a traced sweep row writes them."""
+        """The rotor-turn patterns of the components, as a traced sweep row writes them:
+        ``turns``, and with ``rocking_too`` also the pattern of no turns (a gated chain driven
+        from another rotor than its gate: the components on an arc of the driver's angle)."""
         if self.turns is None:
             return None
         if not self.components:
             return ()
-        return (",".join(f"{b}:{w}" for b, w in self.turns.items()),)
+        patterns = {",".join(f"{b}:{w}" for b, w in self.turns.items())}
+        if self.rocking_too:
+            patterns.add(",".join(f"{b}:0" for b in self.turns))
+        return tuple(sorted(patterns))
 
 
 def _cells(linkage: Linkage, chain_rotors: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -173,15 +183,23 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
 def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
     if not _closes(parts.sides):
         return _never_closes(parts.sides, "the gate four-bar (D, r, L2, L1)")
-    count = gated_chain_components(linkage)
+    count = gated_chain_components(linkage, parts)
     if count is None:
         return None
-    decision = gate_decision(linkage)
+    if not count.components:  # (driven from another rotor: the gate closes nowhere on it)
+        return DerivedRow(0, count.rule, {}, None, "no configuration: nothing turns and nothing "
+                          "is gated", True)
+    decision = gate_decision(linkage, parts)
     if decision.gated is None:
         return None
     r, a = _cells(linkage, parts.rotors)
+    assert parts.driver is not None  # (counted)
+    # (driven from the gate: every component alike; from another rotor: the driver turns once
+    # on the components over its whole turn, nothing turns on those over an arc of it)
+    rocking_too = parts.transfer is not None and bool(parts.transfer.turning) and \
+        bool(parts.transfer.folded)
     turns: dict[str, int] = dict(zip(
-        parts.rotors, _chain_turns(r, a, parts.gate, 0 if decision.gated else 1), strict=True))
+        parts.rotors, _chain_turns(r, a, parts.driver, 0 if decision.gated else 1), strict=True))
     others = [linkage.bar_ids[k] for k in rotors(linkage)
               if linkage.bar_ids[k] not in turns]
     if len(others) != 1:  # the bar D to the slider, and nothing else
@@ -189,7 +207,7 @@ def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
     turns[others[0]] = 0  # the slider has at most two places: bar D never turns
     by_bar = _ordered(linkage, turns)
     return DerivedRow(count.components, count.rule, by_bar, decision.gated, decision.reason,
-                      False)
+                      False, rocking_too)
 
 
 def derive(linkage: Linkage) -> DerivedRow | None:

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.model.linkage import Linkage
+from engine.space.gate_transfer import MAX_PATH_CELLS, GateTransfer, gate_transfer
 
 #: Relative margin below which a length condition counts as an equality (non-generic lengths:
 #: a configuration space with a singular point, whose components are not counted here).
@@ -223,6 +224,8 @@ class GatedChain:
     chain_driven: bool  # the driver rule holds with the gate rotor as driver
     slider_offset: float = 0.0  # distance from P_g to the slider's line
     gate_bars: tuple[str, str, str] = ("", "", "")  # the bar ids of D, L2, L1
+    driver: int | None = None  # the rotor the chain is driven from nearest the gate (None: none)
+    transfer: GateTransfer | None = None  # (driven from another rotor: its components)
 
 
 @dataclass(frozen=True)
@@ -326,7 +329,7 @@ def gated_chain(linkage: Linkage) -> GatedChain | None:
     found = _chain_order(chain)
     if found is None or int(new_index[tip]) not in found[0]:
         return None
-    tips, rotor_bars, _ = found
+    tips, rotor_bars, couplers = found
     gate = tips.index(int(new_index[tip]))
     pins = [int(chain.ends[b, 0]) if int(chain.ends[b, 1]) == t else int(chain.ends[b, 1])
             for b, t in zip(rotor_bars, tips, strict=True)]
@@ -343,34 +346,53 @@ def gated_chain(linkage: Linkage) -> GatedChain | None:
     scale = max(sides)
     positions = 2 if perp < sides[0] - GENERIC_RTOL * scale else (
         1 if perp <= sides[0] + GENERIC_RTOL * scale else 0)
+    drivers = _drivers(chain, found)
+    driver = min(drivers, key=lambda m: abs(m - gate)) if drivers else None
+    transfer = None
+    if driver is not None and driver != gate and positions == 2 and not _apart(sides):
+        foot = pos[g] + (off @ axis) * axis
+        along = np.sqrt(sides[0] ** 2 - perp**2) * axis
+        chain_pos = np.asarray(chain.positions, dtype=float)
+        transfer = gate_transfer(chain_pos[pins], np.asarray(chain.lengths)[rotor_bars],
+                                 np.asarray(chain.lengths)[couplers], driver, gate,
+                                 np.array([foot - along, foot + along]), sides[2], sides[3],
+                                 GENERIC_RTOL)
     return GatedChain(tuple(chain.bar_ids[b] for b in rotor_bars), gate, sides, positions,
-                      _driven_from(chain, found, gate), perp,
-                      (linkage.bar_ids[d_bar], linkage.bar_ids[l2_bar], linkage.bar_ids[l1_bar]))
+                      driver == gate, perp,
+                      (linkage.bar_ids[d_bar], linkage.bar_ids[l2_bar], linkage.bar_ids[l1_bar]),
+                      driver, transfer)
 
 
-def _driven_from(chain: Linkage, found: tuple[list[int], list[int], list[int]], m: int) -> bool:
-    """The driver rule of :func:`chain_components` holds with rotor ``m`` as the driver."""
+def _drivers(chain: Linkage, found: tuple[list[int], list[int], list[int]]) -> list[int]:
+    """The rotors (chain-order indices) from which the driver rule of :func:`chain_components`
+    holds."""
     tips, rotor_bars, couplers = found
     pos = np.asarray(chain.positions, dtype=float)
     pins = [int(chain.ends[b, 0]) if int(chain.ends[b, 1]) == t else int(chain.ends[b, 1])
             for b, t in zip(rotor_bars, tips, strict=True)]
     r = np.array([chain.lengths[b] for b in rotor_bars], dtype=float)
     lc = np.array([chain.lengths[b] for b in couplers], dtype=float)
-    a = np.array([np.linalg.norm(pos[pins[k + 1]] - pos[pins[k]]) for k in range(len(tips) - 1)])
-    scale = float(max(r.max(), lc.max(), a.max()))
+    a = np.linalg.norm(np.diff(pos[pins], axis=0), axis=1)
+    scale = float(max(r.max(), lc.max(), a.max(initial=0.0)))
+    margin = GENERIC_RTOL * scale
 
-    def crank(k: int, left: bool) -> bool:
-        rd, ro = (r[k], r[k + 1]) if left else (r[k + 1], r[k])
-        return _strictly_less(abs(lc[k] - ro), abs(rd - a[k]), scale) and \
-            _strictly_less(rd + a[k], lc[k] + ro, scale)
+    def crank(rd: np.ndarray, ro: np.ndarray) -> np.ndarray:
+        return np.asarray((np.abs(lc - ro) < np.abs(rd - a) - margin) &
+                          (rd + a < lc + ro - margin))
 
-    n = len(tips)
-    return all(crank(k, False) for k in range(m)) and all(crank(k, True) for k in range(m, n - 1))
+    forward, backward = crank(r[:-1], r[1:]), crank(r[1:], r[:-1])
+    # m drives iff every cell left of it is driven leftwards and every one right of it rightwards
+    left_ok = np.concatenate([[True], np.cumprod(backward).astype(bool)])
+    right_ok = np.concatenate([np.cumprod(forward[::-1]).astype(bool)[::-1], [True]])
+    return [int(m) for m in np.flatnonzero(left_ok & right_ok)]
 
 
-def gated_chain_components(linkage: Linkage) -> ChainCount | None:
+def gated_chain_components(linkage: Linkage, parts: GatedChain | None = None
+                           ) -> ChainCount | None:
     """The exact number of components of a gated rotor chain, or None where the rule does not
-    apply (not a gated chain, the chain not driven from the gate rotor, critical lengths).
+    apply (not a gated chain, the chain driven from no rotor, critical lengths). Driven from
+    another rotor than the gate's, the count is :mod:`engine.space.gate_transfer`'s.
+    ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it already.
 
     With the chain driven from the gate rotor (every cell's rotor turns fully outwards from it,
     its two assembly modes apart), each of the chain's ``2^(n-1)`` components is a graph over
@@ -389,8 +411,8 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
     ...                        ).components
     16
     """
-    parts = gated_chain(linkage)
-    if parts is None or not parts.chain_driven or parts.slider_positions != 2:
+    parts = parts or gated_chain(linkage)
+    if parts is None or parts.driver is None or parts.slider_positions != 2:
         return None
     n = len(parts.rotors)
     if _apart(parts.sides):
@@ -399,6 +421,18 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
     _, turns = _gate_type(parts.sides, max(parts.sides))
     if turns is None:
         return None
+    if not parts.chain_driven:
+        t = parts.transfer
+        if t is None:
+            return None
+        k = abs(parts.driver - parts.gate)
+        return ChainCount(2 ** (n - 1 - k) * (t.turning + t.folded), parts.rotors, parts.driver,
+                          f"gated chain driven from rotor {parts.rotors[parts.driver]}: 2^"
+                          f"{n - 1 - k} modes of the cells beyond the path to the gate rotor x "
+                          f"{t.turning} components over a whole turn of the driver and "
+                          f"{t.folded} over an arc of it (the gate closing where |T_g - G| "
+                          "lies between |L2 - L1| and L2 + L1, its ends found by circle "
+                          "intersections carried back from the gate rotor)")
     d, r, l2, l1 = parts.sides
     srt = sorted(parts.sides)
     gate_components = 2 if srt[0] + srt[3] < srt[1] + srt[2] else 1
@@ -408,7 +442,7 @@ def gated_chain_components(linkage: Linkage) -> ChainCount | None:
                       f"L1 {l1:g}) x 2 slider positions")
 
 
-def gate_decision(linkage: Linkage) -> GateDecision:
+def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDecision:
     """Whether the gate stops every rotor from completing a full turn on every component.
 
     Decided from the gate four-bar's Grashof type and the chain's cells, not from a trace: with
@@ -417,7 +451,8 @@ def gate_decision(linkage: Linkage) -> GateDecision:
     (its winding is that map's degree times 0), and the gate rotor itself turns iff it is a
     crank of the gate four-bar (Grashof, with ``r_g`` or ``D`` the shortest side).
     Otherwise ``gated`` is None with the reason (a neighbour cell could then turn fully while
-    the gate rotor rocks).
+    the gate rotor rocks). ``parts``: :func:`gated_chain` of ``linkage`` where the caller has
+    it already.
 
     Examples
     --------
@@ -425,7 +460,7 @@ def gate_decision(linkage: Linkage) -> GateDecision:
     >>> gate_decision(build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 3.0})).gated
     True
     """
-    parts = gated_chain(linkage)
+    parts = parts or gated_chain(linkage)
     if parts is None:
         return GateDecision(None, "", "not a planar rotor chain with the paper's gate")
     kind, turns = _gate_type(parts.sides, max(parts.sides))
@@ -439,14 +474,40 @@ def gate_decision(linkage: Linkage) -> GateDecision:
         return GateDecision(None, kind, "the gate four-bar has critical lengths (a flat "
                             "configuration): its branch point joins the turning and rocking "
                             "motions")
+    if parts.driver is None:
+        return GateDecision(None, kind, "the chain is driven from no rotor (in every choice of "
+                            "driver some cell outwards from it has a rotor that does not turn "
+                            "fully, or assembly modes that meet): which rotors turn is not "
+                            "decided by the cells' closed form")
     if not parts.chain_driven:
-        return GateDecision(None, kind, "the chain is not driven from the gate rotor (some "
-                            "cell outwards from it has a rotor that does not turn fully, or "
-                            "assembly modes that meet): which rotors turn is not decided by "
-                            "the cells' closed form")
+        return _decided_by_transfer(parts, kind)
     if turns:
         return GateDecision(False, kind, "ungated: the gate rotor is a crank of the gate "
                             "four-bar: it completes a turn")
     return GateDecision(True, kind, "gated: the gate rotor rocks in the gate four-bar, and "
                         "every rotor angle is a function of it on each component, so none "
                         "completes a turn")
+
+
+def _decided_by_transfer(parts: GatedChain, kind: str) -> GateDecision:
+    """:func:`gate_decision` for a chain driven from another rotor than the gate's: the driver
+    turns once on a component that is a graph over its whole turn, and on one over an arc of
+    it every rotor goes forth and back (:mod:`engine.space.gate_transfer`)."""
+    assert parts.driver is not None
+    driver = parts.rotors[parts.driver]
+    t = parts.transfer
+    if t is None:
+        return GateDecision(None, kind, f"the chain is driven from rotor {driver}, not from the "
+                            "gate rotor, and the gate's ends are within the generic margin of "
+                            "tangent along the cells between them (or more than "
+                            f"{MAX_PATH_CELLS} cells apart): not decided here")
+    if t.turning:
+        return GateDecision(False, kind, f"ungated: the chain is driven from rotor {driver}, "
+                            f"which completes a turn on {t.turning} of the components the gate "
+                            "closes on over the whole turn")
+    if not t.folded:
+        return GateDecision(None, kind, "no configuration: the gate closes nowhere along the "
+                            "chain's motion")
+    return GateDecision(True, kind, f"gated: the chain is driven from rotor {driver}, and the "
+                        "gate closes on arcs of its angle only: on each component every rotor "
+                        "goes forth and back, none completes a turn")

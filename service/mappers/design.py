@@ -15,6 +15,7 @@ from engine.design.splitting import Split
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
+from engine.space.four_bar_cells import FourBarCell
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
 from service.mappers.common import DEFAULT_MARGIN, json_int, positions_out, tolerances_out
@@ -161,6 +162,12 @@ def critical_values_out(res: Slice, tol: EngineTolerances) -> cv_schemas.Critica
     )
 
 
+def cell_signs_out(c: FourBarCell) -> cv_schemas.CellSigns:
+    """One four-bar cell's tau signs (a map's region, a sweep's row)."""
+    return cv_schemas.CellSigns.model_validate(
+        {"cell": c.name, "bars": list(c.bars), "sides": list(c.sides), "signs": list(c.signs)})
+
+
 def region_out(r: Region) -> cv_schemas.RegionOut:
     """A map's region with its label (:mod:`engine.design.region_labels`) where it was
     explored."""
@@ -173,7 +180,5 @@ def region_out(r: Region) -> cv_schemas.RegionOut:
         signature=r.signature, cells=r.cells,
         argument=r.argument, components_exact=lab.components_exact,
         components_traced=lab.traced, components_rule=lab.components_rule,
-        tau_signs=[cv_schemas.CellSigns.model_validate(
-            {"cell": c.name, "bars": list(c.bars), "sides": list(c.sides),
-             "signs": list(c.signs)}) for c in lab.cells] or None,
+        tau_signs=[cell_signs_out(c) for c in lab.cells] or None,
         gated=lab.gated, gated_reason=lab.gated_reason, windings=list(lab.windings))

@@ -14,6 +14,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
 from engine.catalogue.presets import build_preset
+from engine.design.region_labels import touched_cells
 from engine.design.sweep import (
     COMPUTE,
     BarFamily,
@@ -37,6 +38,7 @@ from service.job_state import Job
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
 from service.mappers.common import json_int, problem_in
+from service.mappers.design import cell_signs_out
 from service.mappers.space import space_options_in
 from service.schemas import jobs as job_schemas
 
@@ -52,6 +54,7 @@ class SweepJob:
     tolerances: EngineTolerances
     options: SpaceOptions
     names: tuple[str, ...]
+    cells: int = 0  # four-bar cells a row labels with tau signs (at the request's own linkage)
 
 
 def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
@@ -62,8 +65,8 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
     family: Family
     try:
         if body.linkage is not None:
-            linkage, tol = problem_in(body.linkage, body.tolerances, limits)
-            family = BarFamily(linkage, names)
+            base, tol = problem_in(body.linkage, body.tolerances, limits)
+            family = BarFamily(base, names)
         else:
             assert body.preset is not None
             base = build_preset(body.preset.name, body.preset.parameters, limits)
@@ -85,7 +88,8 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
         points = sample_points([SampleAxis(k, a.mean, a.sd) for k, a in body.samples.items()],
                                body.count, body.seed)
     compute = tuple(c for c in COMPUTE if c in body.compute)
-    return SweepJob(family, points, compute, tol, space_options_in(body.options), names)
+    return SweepJob(family, points, compute, tol, space_options_in(body.options), names,
+                    len(touched_cells(base, names)))
 
 
 def sweep_out(names: tuple[str, ...], rows: list[PointResult],
@@ -104,6 +108,8 @@ def sweep_out(names: tuple[str, ...], rows: list[PointResult],
                 windings=None if r.windings is None else list(r.windings),
                 gated=r.gated,
                 gated_reason=r.gated_reason,
+                tau_signs=None if r.tau_signs is None else [cell_signs_out(c)
+                                                            for c in r.tau_signs],
                 error=r.error,
             )
             for r in rows
@@ -163,12 +169,13 @@ def job_out(job: Job, expires: float | None) -> job_schemas.JobOut:
 
 #: Columns of a sweep's CSV after the swept names, in this order.
 SWEEP_CSV_COLUMNS = ("components", "complete", "argument", "critical_points", "margin", "gated",
-                     "gated_reason", "windings", "error")
+                     "gated_reason", "windings", "tau_signs", "error")
 
 
 def sweep_csv(result: dict[str, Any]) -> str:
     """A sweep's rows as CSV: one row per point, the swept values first (empty cells where a
-    value was not computed; windings joined by ``|``)."""
+    value was not computed; windings joined by ``|``; tau signs as ``cell:s1,s2,s3`` joined by
+    ``|``, e.g. ``gate:1,1,-1``)."""
     rows = result["rows"]
     names = list(rows[0]["lengths"]) if rows else []
     out = io.StringIO()
@@ -178,6 +185,9 @@ def sweep_csv(result: dict[str, Any]) -> str:
         cells = {k: row.get(k) for k in SWEEP_CSV_COLUMNS}
         if cells["windings"] is not None:
             cells["windings"] = "|".join(cells["windings"])
+        if cells["tau_signs"] is not None:
+            cells["tau_signs"] = "|".join(
+                f"{c['cell']}:{','.join(str(x) for x in c['signs'])}" for c in cells["tau_signs"])
         writer.writerow([*(repr(float(row["lengths"][n])) for n in names),
                          *("" if v is None else v for v in cells.values())])
     return out.getvalue()

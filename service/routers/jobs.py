@@ -134,5 +134,6 @@ def create_sweep(body: SweepRequest, manager: Manager, settings: SettingsDep) ->
     """One analysis over a grid of lengths or Monte Carlo samples (with a seed), as a job whose
     result is ``{rows, summary}`` (CSV from ``/v1/jobs/{id}/result`` with Accept: text/csv)."""
     sweep = mappers.sweep_in(body, settings.limits)
-    answers.check_sweep(len(sweep.points), len(sweep.names), len(sweep.compute), settings)
+    answers.check_sweep(len(sweep.points), len(sweep.names),
+                        len(sweep.compute) + answers.CELL_NUMBERS * sweep.cells, settings)
     return _accepted(manager, manager.submit_sweep(sweep, sweep.names))

@@ -16,6 +16,7 @@ from service.schemas.common import (
     Tolerances,
     examples,
 )
+from service.schemas.critical_values import CellSigns
 from service.schemas.space import SpaceOptions
 
 #: Points of one sweep (grid cells or samples): a bound on its cost and on its answer's size.
@@ -163,6 +164,12 @@ class SweepRow(BaseModel):
     gated_reason: str | None = Field(
         None, description="why gated is what it is (the rule, the traced rotors that turn), or "
         "why it is null")
+    tau_signs: list[CellSigns] | None = Field(
+        None, description="the tau signs at the point's lengths of every four-bar cell whose "
+        "sides a swept name sets (a bar of the cell or the gate's D; a preset parameter that is "
+        "not a bar, such as a or r, sets every cell), the gate four-bar first, as a map's "
+        "regions carry them; null: no such cell (not a rotor chain, with or without the "
+        "paper's gate) or no linkage at the point")
     error: str | None = None
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 
@@ -290,3 +292,21 @@ def test_prestress_within_q_rtol_of_the_boundary_is_null(client):
                     json={"linkage": lk, "tolerances": {"q_rtol": 1e-9}})
     assert r.status_code == 200, r.text
     assert r.json()["prestress_stable"] is True
+    # the exact reference, here too: a rational stress whose stress matrix on the vertices
+    # off {0, 1} is positive definite by exact pivots (prestress stable, proved)
+    from tests.engine.local.test_certificates import (
+        EDGES,
+        XS,
+        exact_collinear_stress,
+        positive_definite,
+    )
+
+    assert (xs, edges) == (XS, EDGES)
+    w = exact_collinear_stress()
+    omega = [[Fraction(0)] * len(xs) for _ in xs]
+    for k, (i, j) in enumerate(edges):
+        omega[i][i] += w[k]
+        omega[j][j] += w[k]
+        omega[i][j] -= w[k]
+        omega[j][i] -= w[k]
+    assert positive_definite([row[2:] for row in omega[2:]])

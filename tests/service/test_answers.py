@@ -125,9 +125,10 @@ def test_a_sweep_beyond_the_limit_is_refused_before_any_job(small_limit: ApiClie
     r = small_limit.post("/v1/sweeps", json=body)
     assert r.status_code == 422, r.text
     problem = r.json()
-    # 100,000 rows of 3 values at 16 bytes: 4.6 MB
+    # 100,000 rows of 3 values and the four-bar's one cell of tau signs (4 sides, 3 signs) at
+    # 16 bytes: 15 MB
     assert "LINKAGE_MAX_ANSWER_MB = 1" in problem["detail"]
-    assert "300,000 numbers" in problem["detail"]
+    assert "100,000 rows of 10 values (1,000,000 numbers)" in problem["detail"]
     assert small_limit.get("/v1/jobs").json() == []  # no job was started
 
 

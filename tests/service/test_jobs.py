@@ -163,6 +163,49 @@ def test_grid_csv_parses(api, grid_job):
     assert api.get(f"/v1/jobs/{job['id']}/result").json() == job["result"]
 
 
+def tau_signs(a: float, l1: float, l2: float, l3: float) -> list[int]:
+    """The paper's Eq. 16 for ground ``a``, input ``l1``, coupler ``l2``, output ``l3``."""
+    taus = (a - l1 + l2 - l3, a - l1 - l2 + l3, l2 + l3 - a - l1)
+    assert min(abs(t) for t in taus) > 1e-6  # off the critical lines
+    return [int(np.sign(t)) for t in taus]
+
+
+def test_grid_rows_carry_their_cells_tau_signs_in_json_and_csv(api, grid_job):
+    """The four-bar's one cell on every row (its bars say which rotor is the input), with the
+    signs computed here from the point's lengths; the CSV's tau_signs column says the same."""
+    job, _ = grid_job
+    rows = job["result"]["rows"]
+    for row in rows:
+        length = {"L1": row["lengths"]["L1"], "L2": row["lengths"]["L2"], "L3": 1.0}
+        (cell,) = row["tau_signs"]
+        inp, coupler, out = cell["bars"]
+        assert coupler == "L2" and {inp, out} == {"L1", "L3"}
+        assert cell["sides"] == pytest.approx([1.0, length[inp], length["L2"], length[out]])
+        assert cell["signs"] == tau_signs(1.0, length[inp], length["L2"], length[out]), row
+    r = api.get(f"/v1/jobs/{job['id']}/result", headers={"accept": "text/csv"})
+    table = list(csv.DictReader(io.StringIO(r.text)))
+    for line, row in zip(table, rows, strict=True):
+        (cell,) = row["tau_signs"]
+        assert line["tau_signs"] == f"{cell['cell']}:" + ",".join(map(str, cell["signs"]))
+
+
+def test_gated_grid_rows_carry_the_gate_four_bars_tau_signs(api):
+    """The gated chain's (L2, D) grid through HTTP: each row's one cell is the gate four-bar
+    (ground D, input the gate rotor r = 1.5, coupler L2, output L1 = 2), its signs as computed
+    here; gated exactly where they say the gate rotor is no crank (not (+,+,+) nor (-,-,+))."""
+    body = {"preset": GATED, "compute": ["components", "windings"],
+            "grid": {"L2": {"min": 0.55, "max": 4.95, "steps": 5},
+                     "D": {"min": 0.55, "max": 4.95, "steps": 5}}}
+    rows = run_sweep(api, body)["result"]["rows"]
+    for row in rows:
+        l2, d = row["lengths"]["L2"], row["lengths"]["D"]
+        (cell,) = row["tau_signs"]
+        assert cell["cell"] == "gate" and cell["bars"] == ["r1", "L2", "L1"]
+        assert cell["signs"] == tau_signs(d, 1.5, l2, 2.0), row
+        if row["components"]:
+            assert row["gated"] is (cell["signs"] not in ([1, 1, 1], [-1, -1, 1])), row
+
+
 def test_progress_is_monotone_and_reaches_one(grid_job):
     job, seen = grid_job
     assert seen == sorted(seen) and seen[-1] == 1.0

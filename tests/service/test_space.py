@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -333,3 +335,99 @@ def test_two_degrees_of_freedom_answer_size_is_estimated_first(app, client):
     assert "max_triangles" in r.json()["errors"][0]["msg"]
     assert ok.status_code == 200, ok.text
     assert sum(len(s["triangles"]) for s in ok.json()["surfaces"]) <= 1000 + 12
+
+
+def linkage_body(lk) -> dict:
+    """A Linkage as the API's body (vertices with their fixed axes, bars with lengths)."""
+    return {"vertices": [{"id": v, "position": [float(x) for x in p],
+                          "fixed": [bool(f) for f in fx]}
+                         for v, p, fx in zip(lk.vertex_ids, lk.positions, lk.fixed, strict=True)],
+            "bars": [{"id": b, "ends": [lk.vertex_ids[int(i)], lk.vertex_ids[int(j)]],
+                      "length": float(n)}
+                     for b, (i, j), n in zip(lk.bar_ids, lk.ends, lk.lengths, strict=True)]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("l1", [0.49, 1.4])
+def test_gated_chain_driven_from_another_rotor_through_http(client, l1):
+    """A 3-rotor gated chain given as bars, driven from rotor 0 (0.3, a crank) and not from its
+    gate rotor 1 (0.8, a rocker): the exploration's total and gated are the chain rules', equal
+    to dense sampling of rotor 0 with circle intersections (gated at L1 = 0.49, 4 components;
+    not at 1.4, 16)."""
+    from tests.engine.space.test_gate_transfer import build
+    from tests.gated_reference import sampled_general_chain
+
+    xs, r, couplers, gate, d, l2 = (0.0, 1.0, 2.0), (0.3, 0.8, 1.5), (1.0, 1.5), 1, 2.0, 2.0
+    lk, pins = build(xs, r, couplers, gate, d, l1, l2)
+    sliders = np.array([pins[gate] + [0.0, -d], pins[gate] + [0.0, d]])
+    comps, turns = sampled_general_chain(pins, np.array(r), np.array(couplers), gate, sliders,
+                                         l1, l2, samples=3000)
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": linkage_body(lk), "options": FAST})
+    search = body["search"]
+    assert search["components_total"] == comps
+    assert "driven from rotor r0" in search["components_total_rule"]
+    assert search["gated"] is (not turns), search["gated_reason"]
+
+
+def grashof_margin(a: float, lengths: np.ndarray) -> float:
+    """The four-bar's distance, moving L1, L2, L3, to its critical lengths: the planes
+    ``a = s1 L1 + s2 L2 + s3 L3`` (all joints on a line), ``|a - s . L| / sqrt(3)``, over the
+    planes whose foot keeps every length positive (asserted nearer than the others)."""
+    valid, blocked = [np.inf], [np.inf]
+    for signs in itertools.product((1.0, -1.0), repeat=3):
+        s = np.array(signs)
+        foot = lengths + (a - s @ lengths) / 3.0 * s
+        (valid if foot.min() > 0 else blocked).append(abs(a - s @ lengths) / np.sqrt(3.0))
+    assert min(valid) <= min(blocked)
+    return float(min(valid))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scale", [1e-3, 3.95, 1e3])
+def test_multistart_margin_through_http_is_scale_invariant(client, scale):
+    """The issue's case through HTTP: the multistart's margin on a four-bar drawn at scales
+    1e-3..1e3 is the Grashof margin (computed here) times the scale, names its guarantee (an
+    upper bound) and carries the exact closed-form margin it was compared with."""
+    a, lengths = 1.3, np.array([0.9, 1.5, 0.8])
+    lk = preset(client, "four-bar", a=a * scale, L1=lengths[0] * scale,
+                L2=lengths[1] * scale, L3=lengths[2] * scale, theta=0.4)
+    body = post(client, "/v1/analysis/robustness",
+                {"linkage": lk, "method": "multistart", "options": FAST})
+    expected = grashof_margin(a, lengths) * scale
+    assert body["method"] == "multistart" and body["success"], body
+    assert body["guarantee"] == "upper-bound" and body["guarantee_detail"]
+    assert body["margin"] == pytest.approx(expected, rel=1e-7)
+    assert body["exact_margin"] == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_design_predictions_are_signed_only_where_resolved(client):
+    """Design with only r1 and L1 adjustable on the three-rotor: at the branch points where the
+    tip A is off the line P1-B (read here from the critical-points answer's configurations),
+    equilibrium at A leaves r1 and L1 unstressed, so no change of theirs moves Delta: a design
+    for one is infeasible with that reason, no sign claimed; an on-line target is signed beyond
+    its own error and verified by tracing."""
+    lk = preset(client, "three-rotor")
+    crit = post(client, "/v1/analysis/critical-points", {"linkage": lk, "options": FAST})
+    on_line = []
+    for cp in crit["critical_points"]:
+        pos = cp["configuration"]
+        p1, a, b = (np.array(pos[v]) for v in ("P1", "A", "B"))
+        (ex, ey), (fx, fy) = a - p1, b - a
+        on_line.append(bool(abs(ex * fy - ey * fx) < 1e-6))
+    signed = on_line.index(True)
+    body = post(client, "/v1/design/splitting", {
+        "linkage": lk, "targets": [{"branch_point": signed, "sign": 1}],
+        "adjustable": ["r1", "L1"], "options": FAST})
+    (p,) = body["predicted"]
+    assert p["branch_point"] == signed and p["sign"] == 1 and abs(p["delta"]) > p["delta_error"]
+    assert body["verified"] is True and p["connects"] == p["traced_connects"]
+    undecided = on_line.index(False)
+    body = post(client, "/v1/design/splitting", {
+        "linkage": lk, "targets": [{"branch_point": undecided, "sign": 1}],
+        "adjustable": ["r1", "L1"], "options": FAST})
+    assert body["feasible"] is False and body["predicted"] == [] and body["verified"] is None
+    (conflict,) = body["conflicts"]
+    assert conflict["branch_points"] == [undecided]
+    assert "do not change how this point splits" in conflict["reason"]

@@ -10,6 +10,7 @@ import numpy as np
 
 from linkage_client._build import Model, build
 from linkage_client.models.analysis import (
+    CellSigns,
     CriticalPointsResult,
     CriticalValuesResult,
     DesignResult,
@@ -97,6 +98,7 @@ class SweepRow(Model):
     gated: bool | None = None
     gated_reason: str | None = None
     error: str | None = None
+    tau_signs: list[CellSigns] | None = None
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,9 @@ def find_critical_points(
     # self-stress vanishes tip by tip inwards to the gate's tip, where it is left on the gate
     # four-bar P_g T_g R G (G held by the slider's transversal meeting with the circle of
     # radius D: a pin for the stress), which carries one only when flat, and its lengths are
-    # generic. The curves then serve only the near misses, and the components a budget would
+    # generic; driven from another rotor, only where |T_g - G| is stationary at an end of the
+    # gate's range, which the rule's transversal crossings exclude (engine.space.gate_transfer).
+    # The curves then serve only the near misses, and the components a budget would
     # trace are an arbitrary few of 2^(n-1) (a 100-rotor chain: 32 of 2^99, the whole default
     # budget): the near misses are those of the component the linkage is on.
     count = exact_components(linkage)

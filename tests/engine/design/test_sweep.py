@@ -241,3 +241,66 @@ def test_bars_and_preset_families_give_the_same_derived_rows():
         assert (a.components, a.complete, a.windings, a.gated) == \
             (b.components, b.complete, b.windings, b.gated), (a, b)
         assert a.argument == b.argument == "derived"
+
+
+def tau_signs(a: float, l1: float, l2: float, l3: float) -> tuple[int, int, int]:
+    """The paper's Eq. 16 (after McCarthy) for a four-bar with ground ``a``, input ``l1``,
+    coupler ``l2``, output ``l3``: the signs of tau_1 = a - l1 + l2 - l3, tau_2 = a - l1 - l2 +
+    l3, tau_3 = l2 + l3 - a - l1 (the test's points are off every critical line)."""
+    taus = (a - l1 + l2 - l3, a - l1 - l2 + l3, l2 + l3 - a - l1)
+    assert min(abs(t) for t in taus) > 1e-6
+    return tuple(int(np.sign(t)) for t in taus)  # type: ignore[return-value]
+
+
+def test_gated_rows_carry_the_gate_four_bars_tau_signs():
+    """The gated chain's (L2, D) grid: every row carries the gate four-bar's signs (ground D,
+    input the gate rotor r, coupler L2, output L1) computed here from the point's lengths, and
+    no chain cell (no swept bar is a side of one); the signs tell the gated rows apart as the
+    Grashof type does: gated exactly where the gate rotor is no crank."""
+    r, l1 = 1.5, 2.0
+    pts = grid_points([GridAxis("L2", 0.55, 4.95, 9), GridAxis("D", 0.55, 4.95, 9)])
+    rows = run_points(PresetFamily("gated-kl-chain", {"n": 3, "gate": 1}, ("L2", "D")), pts,
+                      ("components", "windings"))
+    seen = set()
+    for row in rows:
+        l2, d = row.values
+        assert row.tau_signs is not None and len(row.tau_signs) == 1, row
+        (cell,) = row.tau_signs
+        assert cell.name == "gate" and cell.bars == ("r1", "L2", "L1") and cell.ground == "D"
+        assert cell.sides == pytest.approx((d, r, l2, l1), rel=1e-12)
+        assert cell.signs == tau_signs(d, r, l2, l1), row
+        seen.add(cell.signs)
+        if row.components:  # the input turns fully iff (+,+,+) or (-,-,+)
+            assert row.gated is (cell.signs not in ((1, 1, 1), (-1, -1, 1))), row
+    assert len(seen) >= 5  # the grid crosses the lines of every tau
+
+
+def test_rows_carry_the_signs_of_every_cell_a_swept_name_sets():
+    """A four-bar's bars swept: its one cell, oriented as its bars say (input, coupler,
+    output); a chain's pin spacing ``a`` (a parameter, not a bar) sets every cell; one rotor
+    of a chain given as bars: the two cells it is a side of; a slider-crank: no cell."""
+    lk = build_preset("four-bar", {})
+    pts = np.array([[0.4, 2.3], [1.6, 0.7], [0.6, 1.3]])
+    for row in run_points(BarFamily(lk, ("L1", "L2")), pts, ("components",)):
+        (cell,) = row.tau_signs
+        length = dict(zip(("L1", "L3"), (row.values[0], 1.0), strict=True))
+        inp, coupler, out = cell.bars
+        assert coupler == "L2" and {inp, out} == {"L1", "L3"}
+        assert cell.signs == tau_signs(1.0, length[inp], row.values[1], length[out]), row
+    rows = run_points(PresetFamily("kl-chain", {"n": 4, "r": 1.5, "l": 1.5}, ("a",)),
+                      np.array([[1.0], [1.8], [0.4]]), ("components",))
+    for row in rows:
+        a = row.values[0]
+        assert [c.name for c in row.tau_signs] == ["r0-l0-r1", "r1-l1-r2", "r2-l2-r3"]
+        assert all(c.signs == tau_signs(a, 1.5, 1.5, 1.5) for c in row.tau_signs), row
+    chain = build_preset("kl-chain", {"n": 4})
+    (row,) = run_points(BarFamily(chain, ("r1",)), np.array([[1.3]]), ("components",))
+    assert [c.name for c in row.tau_signs] == ["r0-l0-r1", "r1-l1-r2"]
+    first, second = row.tau_signs
+    assert first.signs == tau_signs(1.0, 1.5, 1.5, 1.3)
+    assert second.signs == tau_signs(1.0, 1.3, 1.5, 1.5)
+    crank = build_linkage(2, [VertexSpec("O", [0.0, 0.0], True), VertexSpec("B", [0.0, 0.7]),
+                              VertexSpec("P", [1.44, 0.0], [False, True])],
+                          [BarSpec("crank", ("O", "B")), BarSpec("rod", ("B", "P"))])
+    (row,) = run_points(BarFamily(crank, ("rod",)), np.array([[1.6]]), ("components",))
+    assert row.tau_signs is None

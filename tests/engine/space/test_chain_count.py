@@ -209,7 +209,7 @@ def test_undecided_gates_say_why():
                                          "L1": 1.5, "L2": 1.5})
     assert gated_chain_components(lk) is None
     dec = gate_decision(lk)
-    assert dec.gated is None and "not driven" in dec.reason
+    assert dec.gated is None and "driven from no rotor" in dec.reason
     critical = build_preset("gated-kl-chain", {"n": 4, "gate": 1, "D": 2.5})
     assert gated_chain_components(critical) is None
     dec = gate_decision(critical)
