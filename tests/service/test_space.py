@@ -292,7 +292,11 @@ def test_two_degrees_of_freedom_answer_surfaces(client):
     tri = np.array(surf["triangles"])
     assert tri.min() == 0 and tri.max() == len(a) - 1
     assert sum((-1) ** h["index"] for h in body["height_critical_points"]) == -6
-    assert body["search"]["reason"] == "searched"  # 1024 homotopy paths beyond 512
+    # proved within the default 512 paths: the linear-product start's 2^4 C(6, 4) = 240 (the
+    # total degree's 1024 would not fit)
+    assert body["search"]["complete"] and body["search"]["argument"] == "proved"
+    assert body["search"]["homotopy_start"] == "linear product"
+    assert body["search"]["homotopy_paths"] == 240
     assert len(body["search"]["height"]) == 5
 
 
