@@ -150,6 +150,11 @@ def splitting_figure(body: SplittingFigureRequest, settings: Settings,
                      deadline: Deadline | None = None) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
     _format("splitting", body)
+    if degrees_of_freedom(body.linkage) == 2:
+        raise InvalidRequest(
+            "the splitting figure draws the branch points of one degree of freedom; a "
+            "two-degree-of-freedom linkage's cones and their resolution are in the JSON answer "
+            "of /v1/analysis/splitting (surface)", loc=("linkage",))
     deadline = deadline or jobs.search_deadline(body.options, settings, None)
     ans, points = jobs.splitting_with_points(body, settings, deadline)
     # the panels that fit the time left and the drawing's share of the margin past it (all

@@ -86,3 +86,12 @@ def test_tikz_of_a_surface_is_refused_naming_the_format(client: Any) -> None:
                     json={"linkage": pentagon_body(), "format": "tikz"})
     assert r.status_code == 422, r.text
     assert r.json()["errors"][0]["loc"] == ["body", "format"]
+
+
+def test_the_splitting_figure_of_a_surface_is_refused_before_any_work(client: Any) -> None:
+    r = client.post("/v1/figures/splitting",
+                    json={"linkage": pentagon_body((2.0, 1.0, 1.0, 1.0, 1.0)),
+                          "perturbation": {"b2": 0.05}})
+    assert r.status_code == 422, r.text
+    assert r.json()["errors"][0]["loc"] == ["body", "linkage"]
+    assert "/v1/analysis/splitting" in r.json()["errors"][0]["msg"]
