@@ -242,19 +242,22 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
     return HeightWitnesses(crit, res.paths, counts, ok, message, res.start)
 
 
+def start_order(product_paths: int, total_paths: int, paths_max: int) -> list[bool]:
+    """The starts tried in turn (True: the linear product, False: the total degree), each
+    ``TRACK_ATTEMPTS`` times: the linear product first where it has fewer paths, then the
+    total degree where it fits ``paths_max``."""
+    order = [True] * TRACK_ATTEMPTS if product_paths < total_paths else []
+    return order + ([False] * TRACK_ATTEMPTS if total_paths <= paths_max else [])
+
+
 def _track(system: LagrangeSystem, rng: np.random.Generator, deadline: Deadline, far: float,
            paths_max: int) -> Tracked:
     """The linear-product homotopy where it has fewer paths, tracked up to ``TRACK_ATTEMPTS``
     times (a failed path is a matter of the random gamma, patch and factors: each attempt draws
     new ones); then, where paths still failed, the total-degree homotopy (within
     ``paths_max``) the same way."""
-    starts: list[bool] = []  # True: linear product
-    if system.product_paths < system.paths:
-        starts += [True] * TRACK_ATTEMPTS
-    if system.paths <= paths_max:
-        starts += [False] * TRACK_ATTEMPTS
     res: Tracked | None = None
-    for product in starts:
+    for product in start_order(system.product_paths, system.paths, paths_max):
         start = LinearProduct(system.structure, system.degrees, rng) if product else None
         res = track(system, system.degrees, rng, deadline, far=far, start=start)
         if res.success or deadline.expired():

@@ -15,6 +15,7 @@ from engine.space.surfaces.morse import (
     height_witnesses,
     pl_critical_vertices,
     ring,
+    start_order,
 )
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti, slider_torus, sphere_3d
 
@@ -93,3 +94,11 @@ def test_paths_beyond_the_bound_decline():
     w = height_witnesses(Surface(lk), np.ones(lk.n_free), np.random.default_rng(0),
                          paths_max=239)
     assert not w.success and "240 paths exceed" in w.message and w.paths == 240
+
+
+def test_the_total_degree_start_is_the_fallback():
+    """The linear product first (where it has fewer paths), each start tried twice; the total
+    degree after it only where its paths fit the bound."""
+    assert start_order(240, 1024, 4096) == [True, True, False, False]
+    assert start_order(240, 1024, 512) == [True, True]
+    assert start_order(16, 16, 512) == [False, False]
