@@ -1,14 +1,19 @@
 """Two degrees of freedom (issue 25): time and triangles of the surfaces (run on demand, not in
 the tests).
 
-    .venv/bin/python bench/bench_surfaces.py [--repeat 3] [--proof]
+    .venv/bin/python bench/bench_surfaces.py [--repeat 3] [--proof] [--http]
 
 Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon
 (genus 2), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best of
 ``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
-options (homotopy within 512 paths: the pentagons' 1024 are skipped, their answers are
-``searched``); ``--proof`` adds each row with ``homotopy_paths_max = 4096`` (the complete
-answer). BLAS on one thread, as in the service's workers.
+options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the
+linear-product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU
+time: on a loaded machine the wall time is that CPU time stretched by the other processes);
+``--proof`` adds each row with ``homotopy_paths_max = 4096``; ``--http`` posts the pentagon and
+the five-bar to ``/v1/analysis/configuration-space`` of a real uvicorn process on loopback
+(client-side wall time of the whole request, with ``time_budget_s: 20`` so that a loaded
+machine measures the whole answer rather than the default 4 s budget's cut). BLAS on one
+thread, as in the service's workers.
 """
 
 from __future__ import annotations
@@ -73,34 +78,74 @@ ROWS = {
 
 
 def best(fn, repeat: int):
-    times, out = [], None
+    """Best wall time, best CPU time (of this process) and the last answer."""
+    times, cpus, out = [], [], None
     for _ in range(repeat):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = fn()
         times.append(time.perf_counter() - t)
-    return min(times), out
+        cpus.append(time.process_time() - c)
+    return min(times), min(cpus), out
+
+
+def body(lk: Linkage) -> dict:
+    """The linkage as a request body (positions, pins, bars)."""
+    pos = np.asarray(lk.positions, dtype=float)
+    fixed = np.asarray(lk.fixed, dtype=bool).all(axis=1)
+    return {"vertices": [{"id": v, "position": pos[k].tolist(), "fixed": bool(fixed[k])}
+                         for k, v in enumerate(lk.vertex_ids)],
+            "bars": [{"id": b, "ends": [lk.vertex_ids[i] for i in lk.ends[k]],
+                      "length": float(lk.lengths[k])} for k, b in enumerate(lk.bar_ids)]}
+
+
+def http_rows(repeat: int) -> None:
+    """The pentagon and the five-bar through HTTP (a uvicorn process of its own)."""
+    import httpx
+    from harness import served_process  # bench/ is on sys.path when run as a script
+
+    with served_process() as url, httpx.Client(base_url=url, timeout=120) as client:
+        for name in ("pentagon (1,1,1,1,1)", "five-bar (2,1,1.4,1.6,1)"):
+            # (a budget beyond the default 4 s: on a loaded machine the wall time stretches)
+            req = {"linkage": body(ROWS[name]()), "options": {"time_budget_s": 20}}
+            times, answer = [], {}
+            for _ in range(repeat):
+                t = time.perf_counter()
+                r = client.post("/v1/analysis/configuration-space", json=req)
+                times.append(time.perf_counter() - t)
+                r.raise_for_status()
+                answer = r.json()
+            s = answer["search"]
+            print(f"HTTP {name:23} {min(times):8.2f} s  triangles "
+                  f"{sum(len(x['triangles']) for x in answer['surfaces']):6d}  genus "
+                  f"{[x['genus'] for x in answer['surfaces']]}  {s['homotopy_paths']} paths "
+                  f"({s['homotopy_start']})  complete {s['complete']} {s['reason']} "
+                  f"budget {s.get('time_budget_s')} s")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--proof", action="store_true")
+    ap.add_argument("--http", action="store_true")
     args = ap.parse_args()
-    print(f"{'row':28} {'march s':>8} {'tri':>6} {'explore s':>9} {'tri':>6} "
-          f"{'genus':>5} {'morse':>5} {'complete':>8} reason")
+    print(f"{'row':28} {'march s':>8} {'tri':>6} {'explore s':>9} {'cpu s':>6} {'tri':>6} "
+          f"{'genus':>5} {'morse':>5} {'paths':>5} {'start':>14} {'complete':>8} reason")
     for name, build in ROWS.items():
         lk = build()
         step = 0.25 * float(np.median(lk.lengths[lk.active]))
-        t_m, m = best(lambda lk=lk, step=step: march(Surface(lk), lk.coordinates(), step,
+        t_m, _, m = best(lambda lk=lk, step=step: march(Surface(lk), lk.coordinates(), step,
                                                        20_000), args.repeat)
         for paths in ((512, 4096) if args.proof else (512,)):
-            t_e, r = best(lambda lk=lk, paths=paths: explore_surfaces(
+            t_e, c_e, r = best(lambda lk=lk, paths=paths: explore_surfaces(
                 lk, options=SurfaceOptions(homotopy_paths_max=paths)), args.repeat)
             genus = [c.homology.genus for c in r.components]
             print(f"{name + ('' if paths == 512 else ' proof'):28} {t_m:8.2f} "
-                  f"{len(m.triangles):6d} {t_e:9.2f} {r.search['triangles']:6d} "
+                  f"{len(m.triangles):6d} {t_e:9.2f} {c_e:6.2f} {r.search['triangles']:6d} "
                   f"{str(genus):>5} {str(r.search['morse_agrees']):>5} "
+                  f"{r.search['homotopy_paths']:5d} {str(r.search['homotopy_start']):>14} "
                   f"{str(r.search.complete):>8} {r.search.reason}")
+    if args.http:
+        http_rows(args.repeat)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,9 @@ after it is bounded by the answer's size: the engine's point limit, a PNG's pixe
 Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests can find them:
 ``bar-<k>``, ``pin-<k>``, ``vertex-<k>``, ``slider-<k>``, ``zero-mode-<j>``, ``tangent-<j>``
 (linkage); ``component-<k>-<piece>``, ``critical-<kind>-<index>``, ``segment-<k>`` (configuration
-space); ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
+space; with two degrees of freedom ``surface-<k>``, ``height-critical-<i>`` and
+``critical-<kind>-<index>``, :mod:`service.figure_surface`);
+``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
 (critical values);
 ``ray-<b>-<r>``, ``split-<b>-<i>-<j>`` (splitting: branch point ``b``, ray ``r``, joined rays
 ``i``, ``j``; ``panels-left-out-<k>`` where the time left drew only the first panels).
@@ -47,6 +49,7 @@ from service.figure_drawing import (
 )
 from service.figure_formats import MEDIA_TYPES, check_pixels, check_png_before_drawing, negotiate
 from service.figure_splitting import _draw_splitting, panels_in_time
+from service.figure_surface import degrees_of_freedom, draw_surfaces, surface_axes
 from service.schemas import space
 from service.schemas.common import AnalysisRequest
 from service.schemas.figures import (
@@ -83,14 +86,20 @@ def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
 
 def configuration_space_figure(body: SpaceFigureRequest, settings: Settings,
                                deadline: Deadline | None = None) -> bytes:
-    """The components in two rotor angles, critical points by kind, segments labelled."""
+    """The components in two rotor angles, critical points by kind, segments labelled; with
+    two degrees of freedom the surfaces in three bar angles."""
     fmt = _format("configuration-space", body)
     if body.linkage.dimension != 2:
         raise InvalidRequest(
             "the configuration-space figure draws the components in the angles of two rotors "
             "in the plane; this linkage is 3D (its components are in the JSON answer of "
             "/v1/analysis/configuration-space)", loc=("linkage", "dimension"))
+    if degrees_of_freedom(body.linkage) == 2:
+        return _surface_figure(body, settings, fmt, deadline)
     rotors = _rotors(body.linkage)
+    if body.axes is not None and len(body.axes) != 2:
+        raise InvalidRequest("a one-degree-of-freedom linkage's figure takes two axes (rotors)",
+                             loc=("axes",))
     if body.axes is None:
         if len(rotors) < 2:
             raise InvalidRequest(
@@ -115,6 +124,20 @@ def configuration_space_figure(body: SpaceFigureRequest, settings: Settings,
     return _render(body, _draw_space, ans, axes, rotors)
 
 
+def _surface_figure(body: SpaceFigureRequest, settings: Settings, fmt: str,
+                    deadline: Deadline | None) -> bytes:
+    """Two degrees of freedom: the answer's surfaces in the angles of three bars
+    (:mod:`service.figure_surface`); SVG, PNG or PDF."""
+    if fmt not in ("svg", "png", "pdf"):
+        raise InvalidRequest(f"the figure of a two-degree-of-freedom linkage's surfaces is "
+                             f"drawn in svg, png or pdf, not {fmt}", loc=("format",))
+    axes = surface_axes(body.linkage, body.axes)
+    options = None if body.options is None else body.options.model_copy(update={"points": None})
+    req = space.SpaceRequest(linkage=body.linkage, tolerances=body.tolerances, options=options)
+    ans = jobs.configuration_space(req, settings, deadline)
+    return _render(body, draw_surfaces, ans, axes)
+
+
 def critical_values_figure(body: CriticalValuesFigureRequest, settings: Settings,
                            deadline: Deadline | None = None) -> bytes:
     """The slice: curves, regions shaded and labelled with their component counts."""
@@ -127,6 +150,11 @@ def splitting_figure(body: SplittingFigureRequest, settings: Settings,
                      deadline: Deadline | None = None) -> bytes:
     """Each branch point's crossing rays and the conic they become under the perturbation."""
     _format("splitting", body)
+    if degrees_of_freedom(body.linkage) == 2:
+        raise InvalidRequest(
+            "the splitting figure draws the branch points of one degree of freedom; a "
+            "two-degree-of-freedom linkage's cones and their resolution are in the JSON answer "
+            "of /v1/analysis/splitting (surface)", loc=("linkage",))
     deadline = deadline or jobs.search_deadline(body.options, settings, None)
     ans, points = jobs.splitting_with_points(body, settings, deadline)
     # the panels that fit the time left and the drawing's share of the margin past it (all

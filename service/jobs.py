@@ -14,10 +14,11 @@ from engine.design.critical_values import critical_value_slice
 from engine.design.design import check_request, design, verify
 from engine.design.robustness import robustness
 from engine.design.splitting import length_change, split
+from engine.design.surface_splitting import split_surface
 from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
 from engine.model.budget import Deadline, answer_values
-from engine.model.constraints import ProjectionResult, on_constraints
+from engine.model.constraints import Constraints, ProjectionResult, on_constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances
@@ -178,6 +179,9 @@ def splitting_with_points(
     dl = search_deadline(body.options, settings, deadline)
     at, _ = on_constraints(linkage, tol)
     d_l = length_change(at, body.perturbation)
+    if at.n_free - Constraints(at).n_constraints == 2:
+        res = split_surface(at, d_l, tol, mappers.surface_options_in(body.options), dl)
+        return mappers.surface_splitting_out(at, res, tol), []
     found = find_critical_points(at, tol, mappers.space_options_in(body.options), deadline=dl)
     crit = found.critical_points
     splits = [split(at, k, cp, d_l) for k, cp in enumerate(crit) if cp.kind == "branch"]

@@ -220,6 +220,19 @@ def split(linkage: Linkage, index: int, cp: CriticalPoint, d_l: np.ndarray) -> S
     if (res.self_stress is None or res.q is None or res.q_eigenvalues is None
             or res.kind not in ("branch", "rigid")):
         return Split(index, 0.0, 0.0, np.zeros(0), np.zeros(m), 0, [])
+    delta, delta_linear, dc, error = conic_delta(linkage, cp, d_l)
+    sign = int(np.sign(delta)) if abs(delta) > error else 0
+    connects = pairing(ray_coefficients(cp), sign) if res.kind == "branch" else []
+    return Split(index, delta, delta_linear, dc, dc @ res.zero_modes, sign, connects, error)
+
+
+def conic_delta(linkage: Linkage, cp: CriticalPoint, d_l: np.ndarray
+                ) -> tuple[float, float, np.ndarray, float]:
+    """``Delta`` of the conic (or, with ``D + 1`` zero modes, the quadric) at ``cp`` for ``dL``
+    (E,): ``(delta, delta_linear, dc, delta_error)`` (module docstring); ``cp`` has one
+    self-stress and ``Q``'s eigenvalues."""
+    res = cp.analysis
+    assert res.self_stress is not None and res.q_eigenvalues is not None
     cons = Constraints(linkage)
     act = cons.bars
     sigma = res.self_stress[act]
@@ -235,9 +248,7 @@ def split(linkage: Linkage, index: int, cp: CriticalPoint, d_l: np.ndarray) -> S
     delta = float(2 * sigma @ rhs - w @ hess @ w + dc @ (lam * dc))
     delta_linear = float(4 * sigma @ (lengths * d_l[act]))
     error = delta_error(cons, cp.u, z, _Terms(sigma, lengths, rhs, w, b, lam, dc))
-    sign = int(np.sign(delta)) if abs(delta) > error else 0
-    connects = pairing(ray_coefficients(cp), sign) if res.kind == "branch" else []
-    return Split(index, delta, delta_linear, dc, dc @ z, sign, connects, error)
+    return delta, delta_linear, dc, error
 
 
 def retraced_pairing(

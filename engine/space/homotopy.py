@@ -38,6 +38,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.model.budget import NEVER, Deadline
+from engine.space.linear_product import NAME as LINEAR_PRODUCT
+from engine.space.linear_product import LinearProduct
 
 #: Path end states: a nonsingular solution, a singular one (or one approached too slowly), a
 #: failure, stopped while running (deadline), and gone far (towards infinity, see ``track``).
@@ -72,6 +74,9 @@ ROW_SCALE_MAX = 1e3
 #: Relative distance below which two regular ends are the same point (a path jumped).
 SAME_END = 1e-7
 
+#: Name of the default start system in reports.
+TOTAL_DEGREE = "total degree"
+
 #: ``system(X) -> (F, F_X)``: values (N, n) and Jacobians (N, n, n + 1) at N points (N, n + 1).
 System = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
@@ -97,6 +102,8 @@ class Tracked:
         Every path ended regular, singular or far, none jumped, the deadline did not stop them.
     message : str
         Why not, when ``success`` is False.
+    start : str
+        The start system: ``"total degree"`` or ``"linear product"``.
     """
 
     ends: np.ndarray
@@ -106,6 +113,11 @@ class Tracked:
     jumped: int
     success: bool
     message: str
+    start: str = TOTAL_DEGREE
+
+    @property
+    def paths(self) -> int:
+        return len(self.ends)
 
 
 def start_solutions(degrees: np.ndarray) -> np.ndarray:
@@ -130,14 +142,14 @@ def _start(x: np.ndarray, degrees: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Homotopy:
-    def __init__(self, system: System, degrees: np.ndarray, gamma: complex,
+    def __init__(self, system: System, start: System, gamma: complex,
                  patch: np.ndarray) -> None:
-        self.system, self.degrees, self.gamma, self.patch = system, degrees, gamma, patch
+        self.system, self.start, self.gamma, self.patch = system, start, gamma, patch
 
     def parts(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``H`` with the patch row (N, n + 1), ``[H_X; a]`` (N, n + 1, n + 1), ``H_t`` (N, n)."""
         f, fx = self.system(x)
-        g, gx = _start(x, self.degrees)
+        g, gx = self.start(x)
         s = t[:, None]
         h = (1 - s) * f + s * self.gamma * g
         hx = (1 - s[:, :, None]) * fx + s[:, :, None] * self.gamma * gx
@@ -191,8 +203,10 @@ def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Generator,
           deadline: Deadline = NEVER, max_steps: int = 4000,
-          far: float = np.inf) -> Tracked:
-    """Track every path of the total-degree homotopy of ``system`` from ``t = 1`` to 0.
+          far: float = np.inf, start: LinearProduct | None = None) -> Tracked:
+    """Track every path of the homotopy of ``system`` from ``t = 1`` to 0: from the
+    total-degree start, or from ``start`` (a linear product of the system's multihomogeneous
+    structure, :mod:`engine.space.linear_product`; its total degrees must be ``degrees``).
 
     Parameters
     ----------
@@ -207,6 +221,8 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
         Once ``t <= T_FAR``, a path whose affine point ``x / x_0`` is longer than this stops as
         ``FAR`` (solutions at infinity are often not isolated, and paths towards them end in
         ill-conditioned Newton steps; a caller that knows where its solutions lie says so).
+    start : LinearProduct, optional
+        Drawn by the caller (its random factors from the caller's generator).
 
     Examples
     --------
@@ -229,8 +245,11 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
     gamma = complex(np.exp(2j * np.pi * rng.random()))
     patch = rng.normal(size=n + 1) + 1j * rng.normal(size=n + 1)
     patch /= np.linalg.norm(patch)
-    hom = _Homotopy(system, degrees, gamma, patch)
-    x = start_solutions(degrees)
+    if start is not None and not np.array_equal(start.total, degrees):
+        raise ValueError("the linear product's total degrees differ from the system's")
+    hom = _Homotopy(system, start if start is not None else (lambda x: _start(x, degrees)),
+                    gamma, patch)
+    x = start.solutions() if start is not None else start_solutions(degrees)
     x = x / (x @ patch)[:, None]
     p = len(x)
     t = np.ones(p)
@@ -286,7 +305,8 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
         f"{failed} of {p} paths failed (step below {H_MIN:g} at t > {T_END:g})" if failed else "",
         f"{jumped} regular ends coincide (a path jumped)" if jumped else "",
     ) if m)
-    return Tracked(x, state, t, steps, jumped, not message, message or "every path ended")
+    return Tracked(x, state, t, steps, jumped, not message, message or "every path ended",
+                   LINEAR_PRODUCT if start is not None else TOTAL_DEGREE)
 
 
 def _finish_at_zero(hom: _Homotopy, x: np.ndarray, t: np.ndarray, state: np.ndarray) -> None:

@@ -24,6 +24,7 @@ from service.mappers.design import (
     robustness_in,
     robustness_out,
     splitting_out,
+    surface_splitting_out,
 )
 from service.mappers.jobs import (
     SWEEP_CSV_COLUMNS,
@@ -82,6 +83,7 @@ __all__ = [
     "space_options_in",
     "space_out",
     "splitting_out",
+    "surface_splitting_out",
     "surface_options_in",
     "surfaces_out",
     "sweep_csv",

@@ -12,6 +12,7 @@ from engine.design.design import Check, DesignResult, Target
 from engine.design.robustness import Margin
 from engine.design.slice_regions import Region
 from engine.design.splitting import Split
+from engine.design.surface_splitting import SurfaceSplit
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
@@ -32,6 +33,7 @@ def splitting_out(
     crit: list[CriticalPoint], search: Mapping[str, object],
 ) -> splitting_schemas.SplittingResponse:
     return splitting_schemas.SplittingResponse(
+        surface=None,
         branch_points=[
             splitting_schemas.BranchSplitOut(
                 index=s.index,
@@ -48,6 +50,25 @@ def splitting_out(
         ],
         critical_points_found=found,
         search=c.SearchReport.model_validate(search_out(search)),
+        tolerances=tolerances_out(tol),
+    )
+
+
+def surface_splitting_out(linkage: EngineLinkage, res: SurfaceSplit, tol: EngineTolerances
+                          ) -> splitting_schemas.SplittingResponse:
+    """A two-degree-of-freedom splitting answer (``surface``; no branch points)."""
+    return splitting_schemas.SplittingResponse(
+        surface=splitting_schemas.SurfaceSplitOut(
+            cones=[splitting_schemas.ConeSplitOut(
+                configuration=positions_out(linkage, linkage.positions_of(c.point.u)),
+                q_eigenvalues=np.asarray(c.point.analysis.q_eigenvalues).tolist(),
+                delta=c.delta, delta_error=c.delta_error, sign=c.sign, sheets=c.sheets,
+                euler_change=c.euler_change) for c in res.cones],
+            predicted_euler_difference=res.predicted_euler_difference,
+            euler=list(res.euler), betti_q=[list(b) if b else None for b in res.betti],
+            verified=res.verified, message=res.message),
+        branch_points=[], critical_points_found=len(res.cones),
+        search=c.SearchReport.model_validate(search_out(res.search)),
         tolerances=tolerances_out(tol),
     )
 

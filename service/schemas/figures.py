@@ -66,9 +66,11 @@ class _SpaceFigure(Strict):
     tolerances: Tolerances | None = None
     options: SpaceOptions | None = None
     axes: list[Ident] | None = Field(
-        None, min_length=2, max_length=2,
-        description="two rotors (bars with one pinned end) whose angles are the axes (default: "
-        "the first two rotors)",
+        None, min_length=2, max_length=3,
+        description="one degree of freedom: two rotors (bars with one pinned end) whose angles "
+        "are the axes (default: the first two rotors); two degrees of freedom: three bars with "
+        "a moving end whose direction angles are the axes of the surfaces, drawn in 3D "
+        "(default: the first three such bars)",
     )
 
 

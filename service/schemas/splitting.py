@@ -47,7 +47,37 @@ class BranchSplitOut(BaseModel):
     connects: list[list[int]] = Field(description="joined ray pairs (empty where sign is 0)")
 
 
+class ConeSplitOut(BaseModel):
+    configuration: VertexVectors
+    q_eigenvalues: list[float] = Field(description="Q on the three zero modes (indefinite: "
+                                       "a cone)")
+    delta: float = Field(description="Delta of the quadric (c - dc)^T Q (c - dc) = Delta")
+    delta_error: float
+    sign: int = Field(description="sign of delta; 0: undecided (|delta| <= delta_error)")
+    sheets: int = Field(description="the perturbed cone is a hyperboloid of 1 sheet (the two "
+                        "nappes joined by a neck) or 2 (parted); 0 where undecided")
+    euler_change: int = Field(description="change of the Euler characteristic at this cone "
+                              "from the unperturbed space: 2 sheets - 3")
+
+
+class SurfaceSplitOut(BaseModel):
+    """Two degrees of freedom: every cone, how it resolves, and the re-meshed check."""
+
+    cones: list[ConeSplitOut]
+    predicted_euler_difference: int | None = Field(
+        description="chi(L + dL) - chi(L - dL) = 2 sum euler_change (null: a cone undecided)")
+    euler: list[int | None] = Field(description="re-meshed Euler characteristics at L + dL "
+                                    "and L - dL (summed over the surfaces)")
+    betti_q: list[list[int] | None] = Field(description="re-meshed b0, b1, b2 over Q at "
+                                            "L + dL and L - dL (summed over the surfaces)")
+    verified: bool = Field(description="the re-meshed difference equals the prediction")
+    message: str
+
+
 class SplittingResponse(BaseModel):
+    surface: SurfaceSplitOut | None = Field(
+        None, description="two degrees of freedom (M - E = 2): the cones' resolution; "
+        "branch_points is then empty")
     branch_points: list[BranchSplitOut]
     critical_points_found: int
     search: SearchReport = Field(

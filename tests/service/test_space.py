@@ -294,7 +294,11 @@ def test_two_degrees_of_freedom_answer_surfaces(client):
     tri = np.array(surf["triangles"])
     assert tri.min() == 0 and tri.max() == len(a) - 1
     assert sum((-1) ** h["index"] for h in body["height_critical_points"]) == -6
-    assert body["search"]["reason"] == "searched"  # 1024 homotopy paths beyond 512
+    # proved within the default 512 paths: the linear-product start's 2^4 C(6, 4) = 240 (the
+    # total degree's 1024 would not fit)
+    assert body["search"]["complete"] and body["search"]["argument"] == "proved"
+    assert body["search"]["homotopy_start"] == "linear product"
+    assert body["search"]["homotopy_paths"] == 240
     assert len(body["search"]["height"]) == 5
 
 
@@ -431,3 +435,39 @@ def test_design_predictions_are_signed_only_where_resolved(client):
     (conflict,) = body["conflicts"]
     assert conflict["branch_points"] == [undecided]
     assert "do not change how this point splits" in conflict["reason"]
+
+
+@pytest.mark.parametrize("change", [0.08, -0.08])
+def test_two_degrees_of_freedom_splitting_resolves_the_cones(client, change):
+    """At lengths (2, 1, 1, 1, 1) the pentagon space has four cones (the collinear pentagons);
+    a change of bar b2 resolves each into one sheet or two, and the predicted difference of
+    the Euler characteristics on the two sides is Farber and Schuetz's (b_i = a_i + a_{2-i},
+    computed here), as the re-meshing says."""
+    from itertools import combinations
+
+    def betti(lengths):
+        longest = int(np.argmax(lengths))
+        others = [k for k in range(5) if k != longest]
+
+        def a(i):
+            return sum(1 for sub in combinations(others, i)
+                       if lengths[longest] + sum(lengths[k] for k in sub) < sum(lengths) / 2)
+        return [a(i) + a(2 - i) for i in range(3)]
+
+    base = np.array([2.0, 1.0, 1.0, 1.0, 1.0])
+    d_l = np.array([0.0, 0.0, change, 0.0, 0.0])
+    body = post(client, "/v1/analysis/splitting",
+                {"linkage": pentagon_body(tuple(base)), "perturbation": {"b2": change},
+                 "options": {"time_budget_s": 60}})
+    surf = body["surface"]
+    assert body["branch_points"] == [] and len(surf["cones"]) == 4
+    for cone in surf["cones"]:
+        assert max(abs(p[1]) for p in cone["configuration"].values()) < 1e-8  # collinear
+        assert cone["sheets"] in (1, 2) and cone["euler_change"] == 2 * cone["sheets"] - 3
+        q = cone["q_eigenvalues"]
+        assert min(q) < 0 < max(q)
+    plus, minus = betti(base + d_l), betti(base - d_l)
+    chi = [b[0] - b[1] + b[2] for b in (plus, minus)]
+    assert surf["predicted_euler_difference"] == chi[0] - chi[1]
+    assert surf["euler"] == chi and surf["betti_q"] == [plus, minus]
+    assert surf["verified"]

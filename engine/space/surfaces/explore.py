@@ -2,8 +2,9 @@
 fixed): every compact component as a triangulated surface with its topology.
 
 1. **Seeds**: the critical points of a generic height ``c . u`` (:mod:`.morse`: the Lagrange
-   system's real solutions, all of them found by homotopy when its ``2^(M + E)`` paths are
-   within ``homotopy_paths_max``: then every compact component holds one), the given
+   system's real solutions, all of them found by homotopy when its paths -- ``2^E C(M, E)``
+   from the linear-product start, else ``2^(M + E)`` from the total degree's -- are within
+   ``homotopy_paths_max``: then every compact component holds one), the given
    configuration and projected random starts.
 2. **Meshes**: from every seed that no mesh covers yet, march a triangulation
    (:mod:`.mesh`), within the triangle budget and the deadline.
@@ -83,8 +84,9 @@ class SurfaceOptions:
     max_triangles: int = 20_000
     #: Projected random starts (seeds besides the height's critical points).
     random_starts: int = 12
-    #: Largest path count of the homotopy (``2^(M + E)``; 1024 for a pentagon with one bar
-    #: pinned); 0 skips it.
+    #: Largest path count of the homotopy (the linear product's ``2^E C(M, E)``, 240 for a
+    #: pentagon with one bar pinned; the total degree's ``2^(M + E)``, 1024, is the fallback
+    #: where it fits); 0 skips it.
     homotopy_paths_max: int = PATHS_MAX
     seed: int = 0
 
@@ -332,10 +334,13 @@ def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
         "triangles": int(sum(len(c.triangles) for c in comps)),
         "height_critical_points": len(owner), "height_critical_unplaced": missed,
         "homotopy": wit.message if wit is not None else "skipped",
-        "homotopy_paths": paths, "morse_agrees": all(c.morse_agrees for c in comps),
+        "homotopy_paths": paths,
+        "homotopy_start": wit.start if wit is not None and wit.counts else None,
+        "morse_agrees": all(c.morse_agrees for c in comps),
     }
     detail = ("every compact component holds a maximum of a generic height: the "
-              f"{paths} paths of the Lagrange system's homotopy found its {len(owner)} real "
+              f"{paths} paths of the Lagrange system's homotopy (from a "
+              f"{wit.start if wit is not None else ''} start) found its {len(owner)} real "
               "critical points, each on a meshed closed surface whose Morse sum equals its "
               "Euler characteristic") if proved else None
     return SearchReport(details, timed_out=dl.expired(), budget=budget_hit,

@@ -14,10 +14,14 @@ height takes both signs along the cone's lines, so the point is no extremum) -- 
 ``h`` on ``K`` is then at a smooth point. A rigid (isolated) critical point is a component of
 its own and solves no Lagrange system: it is the caller's to find. For a generic ``c`` every
 solution at a smooth point is nondegenerate (``h`` is a Morse function, Sard), hence isolated,
-and the total-degree homotopy of :mod:`engine.space.homotopy` finds all of them: ``2^(M + E)``
-paths. This is the completeness argument of the surfaces (``search.argument = "proved"``):
-every compact component holds a real regular solution, every real regular solution seeds a
-mesh unless a mesh covers it already.
+and a homotopy of :mod:`engine.space.homotopy` finds all of them. The system is bihomogeneous
+in ``(u, lambda)``: the bars have degrees ``(2, 0)``, the Lagrange equations ``(1, 1)``, so the
+linear-product start of :mod:`engine.space.linear_product` needs ``2^E C(M, E)`` paths (the
+coefficient of ``a^M b^E`` in ``(2a)^E (a + b)^M``; 240 for a pentagon with one bar pinned)
+instead of the total degree's ``2^(M + E)`` (1024); the total-degree start remains the
+fallback where the linear product's paths fail. This is the completeness argument of the
+surfaces (``search.argument = "proved"``): every compact component holds a real regular
+solution, every real regular solution seeds a mesh unless a mesh covers it already.
 
 **The Morse check.** With every critical point of ``h`` on a closed smooth surface, their
 indices (negative eigenvalues of the Hessian of ``h`` restricted to the surface,
@@ -37,7 +41,8 @@ from engine.model.budget import NEVER, Deadline
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.model.report import count_text
-from engine.space.homotopy import FAR, REGULAR, SINGULAR, track
+from engine.space.homotopy import FAR, REGULAR, SINGULAR, TOTAL_DEGREE, Tracked, track
+from engine.space.linear_product import LinearProduct, Structure, bezout
 from engine.space.surfaces.geometry import Surface
 from engine.space.witnesses import FAR_REACH, REAL_TOL, _reach, bar_quadrics, bounded
 
@@ -68,13 +73,15 @@ class HeightCritical:
 @dataclass(frozen=True)
 class HeightWitnesses:
     """Outcome of :func:`height_witnesses`: the real regular solutions (refined, with
-    indices), the path count, counts of the ends and whether the argument holds."""
+    indices), the path count and the start system they came from (``"linear product"`` or
+    ``"total degree"``), counts of the ends and whether the argument holds."""
 
     critical: HeightCritical
     paths: int
     counts: dict[str, int]
     success: bool
     message: str
+    start: str = TOTAL_DEGREE
 
 
 class LagrangeSystem:
@@ -87,23 +94,42 @@ class LagrangeSystem:
         self.e, self.m = cons.n_constraints, cons.n_free
         self.c = np.asarray(c, dtype=float) / np.linalg.norm(c)
         self.degrees = np.full(self.e + self.m, 2)
+        self._rows = self.quad.transpose(0, 2, 1).reshape(-1, self.m + 1)  # (E (M+1), M+1)
+        self._lower = self.quad[:, 1:, :].reshape(self.e, -1)  # (E, M (M + 1))
 
     @property
     def paths(self) -> int:
+        """The total-degree start's path count."""
         return 2 ** (self.e + self.m)
+
+    @property
+    def structure(self) -> Structure:
+        """The bihomogeneous structure: groups ``y`` and ``mu``; bars ``(2, 0)``, Lagrange
+        equations ``(1, 1)``."""
+        m, e = self.m, self.e
+        return Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 1)),
+                         np.array([[2, 0]] * e + [[1, 1]] * m))
+
+    @property
+    def product_paths(self) -> int:
+        """The linear-product start's path count (the bihomogeneous Bezout number)."""
+        return bezout(self.structure)
 
     def __call__(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (N, n) and Jacobians (N, n, n + 1) at ``x`` (N, n + 1), ``n = M + E``."""
         e, m = self.e, self.m
         xu, mu = x[:, :m + 1], x[:, m + 1:]
-        grads = 2.0 * np.einsum("amn,pn->pam", self.quad, xu)  # (N, E, M + 1)
-        qv = 0.5 * np.einsum("pam,pm->pa", grads, xu)
+        p = len(x)
+        # (matrix products rather than einsum: this is the homotopy's inner loop)
+        grads = 2.0 * (xu @ self._rows.T).reshape(p, e, m + 1)  # (N, E, M + 1)
+        qv = 0.5 * np.matmul(grads, xu[:, :, None])[:, :, 0]
         x0 = x[:, 0]
-        lag = self.c[None] * (x0 ** 2)[:, None] - np.einsum("pa,pam->pm", mu, grads[:, :, 1:])
-        jac = np.zeros((len(x), e + m, m + e + 1), dtype=complex)
+        lag = self.c[None] * (x0 ** 2)[:, None] - np.matmul(mu[:, None, :],
+                                                            grads[:, :, 1:])[:, 0]
+        jac = np.zeros((p, e + m, m + e + 1), dtype=complex)
         jac[:, :e, :m + 1] = grads
         # d lag_i / d X_u = 2 c_i x0 e_0 - sum_a mu_a 2 Q_a[1 + i, :]
-        jac[:, e:, :m + 1] = -2.0 * np.einsum("pa,amn->pmn", mu, self.quad[:, 1:, :])
+        jac[:, e:, :m + 1] = -2.0 * (mu @ self._lower).reshape(p, m, m + 1)
         jac[:, e:, 0] += 2.0 * self.c[None] * x0[:, None]
         jac[:, e:, m + 1:] = -grads[:, :, 1:].transpose(0, 2, 1)
         return np.concatenate([qv, lag], axis=1), jac
@@ -186,16 +212,12 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
         return HeightWitnesses(empty, 0, {}, False, "the configuration space may be unbounded "
                                "(a piece of the bar graph holds no pinned vertex)")
     system = LagrangeSystem(lk, cons, c)
-    if system.paths > paths_max:
-        return HeightWitnesses(empty, system.paths, {}, False,
-                               f"{count_text(system.paths)} paths exceed the bound of {paths_max}")
+    fewest = min(system.paths, system.product_paths)
+    if fewest > paths_max:
+        return HeightWitnesses(empty, fewest, {}, False,
+                               f"{count_text(fewest)} paths exceed the bound of {paths_max}")
     reach = _reach(lk, cons, system.scale)
-    # a failed path (its step fell below the floor) is a matter of the random gamma and patch:
-    # the homotopy is tracked once more with new ones before the argument is given up
-    for _ in range(TRACK_ATTEMPTS):
-        res = track(system, system.degrees, rng, deadline, far=FAR_REACH * reach * 10.0)
-        if res.success or deadline.expired():
-            break
+    res = _track(system, rng, deadline, FAR_REACH * reach * 10.0, paths_max)
     m = cons.n_free
     x0 = res.ends[:, 0]
     y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
@@ -207,7 +229,7 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
     singular = (res.state == SINGULAR) & near
     ended = np.isin(res.state, (REGULAR, SINGULAR, FAR))
     # a partition of the paths, as in engine.space.witnesses
-    counts = {"paths": system.paths, "regular": int(regular.sum()),
+    counts = {"paths": res.paths, "regular": int(regular.sum()),
               "singular": int(singular.sum()), "far": int((ended & ~(regular | singular)).sum()),
               "failed": int((~ended).sum()), "real": int(real.sum()), "steps": res.steps}
     starts = system.centre + system.scale * y[real].real
@@ -217,7 +239,31 @@ def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
     message = res.message if not res.success else (
         "every path ended" if ok else
         f"{int(real.sum()) - len(crit.points)} real ends did not refine to distinct points")
-    return HeightWitnesses(crit, system.paths, counts, ok, message)
+    return HeightWitnesses(crit, res.paths, counts, ok, message, res.start)
+
+
+def start_order(product_paths: int, total_paths: int, paths_max: int) -> list[bool]:
+    """The starts tried in turn (True: the linear product, False: the total degree), each
+    ``TRACK_ATTEMPTS`` times: the linear product first where it has fewer paths, then the
+    total degree where it fits ``paths_max``."""
+    order = [True] * TRACK_ATTEMPTS if product_paths < total_paths else []
+    return order + ([False] * TRACK_ATTEMPTS if total_paths <= paths_max else [])
+
+
+def _track(system: LagrangeSystem, rng: np.random.Generator, deadline: Deadline, far: float,
+           paths_max: int) -> Tracked:
+    """The linear-product homotopy where it has fewer paths, tracked up to ``TRACK_ATTEMPTS``
+    times (a failed path is a matter of the random gamma, patch and factors: each attempt draws
+    new ones); then, where paths still failed, the total-degree homotopy (within
+    ``paths_max``) the same way."""
+    res: Tracked | None = None
+    for product in start_order(system.product_paths, system.paths, paths_max):
+        start = LinearProduct(system.structure, system.degrees, rng) if product else None
+        res = track(system, system.degrees, rng, deadline, far=far, start=start)
+        if res.success or deadline.expired():
+            break
+    assert res is not None  # (one of the two starts fits paths_max: checked by the caller)
+    return res
 
 
 def pl_critical_vertices(vertices: np.ndarray, triangles: np.ndarray, height: np.ndarray

@@ -16,6 +16,7 @@ from tests.engine.space.surfaces.conftest import (
     five_bar,
     five_bar_reference,
     pentagon,
+    pentagon_betti,
     slider_torus,
     sphere_3d,
 )
@@ -46,11 +47,28 @@ def test_3d_surfaces_are_proved(build, betti):
 
 
 def test_pentagon_without_the_homotopy_is_searched():
-    res = explore_surfaces(pentagon((1, 1, 1, 1, 1)), options=SurfaceOptions(step_rel=0.35))
+    # below the linear product's 2^4 C(6, 4) = 240 paths the homotopy is not run
+    res = explore_surfaces(pentagon((1, 1, 1, 1, 1)),
+                           options=SurfaceOptions(step_rel=0.35, homotopy_paths_max=239))
     (comp,) = res.components
     assert comp.homology.genus == 4 and comp.morse_agrees
     assert res.search.reason == "searched"
-    assert "1024 paths exceed" in res.search["homotopy"]
+    assert "240 paths exceed" in res.search["homotopy"]
+    assert res.search["homotopy_start"] is None
+
+
+def test_pentagon_is_proved_by_the_linear_product():
+    """Within the default 512 paths: the linear product's 240 (the total degree's 1024 would
+    not fit); Farber and Schuetz give the genus, the Morse sum agrees."""
+    lengths = (1, 1, 1, 1, 1)
+    res = explore_surfaces(pentagon(lengths), options=SurfaceOptions(step_rel=0.35))
+    (comp,) = res.components
+    b = pentagon_betti(lengths)
+    assert comp.homology.betti_q == b and comp.morse_agrees
+    s = res.search
+    assert s.complete and s["argument"] == "proved", s.as_dict()
+    assert (s["homotopy_start"], s["homotopy_paths"]) == ("linear product", 240)
+    assert "linear product" in str(s.argument_detail)
 
 
 def test_budget_and_deadline():

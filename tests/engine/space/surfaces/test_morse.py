@@ -4,6 +4,7 @@ differences, the sphere's two poles in closed form, and the Morse sum against th
 from __future__ import annotations
 
 import numpy as np
+import numpy.polynomial.polynomial as P
 
 from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.mesh import march
@@ -14,6 +15,7 @@ from engine.space.surfaces.morse import (
     height_witnesses,
     pl_critical_vertices,
     ring,
+    start_order,
 )
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti, slider_torus, sphere_3d
 
@@ -44,7 +46,10 @@ def test_sphere_poles_in_closed_form():
     order = np.argsort(w.critical.index)
     assert w.critical.index[order].tolist() == [0, 2]
     assert np.allclose(w.critical.points[order], [-1.3 * c, 1.3 * c], atol=1e-9)
-    assert w.paths == 2 ** 4  # (M + E = 4 unknowns of degree 2)
+    # the bihomogeneous Bezout number in (u, lambda): the bar (2, 0), the three Lagrange
+    # equations (1, 1): the coefficient of a^3 b in (2a)(a + b)^3 is 2 * 3 (the total degree
+    # would be 2^4)
+    assert (w.paths, w.start) == (2 * 3, "linear product")
 
 
 def test_torus_has_four_critical_points_summing_to_zero():
@@ -55,7 +60,8 @@ def test_torus_has_four_critical_points_summing_to_zero():
     assert w.success, w.message
     idx = sorted(w.critical.index.tolist())
     assert sum((-1) ** i for i in idx) == 0 and idx[0] == 0 and idx[-1] == 2
-    assert w.counts["paths"] == 2 ** 8
+    # M = 5, E = 3: the coefficient of a^5 b^3 in (2a)^3 (a + b)^5 (not the total 2^8)
+    assert w.counts["paths"] == 2 ** 3 * int(P.polypow([1, 1], 5)[5 - 3]) == 80
     c = w.counts
     assert c["regular"] + c["singular"] + c["far"] + c["failed"] == c["paths"]
 
@@ -83,7 +89,16 @@ def test_pl_critical_vertices_refine_to_the_morse_sum():
 
 
 def test_paths_beyond_the_bound_decline():
+    # the pentagon's fewest paths: 2^4 C(6, 4) = 240 (the linear product; 1024 total degree)
     lk = pentagon((1, 1, 1, 1, 1))
     w = height_witnesses(Surface(lk), np.ones(lk.n_free), np.random.default_rng(0),
-                         paths_max=512)
-    assert not w.success and "1024 paths exceed" in w.message and w.paths == 1024
+                         paths_max=239)
+    assert not w.success and "240 paths exceed" in w.message and w.paths == 240
+
+
+def test_the_total_degree_start_is_the_fallback():
+    """The linear product first (where it has fewer paths), each start tried twice; the total
+    degree after it only where its paths fit the bound."""
+    assert start_order(240, 1024, 4096) == [True, True, False, False]
+    assert start_order(240, 1024, 512) == [True, True]
+    assert start_order(16, 16, 512) == [False, False]

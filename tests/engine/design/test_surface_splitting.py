@@ -1,0 +1,78 @@
+"""Cones of a two-degree-of-freedom space and how they resolve, against Farber and Schuetz's
+homology of planar pentagon spaces at lengths on both sides of a critical length vector, and the
+cones themselves against the collinear pentagons enumerated here."""
+
+from __future__ import annotations
+
+from itertools import product
+
+import numpy as np
+import pytest
+
+from engine.design.surface_splitting import find_cones, resolve_cone, split_surface
+from engine.model.tolerances import Tolerances
+from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
+
+CRITICAL = (2.0, 1.0, 1.0, 1.0, 1.0)
+
+
+def collinear_pentagons(lengths: tuple[float, ...]) -> np.ndarray:
+    """Free coordinates (x_A, y_A, x_B, y_B, x_C, y_C) of every pentagon P0 P1 A B C with
+    P0 = 0, P1 = (L0, 0) lying on the x axis: each bar after the ground one points along +-x,
+    and the last closes the loop at P0."""
+    out = []
+    for signs in product((1.0, -1.0), repeat=4):
+        x = lengths[0]
+        pts = []
+        for s, length in zip(signs[:3], lengths[1:4], strict=True):
+            x += s * length
+            pts.append(x)
+        if abs(pts[-1] + signs[3] * lengths[4]) < 1e-12:
+            out.append([pts[0], 0.0, pts[1], 0.0, pts[2], 0.0])
+    return np.array(out)
+
+
+def euler(b: tuple[int, int, int]) -> int:
+    return b[0] - b[1] + b[2]
+
+
+def test_every_cone_is_found_by_the_homotopy():
+    lk = pentagon(CRITICAL)
+    cps, ended = find_cones(lk, Tolerances(), np.random.default_rng(0))
+    ref = collinear_pentagons(CRITICAL)
+    assert ended and len(ref) == 4 and len(cps) == len(ref)
+    got = np.array([cp.u for cp in cps])
+    gap = np.linalg.norm(got[:, None] - ref[None], axis=2)
+    assert gap.min(axis=1).max() < 1e-8 and gap.min(axis=0).max() < 1e-8
+    for cp in cps:
+        q = cp.analysis.q_eigenvalues
+        assert len(q) == 3 and q.max() > 0 > q.min()
+
+
+def test_a_cone_resolves_the_other_way_under_the_opposite_change():
+    lk = pentagon(CRITICAL)
+    cps, _ = find_cones(lk, Tolerances(), np.random.default_rng(1))
+    d_l = np.zeros(5)
+    d_l[2] = 0.05
+    for cp in cps:
+        up, down = resolve_cone(lk, cp, d_l), resolve_cone(lk, cp, -d_l)
+        assert up.sign == -down.sign != 0
+        assert {up.sheets, down.sheets} == {1, 2}
+        assert up.euler_change == -down.euler_change
+
+
+@pytest.mark.parametrize(("bar", "change"), [(1, 0.1), (1, -0.1)])
+def test_the_predicted_topology_change_matches_farber_schuetz_and_the_re_meshing(bar, change):
+    lk = pentagon(CRITICAL)
+    d_l = np.zeros(5)
+    d_l[bar] = change
+    res = split_surface(lk, d_l)
+    plus = pentagon_betti(tuple(np.asarray(CRITICAL) + d_l))
+    minus = pentagon_betti(tuple(np.asarray(CRITICAL) - d_l))
+    assert len(res.cones) == 4 and all(c.sheets in (1, 2) for c in res.cones)
+    # the prediction against the published homology on both sides
+    assert res.predicted_euler_difference == euler(plus) - euler(minus)
+    # and the re-meshing against it too
+    assert res.euler == (euler(plus), euler(minus))
+    assert res.betti == (plus, minus)
+    assert res.verified and res.search["verified"]
