@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Literal, TypedDict
 
 import numpy as np
 
-from engine.design.critical_values import Slice
+from engine.design.critical_values import SLICE_OPTIONS, Slice
 from engine.design.design import Check, DesignResult, Target
 from engine.design.robustness import Margin
 from engine.design.slice_regions import Region
@@ -15,6 +16,7 @@ from engine.design.splitting import Split
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
+from engine.space.configuration_space import SpaceOptions
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
 from service.mappers.common import DEFAULT_MARGIN, json_int, positions_out, tolerances_out
@@ -66,6 +68,7 @@ class SliceOptions(TypedDict, total=False):
 
     resolution: int
     seeds_per_axis: int
+    options: SpaceOptions
 
 
 def critical_values_in(
@@ -79,6 +82,9 @@ def critical_values_in(
         opts["resolution"] = body.options.resolution
     if body.options is not None and body.options.seeds_per_axis is not None:
         opts["seeds_per_axis"] = body.options.seeds_per_axis
+    if body.options is not None and body.options.homotopy_paths_max is not None:
+        opts["options"] = replace(SLICE_OPTIONS,
+                                  homotopy_paths_max=body.options.homotopy_paths_max)
     return axes, opts
 
 

@@ -197,7 +197,8 @@ function drawSpace(error = "") {
     }
     canvas.dataset.tangentArrows = String(plotArrows(ctx, map, axes));
     canvas.dataset.rays = String(plotCritical(ctx, map, answer, axes));
-    if (state.at) {
+    if (answer.surfaces && answer.surfaces.length) plotSurfacePoints(ctx, map, answer, axes);
+    if (state.at && state.at.surface === undefined) {
       const comp = answer.components[state.at.component];
       const [x, y] = map.to(wrap(comp.angles[axes[0]][state.at.index]),
                             wrap(comp.angles[axes[1]][state.at.index]));
@@ -213,6 +214,24 @@ function drawSpace(error = "") {
   canvas.dataset.lengths = state.linkage.bars.map((b) => barLength(state.linkage, b).toFixed(4))
     .join(",");
   canvas.dataset.draws = String(Number(canvas.dataset.draws) + 1);
+}
+
+/** A two-degree-of-freedom answer in two rotor angles: every mesh vertex of its surfaces as a
+ * dot (the surfaces themselves are drawn in the 3D view), the configuration shown ringed. */
+function plotSurfacePoints(ctx, map, answer, axes) {
+  answer.surfaces.forEach((surf, s) => {
+    const [a, b] = axes.map((bar) => surfaceCoordinate(surf, `angle:${bar}`).values);
+    ctx.fillStyle = COLOURS[s % COLOURS.length];
+    for (let i = 0; i < a.length; i++) {
+      const [x, y] = map.to(a[i], b[i]);
+      ctx.fillRect(x - 1, y - 1, 2, 2);
+    }
+    if (state.at && state.at.surface === s) {
+      const [x, y] = map.to(a[state.at.index], b[state.at.index]);
+      ctx.fillStyle = "#ffd92f"; ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5;
+      ctx.beginPath(); ctx.arc(x, y, 6, 0, TAU); ctx.fill(); ctx.stroke();
+    }
+  });
 }
 
 // -- the tangent form along the components ----------------------------------------------------
@@ -272,8 +291,10 @@ function showSpace(answer, linkage, quick) {
   state.space = answer;
   state.spaceQuick = quick;
   state.at = nearestPoint(answer, linkage);
-  $("animate").disabled = !state.at;
-  $("space-caption").textContent = quick ? quickCaption(answer) : spaceCaption(answer);
+  const surfaces = Boolean(answer.surfaces && answer.surfaces.length);
+  $("animate").disabled = !state.at || surfaces;
+  $("space-caption").textContent = surfaces ? surfacesCaption(answer)
+    : quick ? quickCaption(answer) : spaceCaption(answer);
   $("space").dataset.complete = String(!quick && (answer.search || {}).complete !== false);
   drawSpace();
   drawLinkage();

@@ -27,6 +27,12 @@ const state = {
   changed: 0, // performance.now() of the last change of the linkage (drag, slider, paste)
 };
 
+/** The linkage changed (a drag, a slider, a paste, a region): the latencies count from here. */
+function markChange() {
+  state.changed = performance.now();
+  delete $("map").dataset.usefulMs;
+}
+
 // -- talking to the service ---------------------------------------------------------------
 
 let busy = 0;
@@ -207,7 +213,7 @@ async function loadPreset() {
   for (const input of $("params").querySelectorAll("input")) query.set(input.name, input.value);
   const generation = ++state.generation;
   abortAll();
-  state.changed = performance.now();
+  markChange();
   try {
     const linkage = await call(`v1/presets/${encodeURIComponent(name)}?${query}`, undefined,
                                { task: "preset", generation });
@@ -378,7 +384,7 @@ function animate() {
 
 /** One step along the component shown (the arrow keys on the configuration space). */
 function moveAlong(delta) {
-  if (!state.space || !state.at) return;
+  if (!state.space || !state.at || state.at.surface !== undefined) return;
   const comp = state.space.components[state.at.component];
   const n = Object.values(comp.angles)[0].length;
   state.at = { component: state.at.component, index: ((state.at.index + delta) % n + n) % n };
@@ -435,7 +441,7 @@ async function start() {
       return;
     }
     forgetParams("a pasted linkage: drag its joints and bars on the drawing");
-    state.changed = performance.now();
+    markChange();
     useLinkage(linkage.linkage || linkage, "pasted linkage");
   });
   const canvas = $("linkage");
