@@ -16,7 +16,7 @@ const QUICK_S = 0.4; // seconds the margin's search may take while a drag goes o
 // of the box's edges (the curves traced from the seeds only), which the service answers in
 // 0.02-0.5 s for the catalogue's small linkages (the full map: 0.05 s to 4 s and more). It is
 // drawn as provisional (dashed) and always replaced by the full map once the hand rests.
-const QUICK_MAP = { resolution: 24, seeds_per_axis: 3, homotopy_paths_max: 0,
+const QUICK_MAP = { resolution: 24, seeds_per_axis: 2, homotopy_paths_max: 0,
                     time_budget_s: 0.8 };
 
 function mapAxesChoice(linkage) {

@@ -12,10 +12,9 @@ function surfaceCoordinate(surf, key) {
   const [kind, id, axis] = key.split(":");
   if (kind === "angle") {
     const rotor = rotorsByBar()[id];
-    const pin = surf.positions[rotor.pin];
-    const tip = surf.positions[rotor.tip];
-    return { values: tip.map((q, i) => Math.atan2(q[1] - pin[i][1], q[0] - pin[i][0])),
-             angle: true };
+    const ids = [rotor.pin, rotor.pin2, rotor.tip].filter((v) => v);
+    return { values: surf.positions[rotor.tip].map((_, i) => rotorAngle(
+      Object.fromEntries(ids.map((v) => [v, surf.positions[v][i]])), rotor)), angle: true };
   }
   return { values: surf.positions[id].map((p) => p[Number(axis)]), angle: false };
 }

@@ -246,9 +246,21 @@ function pinned(v, dim) {
                               v.fixed.every(Boolean));
 }
 
+/** The rotors of a linkage, each with one angle: in the plane a bar with exactly one pinned end
+ * (named by the bar); in 3D a hinge, a free vertex joined by bars to exactly two pins (named
+ * by the vertex: its angle about the axis through the two pins, which the service's answers do
+ * not carry: see hingeAngles). */
 function rotorsOf(linkage) {
   const pins = new Set(linkage.vertices.filter((v) => pinned(v, linkage.dimension || 2))
                                       .map((v) => v.id));
+  if ((linkage.dimension || 2) === 3) {
+    return linkage.vertices.filter((v) => !pins.has(v.id)).map((v) => ({
+      tip: v.id, hinge: true,
+      pins: linkage.bars.filter((b) => b.ends.includes(v.id))
+        .map((b) => (b.ends[0] === v.id ? b.ends[1] : b.ends[0])).filter((u) => pins.has(u)),
+    })).filter((r) => r.pins.length === 2).map((r) => ({
+      bar: r.tip, pin: r.pins[0], pin2: r.pins[1], tip: r.tip, hinge: true }));
+  }
   return linkage.bars.filter((b) => pins.has(b.ends[0]) !== pins.has(b.ends[1])).map((b) => ({
     bar: b.id, pin: pins.has(b.ends[0]) ? b.ends[0] : b.ends[1],
     tip: pins.has(b.ends[0]) ? b.ends[1] : b.ends[0],
