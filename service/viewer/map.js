@@ -116,6 +116,7 @@ function drawMap(error = "") {
   const ctx = canvas.getContext("2d");
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   const req = mapView.request;
+  canvas.dataset.provisional = String(Boolean(mapView.answer && mapView.provisional));
   if (!req) {
     ctx.fillStyle = "#222"; ctx.font = "13px sans-serif";
     const surfaces = state.space && state.space.surfaces && state.space.surfaces.length;
@@ -197,7 +198,6 @@ function drawMap(error = "") {
     ctx.fillText("provisional: the full map follows", f.pad.l + f.w - 6, f.pad.t + f.h - 8);
     ctx.textAlign = "left";
   }
-  canvas.dataset.provisional = String(Boolean(mapView.provisional));
   // where each region's marker is in CSS pixels (for tests and assistive tools)
   const k = canvas.getBoundingClientRect().width / canvas.width;
   canvas.dataset.markers = JSON.stringify(answer.regions.map((r) => f.to(r.point).map((v) =>

@@ -55,8 +55,11 @@ function draw3d() {
   const answer = state.space;
   const keys = ["d3-x", "d3-y", "d3-z"].map((id) => $(id).value);
   ctx.fillStyle = "#222"; ctx.font = "13px sans-serif";
+  canvas.dataset.surfaces = "0";
   if (!answer || keys.some((k) => !k)) {
-    ctx.fillText(state.linkage ? "waiting for the configuration space" : "", 20, 30);
+    ctx.fillStyle = view3.failed ? "#a30000" : "#222";
+    ctx.fillText(view3.failed ? "no configuration space: see the status line"
+      : state.linkage ? "waiting for the configuration space" : "", 20, 30);
     return;
   }
   const surfaces = answer.surfaces || [];
@@ -190,6 +193,7 @@ function start3d() {
   });
   for (const id of ["d3-x", "d3-y", "d3-z"]) $(id).addEventListener("change", draw3d);
   state.listeners.push((generation, what) => {
+    if (what !== "at") view3.failed = what === "space-failed" || what === "cleared";
     if (what === "linkage") choose3d(state.linkage, view3.surfaceAxes);
     const surfaces = Boolean(state.space && state.space.surfaces && state.space.surfaces.length);
     if ((what === "space" || what === "space-refined") && surfaces !== view3.surfaceAxes) {
