@@ -14,9 +14,9 @@ const mapView = { answer: null, margin: null, frame: null, request: null };
 const QUICK_S = 0.4; // seconds the margin's search may take while a drag goes on
 // The map asked while a drag goes on: a coarser raster, fewer seed lengths and no homotopy sweep
 // of the box's edges (the curves traced from the seeds only), which the service answers in
-// 0.02-0.5 s for the catalogue's small linkages (the full map: 0.05 s to 4 s and more). It is
+// 0.02-0.3 s for the catalogue's small linkages (the full map: 0.05 s to 4 s and more). It is
 // drawn as provisional (dashed) and always replaced by the full map once the hand rests.
-const QUICK_MAP = { resolution: 24, seeds_per_axis: 2, homotopy_paths_max: 0,
+const QUICK_MAP = { resolution: 12, seeds_per_axis: 2, homotopy_paths_max: 0,
                     time_budget_s: 0.8 };
 
 function mapAxesChoice(linkage) {
