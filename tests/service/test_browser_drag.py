@@ -303,7 +303,9 @@ def test_a_drag_past_assembly_shows_the_problem_and_no_provisional_map(base_url:
     length = js(browser, "return barLength(state.linkage, state.linkage.bars[0]);")
     assert length > 3.0  # beyond the four-bar's assembly (a + L2 + L3)
     assert "No configuration near the given positions" in text(browser, "status")
-    wait_for(lambda: text(browser, "map-caption").endswith("no map"), 30, "the map's caption")
+    # (the space's and the map's 422s arrive in either order)
+    wait_for(lambda: text(browser, "map-caption").endswith("no map")
+             and text(browser, "space-caption") != "computing…", 30, "both captions")
     assert text(browser, "space-caption") == "no configuration space (see the status line)"
     assert data(browser, "map", "provisional") == "false"
     assert js(browser, "return mapView.answer;") is None
