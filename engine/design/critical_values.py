@@ -81,6 +81,9 @@ SEED_MAX_POINTS = 2000
 #: traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
+#: The explorations' options when a request gives none (fewer angles and random starts than a
+#: configuration-space search: a slice explores one linkage per seed and per region).
+SLICE_OPTIONS = SpaceOptions(angles=24, random_starts=4)
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,7 @@ def critical_value_slice(
         raise InvalidRequest(f"unknown method {method!r}: one of {', '.join(SLICE_METHODS)}",
                              loc=("method",))
     tol = tolerances or Tolerances()
-    opt = options or SpaceOptions(angles=24, random_starts=4)
+    opt = options or SLICE_OPTIONS
     dl = deadline or NEVER
     ax = _validate(linkage, axes)
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])

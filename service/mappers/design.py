@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Literal, TypedDict
 
 import numpy as np
 
-from engine.design.critical_values import Slice
+from engine.design.critical_values import SLICE_OPTIONS, Slice
 from engine.design.design import Check, DesignResult, Target
 from engine.design.robustness import Margin
 from engine.design.slice_regions import Region
@@ -16,6 +17,7 @@ from engine.design.surface_splitting import SurfaceSplit
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
+from engine.space.configuration_space import SpaceOptions
 from engine.space.four_bar_cells import FourBarCell
 
 #: Default margin of ``/v1/design/splitting``, relative to the median bar length.
@@ -88,6 +90,7 @@ class SliceOptions(TypedDict, total=False):
 
     resolution: int
     seeds_per_axis: int
+    options: SpaceOptions
 
 
 def critical_values_in(
@@ -101,6 +104,9 @@ def critical_values_in(
         opts["resolution"] = body.options.resolution
     if body.options is not None and body.options.seeds_per_axis is not None:
         opts["seeds_per_axis"] = body.options.seeds_per_axis
+    if body.options is not None and body.options.homotopy_paths_max is not None:
+        opts["options"] = replace(SLICE_OPTIONS,
+                                  homotopy_paths_max=body.options.homotopy_paths_max)
     return axes, opts
 
 

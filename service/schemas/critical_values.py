@@ -36,6 +36,12 @@ class CriticalValuesOptions(Strict):
         None, description="sample lengths per axis where curves are seeded (default 5)",
         json_schema_extra=default_of(5),
     )
+    homotopy_paths_max: Annotated[int, Field(strict=True, ge=0, le=8192)] | None = Field(
+        None, description="largest path count of the homotopies that sweep the box's edges "
+        "(the argument that every curve was found) and prove the regions' counts; 0 skips "
+        "them: the curves are traced from the seed lengths only (search.reason then at best "
+        "searched), a fast provisional map (default 512)", json_schema_extra=default_of(512),
+    )
     time_budget_s: TimeBudget | None = Field(None, description=TIME_BUDGET_DOC)
 
 

@@ -5,6 +5,9 @@
 
 function currentPositions() {
   const { space, at, linkage } = state;
+  if (space && at && at.surface !== undefined) {
+    return surfacePositions(space.surfaces[at.surface], at.index);
+  }
   if (space && at) {
     const comp = space.components[at.component];
     return Object.fromEntries(Object.entries(comp.positions).map(([v, walk]) =>
@@ -30,6 +33,17 @@ function fit(canvas, points, pad = 30) {
 function nearestPoint(space, linkage) {
   // Start where the linkage is: the point of the answer closest to the given positions.
   let best = null;
+  (space.surfaces || []).forEach((surf, k) => {
+    const n = Object.values(surf.positions)[0].length;
+    for (let i = 0; i < n; i++) {
+      let d = 0;
+      for (const v of linkage.vertices) {
+        d += surf.positions[v.id][i].reduce((acc, x, j) => acc + (x - v.position[j]) ** 2, 0);
+      }
+      if (!best || d < best.d) best = { d, surface: k, index: i };
+    }
+  });
+  if (best) return { surface: best.surface, index: best.index };
   space.components.forEach((comp, k) => {
     const n = Object.values(comp.positions)[0].length;
     for (let i = 0; i < n; i++) {
@@ -57,7 +71,8 @@ function drawLinkage() {
   if (!view.drag) { // a view that holds the whole motion, so that it does not jump
     let extent = Object.values(pos);
     if (space && state.at) {
-      const comp = space.components[state.at.component];
+      const comp = state.at.surface !== undefined ? space.surfaces[state.at.surface]
+        : space.components[state.at.component];
       extent = extent.concat(...Object.values(comp.positions).map((w) =>
         w.filter((_, i) => i % 4 === 0)));
     }
@@ -106,7 +121,8 @@ function drawLinkage() {
     ([h, [x, y]]) => [h, [Math.round(x * k * 10) / 10, Math.round(y * k * 10) / 10]])));
   const at = state.at;
   $("linkage-caption").textContent = `${state.source || "linkage"}: ` +
-    (at ? `component ${at.component}, point ${at.index}` : "as given");
+    (!at ? "as given" : at.surface !== undefined ? `surface ${at.surface}, mesh vertex ${at.index}`
+      : `component ${at.component}, point ${at.index}`);
 }
 
 function canvasPoint(canvas, event) {
@@ -142,7 +158,7 @@ function edit(change) {
   state.source = source;
   state.at = null;
   state.space = null;
-  state.changed = performance.now();
+  markChange();
   drawLinkage();
   clearTimeout(view.timer);
   view.timer = setTimeout(() => {

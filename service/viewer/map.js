@@ -11,7 +11,13 @@ const REGION_BASE = new Set(["point", "components", "signature", "cells", "argum
 // shades of gated and ungated regions' markers (the paper's Fig. 5b: blue gated, red ungated)
 const GATED_FILL = { true: "#cfe3f5", false: "#f6d0d8" };
 const mapView = { answer: null, margin: null, frame: null, request: null };
-const QUICK_S = 0.4; // seconds a search of the map may take while a drag goes on
+const QUICK_S = 0.4; // seconds the margin's search may take while a drag goes on
+// The map asked while a drag goes on: a coarser raster, fewer seed lengths and no homotopy sweep
+// of the box's edges (the curves traced from the seeds only), which the service answers in
+// 0.02-0.3 s for the catalogue's small linkages (the full map: 0.05 s to 4 s and more). It is
+// drawn as provisional (dashed) and always replaced by the full map once the hand rests.
+const QUICK_MAP = { resolution: 12, seeds_per_axis: 2, homotopy_paths_max: 0,
+                    time_budget_s: 0.8 };
 
 function mapAxesChoice(linkage) {
   // Bars that can change length: not both ends pinned.
@@ -110,9 +116,12 @@ function drawMap(error = "") {
   const ctx = canvas.getContext("2d");
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   const req = mapView.request;
+  canvas.dataset.provisional = String(Boolean(mapView.answer && mapView.provisional));
   if (!req) {
     ctx.fillStyle = "#222"; ctx.font = "13px sans-serif";
-    ctx.fillText(state.linkage ? "choose two different bars" : "", 20, 30);
+    const surfaces = state.space && state.space.surfaces && state.space.surfaces.length;
+    ctx.fillText(!state.linkage ? "" : surfaces ? "no map: two degrees of freedom"
+      : "choose two different bars", 20, 30);
     return;
   }
   const f = mapFrame(canvas, req.axes);
@@ -143,6 +152,7 @@ function drawMap(error = "") {
   ctx.save();
   ctx.beginPath(); ctx.rect(f.pad.l, f.pad.t, f.w, f.h); ctx.clip();
   ctx.strokeStyle = "#c51b7d"; ctx.lineWidth = 2;
+  ctx.setLineDash(mapView.provisional ? [6, 4] : []);
   for (const curve of answer.curves) {
     ctx.beginPath();
     curve.forEach((p, i) => (i ? ctx.lineTo(...f.to(p)) : ctx.moveTo(...f.to(p))));
@@ -163,6 +173,7 @@ function drawMap(error = "") {
       ctx.beginPath(); ctx.moveTo(cx, cy); ctx.lineTo(nx, ny); ctx.stroke();
     }
   }
+  ctx.setLineDash([]);
   star(ctx, ...f.to(here));
   ctx.restore();
   answer.regions.forEach((region, k) => {
@@ -182,6 +193,11 @@ function drawMap(error = "") {
     ctx.textAlign = "left";
   });
   mapLegend(ctx, f, answer);
+  if (mapView.provisional) { // a stamp in the frame's lower right corner
+    ctx.font = "bold 12px sans-serif"; ctx.textAlign = "right"; ctx.fillStyle = "#8a3b00";
+    ctx.fillText("provisional: the full map follows", f.pad.l + f.w - 6, f.pad.t + f.h - 8);
+    ctx.textAlign = "left";
+  }
   // where each region's marker is in CSS pixels (for tests and assistive tools)
   const k = canvas.getBoundingClientRect().width / canvas.width;
   canvas.dataset.markers = JSON.stringify(answer.regions.map((r) => f.to(r.point).map((v) =>
@@ -310,7 +326,7 @@ function loadRegion(k) {
   const lengths = Object.fromEntries(req.axes.map((a, i) => [a.bar, region.point[i]]));
   const linkage = withLengths(req.linkage, lengths);
   forgetParams(`the sample of map region R${k}`);
-  state.changed = performance.now();
+  markChange();
   $("linkage-json").value = JSON.stringify(linkage, null, 1);
   useLinkage(linkage, `map region R${k}`);
 }
@@ -340,6 +356,7 @@ function loadMap(generation, { quick = false, refine = false, margin = true } = 
   if (!refine) {
     mapView.request = req;
     mapView.answer = null;
+    mapView.provisional = false;
     mapView.margin = null;
     $("margin").textContent = "";
     showRegions();
@@ -347,17 +364,20 @@ function loadMap(generation, { quick = false, refine = false, margin = true } = 
   }
   if (!req) { $("map-caption").textContent = ""; return; }
   const [x, y] = req.axes.map((a) => a.bar);
-  const options = quick ? { options: { time_budget_s: QUICK_S } } : {};
-  const again = (search) => quick && search && search.complete === false;
+  // a quick map is provisional: it is always asked again in full (see quickDone)
+  const options = quick ? { options: QUICK_MAP } : {};
+  const again = () => quick;
   if (!refine) $("map-caption").textContent = `${x} × ${y}: computing…`;
   if (quick) mapView.quick = { req, pending: 2, cut: false }; // the map's and the margin's
   call("v1/analysis/critical-values", { ...req, ...options }, { task: "map", generation })
     .then((answer) => {
       if (generation !== state.generation || mapView.request !== req) return;
       mapView.answer = answer;
-      const cut = answer.search && answer.search.complete === false
-        ? ` (search cut short: ${answer.search.reason}; regions may be missing` +
-          `${again(answer.search) ? "; refining" : ""})` : "";
+      mapView.provisional = quick;
+      const cut = quick ? ` (provisional: resolution ${QUICK_MAP.resolution}, curves from ` +
+        `${QUICK_MAP.seeds_per_axis}×${QUICK_MAP.seeds_per_axis} seed lengths; the full map ` +
+        "follows)" : answer.search && answer.search.complete === false
+        ? ` (search cut short: ${answer.search.reason}; regions may be missing)` : "";
       $("map-caption").textContent = `${x} × ${y}: ${answer.regions.length} regions, ` +
         `${answer.curves.length} curves${cut}; the star is the linkage`;
       showRegions();
@@ -365,7 +385,12 @@ function loadMap(generation, { quick = false, refine = false, margin = true } = 
       // from the change to the first map drawn (and, apart, to the refined one)
       const ms = String(Math.round(performance.now() - state.changed));
       $("map").dataset[refine ? "refinedMs" : "latencyMs"] = ms;
-      if (quick) quickDone(generation, req, again(answer.search));
+      // the first drawing with a curve and a counted region: what the hand sees first
+      if (!$("map").dataset.usefulMs && answer.curves.length &&
+          answer.regions.some((r) => r.components !== null && r.components !== undefined)) {
+        $("map").dataset.usefulMs = ms;
+      }
+      if (quick) quickDone(generation, req, again());
     }).catch((err) => {
       if (err.superseded || generation !== state.generation) return;
       if (quick) quickDone(generation, req, false);
@@ -440,6 +465,21 @@ function startMap() {
         setTimeout(() => generation === state.generation &&
           loadMap(generation, { quick: true, margin: false }), 0);
       }
+    } else if (what === "space" && state.space.surfaces && state.space.surfaces.length) {
+      // two degrees of freedom: the service's maps and margins trace curves (one degree); a
+      // quick map asked during a drag was refused with a 422, which is no error of this space
+      for (const task of ["map", "margin"]) {
+        const c = state.controllers.get(task);
+        if (c) c.abort();
+        state.tasks.delete(task);
+      }
+      showTasks();
+      mapView.request = null; mapView.answer = null; mapView.margin = null;
+      $("map-caption").textContent = "no map: maps of critical values need one degree of " +
+        "freedom";
+      $("margin").textContent = "";
+      showRegions();
+      drawMap();
     } else if ((what === "space" || what === "space-failed") && state.drawable) {
       if (!state.quick) loadMap(generation);
       else if (mapView.request) loadMargin(generation, mapView.request, { quick: true });

@@ -39,8 +39,32 @@ function spaceMap(canvas) {
   return { s, to: (a, b) => [ox + s * a, oy - s * b], from: (x, y) => [(x - ox) / s, (oy - y) / s] };
 }
 
-/** Rotor angle of a configuration ({vertex: [x, y]}). */
+/** A hinge's frame: two unit vectors e1, e2 normal to its axis (pin -> pin2), e1 x e2 along it. */
+function hingeFrame(conf, rotor) {
+  const [p, q] = [conf[rotor.pin], conf[rotor.pin2]];
+  const n = q.map((x, i) => x - p[i]);
+  const len = Math.hypot(...n);
+  const a = n.map((x) => x / len);
+  // the coordinate axis least along the hinge, made normal to it
+  const k = [0, 1, 2].reduce((best, i) => (Math.abs(a[i]) < Math.abs(a[best]) ? i : best), 0);
+  const e = [0, 0, 0];
+  e[k] = 1;
+  const d = e.map((x, i) => x - a[k] * a[i]);
+  const dl = Math.hypot(...d);
+  const e1 = d.map((x) => x / dl);
+  const e2 = [a[1] * e1[2] - a[2] * e1[1], a[2] * e1[0] - a[0] * e1[2], a[0] * e1[1] - a[1] * e1[0]];
+  return { p, e1, e2 };
+}
+
+const dot = (u, v) => u.reduce((s, x, i) => s + x * v[i], 0);
+
+/** Rotor angle of a configuration ({vertex: [x, y]} or, for a hinge, [x, y, z]). */
 function rotorAngle(conf, rotor) {
+  if (rotor.hinge) {
+    const { p, e1, e2 } = hingeFrame(conf, rotor);
+    const r = conf[rotor.tip].map((x, i) => x - p[i]);
+    return Math.atan2(dot(r, e2), dot(r, e1));
+  }
   const p = conf[rotor.pin];
   const q = conf[rotor.tip];
   return Math.atan2(q[1] - p[1], q[0] - p[0]);
@@ -48,6 +72,13 @@ function rotorAngle(conf, rotor) {
 
 /** How fast a rotor's angle turns along a velocity ({vertex: [dx, dy]}) at a configuration. */
 function rotorRate(conf, velocity, rotor) {
+  if (rotor.hinge) { // the pins do not move
+    const { p, e1, e2 } = hingeFrame(conf, rotor);
+    const r = conf[rotor.tip].map((x, i) => x - p[i]);
+    const [x, y, vx, vy] = [dot(r, e1), dot(r, e2), dot(velocity[rotor.tip], e1),
+                            dot(velocity[rotor.tip], e2)];
+    return (x * vy - y * vx) / (x * x + y * y);
+  }
   const p = conf[rotor.pin];
   const q = conf[rotor.tip];
   const [rx, ry] = [q[0] - p[0], q[1] - p[1]];
@@ -197,7 +228,8 @@ function drawSpace(error = "") {
     }
     canvas.dataset.tangentArrows = String(plotArrows(ctx, map, axes));
     canvas.dataset.rays = String(plotCritical(ctx, map, answer, axes));
-    if (state.at) {
+    if (answer.surfaces && answer.surfaces.length) plotSurfacePoints(ctx, map, answer, axes);
+    if (state.at && state.at.surface === undefined) {
       const comp = answer.components[state.at.component];
       const [x, y] = map.to(wrap(comp.angles[axes[0]][state.at.index]),
                             wrap(comp.angles[axes[1]][state.at.index]));
@@ -213,6 +245,24 @@ function drawSpace(error = "") {
   canvas.dataset.lengths = state.linkage.bars.map((b) => barLength(state.linkage, b).toFixed(4))
     .join(",");
   canvas.dataset.draws = String(Number(canvas.dataset.draws) + 1);
+}
+
+/** A two-degree-of-freedom answer in two rotor angles: every mesh vertex of its surfaces as a
+ * dot (the surfaces themselves are drawn in the 3D view), the configuration shown ringed. */
+function plotSurfacePoints(ctx, map, answer, axes) {
+  answer.surfaces.forEach((surf, s) => {
+    const [a, b] = axes.map((bar) => surfaceCoordinate(surf, `angle:${bar}`).values);
+    ctx.fillStyle = COLOURS[s % COLOURS.length];
+    for (let i = 0; i < a.length; i++) {
+      const [x, y] = map.to(a[i], b[i]);
+      ctx.fillRect(x - 1, y - 1, 2, 2);
+    }
+    if (state.at && state.at.surface === s) {
+      const [x, y] = map.to(a[state.at.index], b[state.at.index]);
+      ctx.fillStyle = "#ffd92f"; ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5;
+      ctx.beginPath(); ctx.arc(x, y, 6, 0, TAU); ctx.fill(); ctx.stroke();
+    }
+  });
 }
 
 // -- the tangent form along the components ----------------------------------------------------
@@ -269,14 +319,31 @@ async function loadArrows(generation) {
 /** Draw an answer of /v1/analysis/configuration-space for the linkage shown; `quick` is an
  * answer without the completeness proof (during a drag). */
 function showSpace(answer, linkage, quick) {
+  hingeAngles(answer);
   state.space = answer;
   state.spaceQuick = quick;
   state.at = nearestPoint(answer, linkage);
-  $("animate").disabled = !state.at;
-  $("space-caption").textContent = quick ? quickCaption(answer) : spaceCaption(answer);
+  const surfaces = Boolean(answer.surfaces && answer.surfaces.length);
+  $("animate").disabled = !state.at || surfaces;
+  $("space-caption").textContent = surfaces ? surfacesCaption(answer)
+    : quick ? quickCaption(answer) : spaceCaption(answer);
   $("space").dataset.complete = String(!quick && (answer.search || {}).complete !== false);
   drawSpace();
   drawLinkage();
+}
+
+/** A 3D answer's components carry no angles: each hinge's angle about its axis is added here,
+ * from the positions along each component (the answer's own numbers are left as they are). */
+function hingeAngles(answer) {
+  const hinges = state.rotors.filter((r) => r.hinge);
+  for (const comp of answer.components) {
+    const n = Object.values(comp.positions)[0].length;
+    for (const r of hinges) {
+      if (comp.angles[r.bar]) continue;
+      comp.angles[r.bar] = Array.from({ length: n }, (_, i) => rotorAngle(Object.fromEntries(
+        [r.pin, r.pin2, r.tip].map((v) => [v, comp.positions[v][i]])), r));
+    }
+  }
 }
 
 /** After a drag: the same linkage's full search (with the completeness proof) replaces the

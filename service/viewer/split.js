@@ -141,6 +141,7 @@ async function retrace(generation, lengths, predicted, checkedBy) {
   const perturbed = await call("v1/analysis/configuration-space", { linkage },
                                { task: "re-trace", generation });
   if (generation !== state.generation) return;
+  hingeAngles(perturbed); // (3D answers carry no angles)
   splitView.perturbed = perturbed;
   const ids = state.linkage.vertices.map((v) => v.id);
   const crit = state.space.critical_points;

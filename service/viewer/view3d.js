@@ -1,6 +1,7 @@
 // The 3D view: the components in three chosen coordinates (rotor angles, as in the paper's
 // Figs. 2c and 5d, or vertex coordinates), drawn on a canvas by a rotation matrix and an
-// orthographic projection; drag or the arrow keys rotate, a click picks the nearest point.
+// orthographic projection; drag or the arrow keys rotate, a click picks the nearest point. A
+// space with two degrees of freedom is drawn as its triangulated surfaces (surface3d.js).
 // No library: the projection is a dozen lines, and the house rule is never to vendor code.
 "use strict";
 
@@ -17,15 +18,19 @@ function coordinateChoices(linkage) {
   return out;
 }
 
-function choose3d(linkage) {
+function choose3d(linkage, surfaces = false) {
   const choices = coordinateChoices(linkage);
+  const defaults = surfaces ? surfaceChoice(linkage, choices) : choices.map(([v]) => v);
+  const kept = ["d3-x", "d3-y", "d3-z"].map((id) => $(id).value);
+  // the choices made stay while the kind of answer (curves or surfaces) stays
+  const keep = Boolean(view3.surfaceAxes) === surfaces;
   ["d3-x", "d3-y", "d3-z"].forEach((id, k) => {
     const sel = $(id);
-    const keep = sel.value;
     sel.replaceChildren(...choices.map(([v, label]) => new Option(label, v)));
-    if (choices.some(([v]) => v === keep)) sel.value = keep;
-    else if (choices.length) sel.value = choices[Math.min(k, choices.length - 1)][0];
+    if (keep && choices.some(([v]) => v === kept[k])) sel.value = kept[k];
+    else if (defaults.length) sel.value = defaults[Math.min(k, defaults.length - 1)];
   });
+  view3.surfaceAxes = surfaces;
 }
 
 /** One coordinate along a component: [values], and whether it is an angle (wrapped). */
@@ -50,15 +55,20 @@ function draw3d() {
   const answer = state.space;
   const keys = ["d3-x", "d3-y", "d3-z"].map((id) => $(id).value);
   ctx.fillStyle = "#222"; ctx.font = "13px sans-serif";
+  canvas.dataset.surfaces = "0";
   if (!answer || keys.some((k) => !k)) {
-    ctx.fillText(state.linkage ? "waiting for the configuration space" : "", 20, 30);
+    ctx.fillStyle = view3.failed ? "#a30000" : "#222";
+    ctx.fillText(view3.failed ? "no configuration space: see the status line"
+      : state.linkage ? "waiting for the configuration space" : "", 20, 30);
     return;
   }
+  const surfaces = answer.surfaces || [];
   const comps = answer.components.map((c) => keys.map((k) => coordinate(c, k)));
+  const meshes = surfaces.map((surf) => keys.map((k) => surfaceCoordinate(surf, k)));
   // each axis scaled to [-1, 1]: angles over [-π, π], coordinates over their range
-  const ranges = keys.map((_, a) => {
-    if (comps.length && comps[0][a].angle) return [-Math.PI, Math.PI];
-    const all = comps.flatMap((c) => c[a].values);
+  const ranges = keys.map((key, a) => {
+    if (key.startsWith("angle:")) return [-Math.PI, Math.PI];
+    const all = comps.concat(meshes).flatMap((c) => c[a].values);
     const [lo, hi] = [Math.min(...all), Math.max(...all)];
     return hi - lo > 1e-12 ? [lo, hi] : [lo - 1, hi + 1];
   });
@@ -90,6 +100,9 @@ function draw3d() {
     ctx.fillStyle = "#222";
     ctx.fillText($(["d3-x", "d3-y", "d3-z"][a]).selectedOptions[0].textContent, x - 20, y);
   });
+  if (surfaces.length) {
+    view3.projected = drawSurfaces(ctx, answer, keys, project, norm);
+  }
   comps.forEach((c, k) => {
     ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 2;
     ctx.beginPath();
@@ -115,7 +128,8 @@ function draw3d() {
     if (p.every(Number.isFinite)) marker(ctx, cp.kind, ...project(p).slice(0, 2));
   }
   if (state.at) {
-    const c = comps[state.at.component];
+    const c = state.at.surface !== undefined ? meshes[state.at.surface]
+      : comps[state.at.component];
     const [x, y] = project([0, 1, 2].map((a) => norm(a, c[a].values[state.at.index])));
     ctx.fillStyle = "#ffd92f"; ctx.strokeStyle = "#111"; ctx.lineWidth = 1.5;
     ctx.beginPath(); ctx.arc(x, y, 6, 0, TAU); ctx.fill(); ctx.stroke();
@@ -133,9 +147,19 @@ function pick3d(event) {
     const d = Math.hypot(p.x - x, p.y - y);
     if (!best || d < best.d) best = { d, ...p };
   }
+  if (state.space && state.space.surfaces && state.space.surfaces.length) {
+    best = pickSurfaceVertex(view3.projected, x, y);
+    if (!best) return;
+    stopAnimation();
+    state.at = { surface: best.surface, index: best.index };
+    canvas.dataset.picked = JSON.stringify(state.at);
+    showAt();
+    return;
+  }
   if (!best || best.d > 20) return;
   stopAnimation();
   state.at = { component: best.component, index: best.index };
+  canvas.dataset.picked = JSON.stringify(state.at);
   showAt();
 }
 
@@ -169,7 +193,13 @@ function start3d() {
   });
   for (const id of ["d3-x", "d3-y", "d3-z"]) $(id).addEventListener("change", draw3d);
   state.listeners.push((generation, what) => {
-    if (what === "linkage") choose3d(state.linkage);
+    if (what !== "at") view3.failed = what === "space-failed" || what === "cleared";
+    if (what === "linkage") choose3d(state.linkage, view3.surfaceAxes);
+    const surfaces = Boolean(state.space && state.space.surfaces && state.space.surfaces.length);
+    if ((what === "space" || what === "space-refined") && surfaces !== view3.surfaceAxes) {
+      choose3d(state.linkage, surfaces);
+    }
+    if (what !== "at") showSurfaceList(state.space);
     draw3d();
   });
 }

@@ -27,6 +27,12 @@ const state = {
   changed: 0, // performance.now() of the last change of the linkage (drag, slider, paste)
 };
 
+/** The linkage changed (a drag, a slider, a paste, a region): the latencies count from here. */
+function markChange() {
+  state.changed = performance.now();
+  delete $("map").dataset.usefulMs;
+}
+
 // -- talking to the service ---------------------------------------------------------------
 
 let busy = 0;
@@ -207,7 +213,7 @@ async function loadPreset() {
   for (const input of $("params").querySelectorAll("input")) query.set(input.name, input.value);
   const generation = ++state.generation;
   abortAll();
-  state.changed = performance.now();
+  markChange();
   try {
     const linkage = await call(`v1/presets/${encodeURIComponent(name)}?${query}`, undefined,
                                { task: "preset", generation });
@@ -240,9 +246,21 @@ function pinned(v, dim) {
                               v.fixed.every(Boolean));
 }
 
+/** The rotors of a linkage, each with one angle: in the plane a bar with exactly one pinned end
+ * (named by the bar); in 3D a hinge, a free vertex joined by bars to exactly two pins (named
+ * by the vertex: its angle about the axis through the two pins, which the service's answers do
+ * not carry: see hingeAngles). */
 function rotorsOf(linkage) {
   const pins = new Set(linkage.vertices.filter((v) => pinned(v, linkage.dimension || 2))
                                       .map((v) => v.id));
+  if ((linkage.dimension || 2) === 3) {
+    return linkage.vertices.filter((v) => !pins.has(v.id)).map((v) => ({
+      tip: v.id, hinge: true,
+      pins: linkage.bars.filter((b) => b.ends.includes(v.id))
+        .map((b) => (b.ends[0] === v.id ? b.ends[1] : b.ends[0])).filter((u) => pins.has(u)),
+    })).filter((r) => r.pins.length === 2).map((r) => ({
+      bar: r.tip, pin: r.pins[0], pin2: r.pins[1], tip: r.tip, hinge: true }));
+  }
   return linkage.bars.filter((b) => pins.has(b.ends[0]) !== pins.has(b.ends[1])).map((b) => ({
     bar: b.id, pin: pins.has(b.ends[0]) ? b.ends[0] : b.ends[1],
     tip: pins.has(b.ends[0]) ? b.ends[1] : b.ends[0],
@@ -378,7 +396,7 @@ function animate() {
 
 /** One step along the component shown (the arrow keys on the configuration space). */
 function moveAlong(delta) {
-  if (!state.space || !state.at) return;
+  if (!state.space || !state.at || state.at.surface !== undefined) return;
   const comp = state.space.components[state.at.component];
   const n = Object.values(comp.angles)[0].length;
   state.at = { component: state.at.component, index: ((state.at.index + delta) % n + n) % n };
@@ -435,7 +453,7 @@ async function start() {
       return;
     }
     forgetParams("a pasted linkage: drag its joints and bars on the drawing");
-    state.changed = performance.now();
+    markChange();
     useLinkage(linkage.linkage || linkage, "pasted linkage");
   });
   const canvas = $("linkage");

@@ -245,6 +245,33 @@ def test_critical_values_endpoint(client):
     assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "axes", 1, "bar"]
 
 
+def test_critical_values_without_the_homotopy_sweeps(client):
+    """options.homotopy_paths_max = 0 skips the sweeps of the box's edges (the three-rotor's
+    take 400 paths each): the curves come from the seed lengths, the answer is at best
+    searched; the four-bar's closed form needs no sweep and stays complete; out of bounds 422."""
+    lk = preset(client, "three-rotor")
+    axes = [{"bar": "r2", "min": 0.4, "max": 2.5}, {"bar": "r3", "min": 0.4, "max": 2.5}]
+    body = post(client, "/v1/analysis/critical-values", {
+        "linkage": lk, "axes": axes,
+        "options": {"resolution": 16, "seeds_per_axis": 2, "homotopy_paths_max": 0}})
+    search = body["search"]
+    assert search["sweeps_complete"] == 0 and search["sweep_paths"] == 0  # none followed
+    assert "400 paths per sweep exceed the bound of 0" in search["argument_detail"]
+    assert search["complete"] is False and search["reason"] == "searched"
+    assert search["seed_lengths"] == 4 and body["curves"]
+    assert all(r["components"] is not None for r in body["regions"])
+    four = post(client, "/v1/analysis/critical-values", {
+        "linkage": preset(client, "four-bar"), "options": {"homotopy_paths_max": 0},
+        "axes": [{"bar": "L2", "min": 0.3, "max": 2.2}, {"bar": "L3", "min": 0.3, "max": 2.2}]})
+    assert four["search"]["complete"] is True and four["search"]["method"] == "closed form"
+    for bad in (-1, 8193, "0", 0.5):
+        r = client.post("/v1/analysis/critical-values", json={
+            "linkage": lk, "axes": axes, "options": {"homotopy_paths_max": bad}})
+        assert r.status_code == 422
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["errors"][0]["loc"] == ["body", "options", "homotopy_paths_max"]
+
+
 def test_robustness_job_stopped_by_its_deadline_answers_incomplete():
     """The job's deadline keyword reaches the engine: an expired deadline gives a valid
     response marked incomplete (reason "time"), not an error."""
