@@ -23,10 +23,12 @@ curve and explored there: its number of components (0 where empty) and a ``signa
 (component count and the sorted rotor windings) tell topologies apart. Regions thinner than a
 cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
 
-What is proved is said in the report: a slice is complete only with the closed form's curves
-and every region's count exact; a traced slice names its sweeps and its exact
-regions, and stays ``searched`` (a closed curve born and gone within one sweep step is not
-excluded).
+What is proved is said in the report: a slice is complete only with every curve and every
+region's count exact. Its curves are every one with the closed form's curves, or with the
+sweeps complete and every turning point of a curve in the box (:mod:`.slice_turning`: a
+closed curve born and gone within one sweep step holds one) solved for by homotopy and lying
+on a traced curve (``argument: proved``); otherwise a traced slice names its sweeps, its
+turning points and its exact regions, and stays ``searched``.
 
 This module seeds the curves and puts the slice together; ``G`` and its continuation are in
 :mod:`.slice_curves`, the regions and the polyline helpers in :mod:`.slice_regions`.
@@ -49,8 +51,17 @@ from engine.design.slice_regions import (
     _regions,
 )
 from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
+from engine.design.slice_turning import TurningFound, turning_paths, turning_points
 from engine.local.critical import refine_critical
-from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
+from engine.model.budget import (
+    ARGUMENT_DERIVED,
+    ARGUMENT_PROVED,
+    NEVER,
+    REASON_TIME,
+    Argument,
+    Deadline,
+    granted,
+)
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
@@ -144,12 +155,15 @@ def critical_value_slice(
     h_max = float(min(span)) / resolution
     lines = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     scan: Scan | None = None
+    turning: TurningFound | None = None
+    open_curves = 0
     if lines is not None:
         raw, seeds, timed_out = lines, 0, False
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
         scan = _scan(tracing, opt.homotopy_paths_max, opt.seed)
+        turning = _turning(tracing, opt.homotopy_paths_max, opt.seed) if scan.complete else None
         # Seed lengths only where the sweeps did not all solve: their explorations find what
         # they find, and add nothing to the sweeps' argument.
         grid = [] if scan.complete else [
@@ -170,6 +184,7 @@ def critical_value_slice(
             if tracing.timed_out and dl.expired():
                 break
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
+        open_curves = tracing.open_curves
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
     curves = _merge_coincident([c for c in raw if len(c) >= 2], KNOWN_REL * h_max)
     regions, thin_unresolved = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
@@ -186,8 +201,10 @@ def critical_value_slice(
         "regions_thin": sum(r.cells == 0 for r in regions),
         "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
+        **(turning.details() if turning is not None else {}),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved))
+    search = search.with_argument(*_slice_argument(
+        lines, regions, scan, thin_unresolved, turning, open_curves))
     return Slice(curves, regions, search)
 
 
@@ -227,6 +244,28 @@ def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
     return Scan(lines, planned, paths, "; ".join(failed), tracing.h_max)
 
 
+def _turning(tracing: _CurveTracing, paths_max: int, seed: int) -> TurningFound:
+    """The turning points of the slice's curves in the box (:func:`engine.design.
+    slice_turning.turning_points`, when its paths are within ``paths_max``), the curves
+    through them traced; then which of them lie on a traced curve."""
+    paths = turning_paths(tracing.linkage)
+    if paths > paths_max:
+        return TurningFound(paths, None, 0,
+                             f"{count_text(paths)} paths exceed the bound of {paths_max}")
+    dl = tracing.deadline
+    if dl.expired():
+        tracing.timed_out = True
+        return TurningFound(paths, None, 0, "the deadline passed before them")
+    dl.report(0.3, "critical values: the curves' turning points")
+    bars = (tracing.ax[0].bar, tracing.ax[1].bar)
+    found = turning_points(tracing.linkage, bars, tracing.box, seed=seed, deadline=dl)
+    tracing.take([found.starts])
+    atol = KNOWN_REL * tracing.h_max
+    on = sum(any(_on_polyline(x[-2:], None, c[:, -2:], atol) for c in tracing.curves
+                 if len(c) >= 2) for x in found.starts)
+    return TurningFound(found.paths, found, on, found.message)
+
+
 def _scan_details(scan: Scan | None) -> dict[str, object]:
     """The sweeps in the search report (none for a closed form)."""
     if scan is None:
@@ -238,12 +277,15 @@ def _scan_details(scan: Scan | None) -> dict[str, object]:
 
 
 def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
-                    scan: Scan | None = None, thin_unresolved: int = 0
+                    scan: Scan | None = None, thin_unresolved: int = 0,
+                    turning: TurningFound | None = None, open_curves: int = 0
                     ) -> tuple[Argument | None, str]:
-    """A slice is complete when its curves are every critical curve in the box (the closed
-    form of a one-dyad chain: its critical hyperplanes met with the plane) and every region's
-    count is exact (its exploration complete, with an argument). A traced slice says what is
-    proved so far: which curves the sweeps guarantee, how many regions are exact."""
+    """A slice is complete when its curves are every critical curve in the box and every
+    region's count is exact (its exploration complete, with an argument). The curves are
+    every one: from the closed form of a one-dyad chain (its critical hyperplanes met with
+    the plane), or traced from every critical configuration on the box's edges (the sweeps)
+    and from every turning point of a curve in the box (a closed curve inside the box holds
+    one), each traced to its end. A traced slice without all of these says what is proved."""
     inexact = sum(r.argument is None for r in regions)
     if lines is None:
         labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "
@@ -252,12 +294,28 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
             what = scan.summary() if scan is not None else "no scanline"
             return None, (f"the curves were traced from seed lengths ({what}): no argument "
                           f"proves that every critical curve crossing the box was found; {labels}")
+        sweeps = ("for each axis held, the critical configurations on the box's two edges "
+                  f"across it (every isolated solution of a square system: a {scan.paths}-path "
+                  "total-degree homotopy at a generic length, its finite solutions followed to "
+                  "each edge, every path ended)")
+        if turning is not None and turning.complete:
+            gaps = [f"{n} {what}" for n, what in (
+                (inexact, "regions' component counts are lower bounds"),
+                (open_curves, "curves stopped before their end"),
+                (thin_unresolved, "places where curves run closer than "
+                                  f"1/{THIN_REFINE} of a raster cell")) if n]
+            if not gaps:
+                return ARGUMENT_PROVED, (
+                    f"every critical curve crossing the box was traced: {sweeps}; "
+                    f"{turning.summary()}; every one of the {len(regions)} regions' component "
+                    "counts is exact (" + ", ".join(sorted({str(r.argument) for r in regions}))
+                    + ")")
+            return None, (f"every critical curve crossing the box was found ({sweeps}; "
+                          f"{turning.summary()}), but " + ", ".join(gaps))
+        what = turning.summary() if turning is not None else "no turning points"
         return None, (
             "every critical curve crossing the box was found, but for a closed curve born and "
-            f"gone within one sweep step ({scan.step:.3g}) of both axes: for each axis held, "
-            "the critical configurations on the box's two edges across it (every isolated "
-            f"solution of a square system: a {scan.paths}-path total-degree homotopy at a "
-            "generic length, its finite solutions followed to each edge, every path ended) "
+            f"gone within one sweep step ({scan.step:.3g}) of both axes ({what}): {sweeps} "
             "and, followed from one edge to the other in steps of at most that, wherever a "
             f"curve turns or enters the box between two steps; {labels}")
     if inexact:
@@ -333,6 +391,7 @@ class _CurveTracing:
         self.span = float(max(box[:, 1] - box[:, 0]))
         self.curves: list[np.ndarray] = []
         self.seeds_tried = self.seeds_used = 0
+        self.open_curves = 0  # curves stopped by the point budget or a step underflow
         self.timed_out = False
         # A seed exploration need not be complete (it only has to reach critical configurations
         # near its lengths), so its curves get a point budget: one that fails to close (as near
@@ -417,3 +476,4 @@ class _CurveTracing:
         back, stop_b = _continue(self.sys, x, -t, *args)
         self.curves.append(np.array(back[::-1] + fwd[1:]))
         self.timed_out = self.timed_out or REASON_TIME in (stop_f, stop_b)
+        self.open_curves += any(s in ("budget", "step underflow") for s in (stop_f, stop_b))
