@@ -140,3 +140,11 @@ def test_a_slice_whose_turning_homotopy_exceeds_the_bound_says_so():
     argument, detail = _slice_argument(None, [], scan, 0, turning)
     assert argument is None
     assert "not solved for (2,400 paths exceed the bound of 512)" in detail
+
+
+def test_the_module_example_holds():
+    import doctest
+
+    import engine.design.slice_turning
+
+    assert doctest.testmod(engine.design.slice_turning).failed == 0
