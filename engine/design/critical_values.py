@@ -23,10 +23,12 @@ curve and explored there: its number of components (0 where empty) and a ``signa
 (component count and the sorted rotor windings) tell topologies apart. Regions thinner than a
 cell, between curves running close, are found in a finer raster (:mod:`.slice_regions`).
 
-What is proved is said in the report: a slice is complete only with the closed form's curves
-and every region's count exact; a traced slice names its sweeps and its exact
-regions, and stays ``searched`` (a closed curve born and gone within one sweep step is not
-excluded).
+What is proved is said in the report: a slice is complete only with every curve and every
+region's count exact. Its curves are every one with the closed form's curves, or with the
+sweeps complete and every turning point of a curve in the box (:mod:`.slice_turning`: a
+closed curve born and gone within one sweep step holds one) solved for by homotopy and lying
+on a traced curve (``argument: proved``); otherwise a traced slice names its sweeps, its
+turning points and its exact regions, and stays ``searched``.
 
 This module seeds the curves and puts the slice together; ``G`` and its continuation are in
 :mod:`.slice_curves`, the regions and the polyline helpers in :mod:`.slice_regions`.
@@ -40,9 +42,9 @@ import numpy as np
 
 from engine.design.chain_planes import chain_planes
 from engine.design.dyad_margin import CriticalPlanes, critical_planes, gate_planes
+from engine.design.slice_argument import _scan_details, _slice_argument
 from engine.design.slice_curves import Axis, _continue, _onto_solutions_batch, _System, _tangent
 from engine.design.slice_regions import (
-    THIN_REFINE,
     Region,
     _clip,
     _merge_coincident,
@@ -50,8 +52,14 @@ from engine.design.slice_regions import (
     _regions,
 )
 from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
+from engine.design.slice_turning import TurningFound, turning_paths, turning_points
 from engine.local.critical import refine_critical
-from engine.model.budget import ARGUMENT_DERIVED, NEVER, REASON_TIME, Argument, Deadline, granted
+from engine.model.budget import (
+    NEVER,
+    REASON_TIME,
+    Deadline,
+    granted,
+)
 from engine.model.constraints import Constraints
 from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
@@ -151,12 +159,15 @@ def critical_value_slice(
     closed = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     lines, planes_of = closed if closed is not None else (None, "")
     scan: Scan | None = None
+    turning: TurningFound | None = None
+    open_curves = 0
     if lines is not None:
         raw, seeds, timed_out = lines, 0, False
         grid: list[np.ndarray] = []
     else:
         tracing = _CurveTracing(linkage, ax, box, h_max, tol, opt, max_curve_points, dl)
         scan = _scan(tracing, opt.homotopy_paths_max, opt.seed)
+        turning = _turning(tracing, opt.homotopy_paths_max, opt.seed) if scan.complete else None
         # Seed lengths only where the sweeps did not all solve: their explorations find what
         # they find, and add nothing to the sweeps' argument.
         grid = [] if scan.complete else [
@@ -177,6 +188,7 @@ def critical_value_slice(
             if tracing.timed_out and dl.expired():
                 break
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
+        open_curves = tracing.open_curves
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out
     curves = _merge_coincident([c for c in raw if len(c) >= 2], KNOWN_REL * h_max)
     regions, thin_unresolved = _regions(linkage, ax, box, curves, resolution, opt, tol, dl)
@@ -193,9 +205,10 @@ def critical_value_slice(
         "regions_thin": sum(r.cells == 0 for r in regions),
         "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
+        **(turning.details() if turning is not None else {}),
     }, timed_out=timed_out, time_budget_s=granted(dl))
-    search = search.with_argument(*_slice_argument(lines, regions, scan, thin_unresolved,
-                                                   planes_of))
+    search = search.with_argument(*_slice_argument(
+        lines, regions, scan, thin_unresolved, turning, open_curves, planes_of))
     return Slice(curves, regions, search)
 
 
@@ -235,51 +248,26 @@ def _scan(tracing: _CurveTracing, paths_max: int, seed: int) -> Scan:
     return Scan(lines, planned, paths, "; ".join(failed), tracing.h_max)
 
 
-def _scan_details(scan: Scan | None) -> dict[str, object]:
-    """The sweeps in the search report (none for a closed form)."""
-    if scan is None:
-        return {}
-    return {"sweeps": scan.planned,
-            "sweeps_complete": sum(s.success for s in scan.lines),
-            "sweep_paths": scan.paths,
-            "sweep_step": scan.step}
-
-
-def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
-                    scan: Scan | None = None, thin_unresolved: int = 0, planes_of: str = ""
-                    ) -> tuple[Argument | None, str]:
-    """A slice is complete when its curves are every critical curve in the box (the closed
-    form: critical hyperplanes met with the plane) and every region's
-    count is exact (its exploration complete, with an argument). A traced slice says what is
-    proved so far: which curves the sweeps guarantee, how many regions are exact."""
-    inexact = sum(r.argument is None for r in regions)
-    if lines is None:
-        labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "
-                  "exact, the others lower bounds")
-        if scan is None or not scan.complete:
-            what = scan.summary() if scan is not None else "no scanline"
-            return None, (f"the curves were traced from seed lengths ({what}): no argument "
-                          f"proves that every critical curve crossing the box was found; {labels}")
-        return None, (
-            "every critical curve crossing the box was found, but for a closed curve born and "
-            f"gone within one sweep step ({scan.step:.3g}) of both axes: for each axis held, "
-            "the critical configurations on the box's two edges across it (every isolated "
-            f"solution of a square system: a {scan.paths}-path total-degree homotopy at a "
-            "generic length, its finite solutions followed to each edge, every path ended) "
-            "and, followed from one edge to the other in steps of at most that, wherever a "
-            f"curve turns or enters the box between two steps; {labels}")
-    if inexact:
-        return None, (f"the curves are the closed form's, but {inexact} of {len(regions)} "
-                      "regions' component counts are lower bounds")
-    if thin_unresolved:
-        return None, (f"the curves are the closed form's, but at {thin_unresolved} places they "
-                      f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
-                      "may be missing (a finer resolution resolves it)")
-    return ARGUMENT_DERIVED, (
-        f"every critical curve in the box is a critical hyperplane of {planes_of} (closed form) "
-        f"met with the plane; every one of the {len(regions)} "
-        "regions' component counts is exact ("
-        + ", ".join(sorted({str(r.argument) for r in regions})) + ")")
+def _turning(tracing: _CurveTracing, paths_max: int, seed: int) -> TurningFound:
+    """The turning points of the slice's curves in the box (:func:`engine.design.
+    slice_turning.turning_points`, when its paths are within ``paths_max``), the curves
+    through them traced; then which of them lie on a traced curve."""
+    paths = turning_paths(tracing.linkage)
+    if paths > paths_max:
+        return TurningFound(paths, None, 0,
+                             f"{count_text(paths)} paths exceed the bound of {paths_max}")
+    dl = tracing.deadline
+    if dl.expired():
+        tracing.timed_out = True
+        return TurningFound(paths, None, 0, "the deadline passed before them")
+    dl.report(0.3, "critical values: the curves' turning points")
+    bars = (tracing.ax[0].bar, tracing.ax[1].bar)
+    found = turning_points(tracing.linkage, bars, tracing.box, seed=seed, deadline=dl)
+    tracing.take([found.starts])
+    atol = KNOWN_REL * tracing.h_max
+    on = sum(any(_on_polyline(x[-2:], None, c[:, -2:], atol) for c in tracing.curves
+                 if len(c) >= 2) for x in found.starts)
+    return TurningFound(found.paths, found, on, found.message)
 
 
 def _closed_form_curves(
@@ -368,6 +356,7 @@ class _CurveTracing:
         self.span = float(max(box[:, 1] - box[:, 0]))
         self.curves: list[np.ndarray] = []
         self.seeds_tried = self.seeds_used = 0
+        self.open_curves = 0  # curves stopped by the point budget or a step underflow
         self.timed_out = False
         # A seed exploration need not be complete (it only has to reach critical configurations
         # near its lengths), so its curves get a point budget: one that fails to close (as near
@@ -452,3 +441,4 @@ class _CurveTracing:
         back, stop_b = _continue(self.sys, x, -t, *args)
         self.curves.append(np.array(back[::-1] + fwd[1:]))
         self.timed_out = self.timed_out or REASON_TIME in (stop_f, stop_b)
+        self.open_curves += any(s in ("budget", "step underflow") for s in (stop_f, stop_b))

@@ -95,8 +95,8 @@ def scan_paths(linkage: Linkage) -> int:
     return int(2 ** (e - 1) * e * e)
 
 
-def _bounded_without(linkage: Linkage, cons: Constraints, row: int) -> bool:
-    """Every piece of the graph of the active bars but row ``row`` holds a pinned vertex."""
+def _bounded_without(linkage: Linkage, cons: Constraints, row: int | list[int]) -> bool:
+    """Every piece of the graph of the active bars but row(s) ``row`` holds a pinned vertex."""
     v = linkage.n_vertices
     ends = np.delete(linkage.ends[cons.bars], row, axis=0)
     graph = coo_matrix((np.ones(len(ends)), (ends[:, 0], ends[:, 1])), shape=(v, v))

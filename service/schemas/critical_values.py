@@ -110,9 +110,11 @@ class RegionOut(BaseModel):
 
 class SliceSearch(SearchReport):
     """The search of a slice: complete when its curves are every critical curve in the box (the
-    closed form of a one-dyad chain) and every region's count is exact (``argument``);
-    otherwise ``reason`` is time (the deadline stopped it) or searched (traced curves, or a
-    region whose count is a lower bound)."""
+    closed form of a one-dyad chain, derived; or traced from complete sweeps and from every
+    turning point of a curve in the box, proved: ``turning_paths``, ``turning_points``,
+    ``turning_points_traced``, ``turning_complete``) and every region's count is exact
+    (``argument``); otherwise ``reason`` is time (the deadline stopped it) or searched (traced
+    curves without that proof, or a region whose count is a lower bound)."""
 
     regions_explored: int = Field(description="regions whose components were counted")
     curves: int = Field(description="curves of the critical value set traced")
