@@ -9,7 +9,9 @@ ready in well under a second, and each worker's BLAS runs on one thread (one wor
 Small first- and second-order requests are bounded by their size (dense SVD of at most
 ``LIGHT_MAX_VERTICES`` vertices and ``LIGHT_MAX_BARS`` bars, some milliseconds) and run in the
 service's thread pool instead, so they stay fast while every worker is busy; they are admitted
-under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it).
+under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it). The first
+order of a tiny linkage (``INLINE_MAX_VERTICES``, about a millisecond) is answered in the same
+lane on the event loop itself, without the two thread hand-offs.
 
 Each worker may allocate at most ``LINKAGE_WORKER_MEMORY_MB`` (its ``RLIMIT_DATA``, set when
 it starts), so one request can never take the machine's memory: the engine estimates the cost
