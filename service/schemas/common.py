@@ -89,6 +89,16 @@ def _distinct_ends(ends: list[str]) -> list[str]:
     return ends
 
 
+def _unique(values: list[str]) -> list[str]:
+    if len(set(values)) != len(values):
+        raise PydanticCustomError("unique_items", "the items must be different")
+    return values
+
+
+#: Bar ids that may not repeat (``uniqueItems``), as the engine requires where it says so.
+UniqueIdents = Annotated[list[Ident], AfterValidator(_unique)]
+
+
 class Bar(Strict):
     id: Ident
     ends: Annotated[list[Ident], AfterValidator(_distinct_ends)] = Field(

@@ -163,3 +163,36 @@ def test_a_rule_beyond_the_schema_is_a_422_naming_the_field(message, body, where
     assert message in problem["detail"] or message in json.dumps(problem["errors"])
     assert problem["errors"][0]["loc"][:2] == ["body", "linkage"]
     assert client.get("/health/live").status_code == 200
+
+
+# The design loop's single-field rules (engine/design): the engine's message, the request model
+# and the body that breaks it, and the OpenAPI keyword that states it.
+DESIGN = {"linkage": square(), "targets": [{"branch_point": 0, "sign": 1}], "adjustable": ["b"]}
+DESIGN_CASES = [
+    ("engine/design/design.py", "sign must be 1 or -1", "DesignRequest",
+     {**DESIGN, "targets": [{"branch_point": 0, "sign": 0}]}, ("TargetIn", "properties", "sign",
+                                                                "enum")),
+    ("engine/design/design.py", "adjustable bars repeat", "DesignRequest",
+     {**DESIGN, "adjustable": ["b", "b"]}, ("DesignRequest", "properties", "adjustable",
+                                           "uniqueItems")),
+    ("engine/design/robustness.py", "give at least one adjustable bar", "RobustnessRequest",
+     {"linkage": square(), "adjustable": []}, ("RobustnessRequest", "properties", "adjustable",
+                                               "anyOf", 0, "minItems")),
+]
+
+
+@pytest.mark.parametrize(("module", "message", "model", "body", "where"), DESIGN_CASES,
+                         ids=[c[1] for c in DESIGN_CASES])
+def test_the_design_loops_single_field_rules_are_in_the_schema(module, message, model, body,
+                                                               where):
+    from service.schemas.design import DesignRequest
+    from service.schemas.robustness import RobustnessRequest
+
+    assert message in (ROOT / module).read_text()  # the engine's own refusal
+    assert openapi_at(where) is not None
+    with pytest.raises(ValidationError):
+        {"DesignRequest": DesignRequest, "RobustnessRequest": RobustnessRequest}[
+            model].model_validate(body)
+    valid = {**body, **({"adjustable": ["b"]} if model == "RobustnessRequest" else DESIGN)}
+    {"DesignRequest": DesignRequest, "RobustnessRequest": RobustnessRequest}[
+        model].model_validate(valid)
