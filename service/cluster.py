@@ -9,6 +9,8 @@ everyone but the service:
   authentication: a certificate made at start (``distributed.Security.temporary``, a fresh
   2048-bit RSA key kept in memory and handed to the worker processes by their nannies) that
   every connection must present, so another local user cannot connect;
+* its workers run at the engine pool's lower priority (``WORKER_NICE``), the nannies and the
+  scheduler at the service's own;
 * none of them serves HTTP: ``distributed`` starts an HTTP server on every scheduler (on
   127.0.0.1:8787 even with ``dashboard_address=None``: ``Scheduler.__init__`` always calls
   ``start_http_server`` with the default port 8787, for the routes of
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -34,7 +37,7 @@ from distributed import Client, Nanny, Scheduler, Security, SpecCluster, Worker
 from distributed.comm.core import CommClosedError
 from distributed.http.routing import RoutingApplication
 
-from service.workers import ServiceFault
+from service.workers import WORKER_NICE, ServiceFault
 
 log = logging.getLogger("service.cluster")
 T = TypeVar("T")
@@ -65,7 +68,14 @@ class QuietScheduler(_NoHttp, Scheduler):
 
 
 class QuietWorker(_NoHttp, Worker):
-    """A worker without HTTP."""
+    """A worker without HTTP, at the engine pool's lower CPU priority: it is made in the worker
+    process its nanny starts, so ``os.nice`` lowers that process only (by ``WORKER_NICE``, as
+    :func:`service.workers._limit_memory` lowers the pool's workers), and the service's event
+    loop and small requests' lane come first while a sweep saturates the cores."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        os.nice(WORKER_NICE)
+        super().__init__(*args, **kwargs)
 
 
 def embedded_cluster(workers: int, allowed_failures: int) -> SpecCluster:

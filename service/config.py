@@ -248,7 +248,16 @@ def get_settings() -> Settings:
     return Settings.from_env()
 
 
-SettingsDep = Annotated[Settings, Depends(get_settings)]
+async def request_settings(request: Request) -> Settings:
+    """The settings of the application answering ``request`` (:func:`app_settings`), as the
+    routes' dependency. A coroutine, so that FastAPI calls it on the event loop: a plain
+    function dependency is run in the thread pool, and those two thread hand-offs per request
+    were most of a small request's time on a loaded machine (a four-bar's rigidity answered by
+    the service within 5 ms in 8-18 % of requests against 94 % for ``/health`` at load 16-21)."""
+    return app_settings(request.app)
+
+
+SettingsDep = Annotated[Settings, Depends(request_settings)]
 
 
 def app_settings(app: FastAPI) -> Settings:

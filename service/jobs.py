@@ -43,7 +43,12 @@ from service.schemas.space import (
     SpaceResponse,
 )
 from service.schemas.splitting import SplittingRequest, SplittingResponse
-from service.workers import LIGHT_MAX_BARS, LIGHT_MAX_VERTICES
+from service.workers import (
+    INLINE_MAX_BARS,
+    INLINE_MAX_VERTICES,
+    LIGHT_MAX_BARS,
+    LIGHT_MAX_VERTICES,
+)
 
 
 def is_light(body: AnalysisRequest) -> bool:
@@ -52,6 +57,13 @@ def is_light(body: AnalysisRequest) -> bool:
     in-process."""
     return (len(body.linkage.vertices) <= LIGHT_MAX_VERTICES
             and len(body.linkage.bars) <= LIGHT_MAX_BARS)
+
+
+def is_inline(body: AnalysisRequest) -> bool:
+    """First order of a tiny linkage (at most ``INLINE_MAX_VERTICES`` vertices and
+    ``INLINE_MAX_BARS`` bars: about a millisecond), answered on the event loop itself."""
+    return (len(body.linkage.vertices) <= INLINE_MAX_VERTICES
+            and len(body.linkage.bars) <= INLINE_MAX_BARS)
 
 
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:

@@ -25,7 +25,8 @@ async def rigidity(
     body: AnalysisRequest, request: Request, settings: SettingsDep
 ) -> Response:
     """First-order analysis: rank, zero modes, self-stresses, trivial motions, tangent form."""
-    return await engine_call(request, settings, jobs.rigidity, body, light=jobs.is_light(body))
+    return await engine_call(request, settings, jobs.rigidity, body, light=jobs.is_light(body),
+                             inline=jobs.is_inline(body))
 
 
 @router.post(

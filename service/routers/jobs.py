@@ -28,7 +28,9 @@ _SVG = "image/svg+xml"
 _FIGURE_TYPES = [t for t in MEDIA_TYPES.values() if t != _SVG]
 
 
-def job_manager(request: Request) -> JobManager:
+async def job_manager(request: Request) -> JobManager:
+    """The application's job manager (a coroutine: called on the event loop, not in the thread
+    pool; see :func:`service.config.request_settings`)."""
     manager: JobManager = request.app.state.jobs
     return manager
 

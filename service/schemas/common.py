@@ -7,6 +7,7 @@ from array import array
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -19,10 +20,18 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from engine.model.linkage import MAX_COORDINATE
 from service.gcpause import gc_paused
 
 Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+#: A vertex's coordinate: finite and at most ``MAX_COORDINATE`` in magnitude (the engine's bound,
+#: beyond which squared lengths overflow).
+Coordinate = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-MAX_COORDINATE,
+                                    le=MAX_COORDINATE)]
+#: A bar's length: positive and at most the largest distance of two coordinates.
+Length = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0,
+                                le=2 * MAX_COORDINATE)]
 # Ids appear in answers, logs and figures: printable characters only. Excluded: the C0 and C1
 # control characters and DEL, and the invisible format characters that can reorder or hide
 # text (soft hyphen, zero-width spaces and joiners, bidirectional marks, embeddings and
@@ -63,7 +72,10 @@ class Strict(BaseModel):
 
 class Vertex(Strict):
     id: Ident
-    position: list[Finite] = Field(min_length=1, max_length=3, description="[x, y] or [x, y, z]")
+    position: list[Coordinate] = Field(
+        min_length=1, max_length=3,
+        description="[x, y] or [x, y, z] (as many as the linkage's dimension), each at most "
+        f"{MAX_COORDINATE:g} in magnitude")
     fixed: Fixed = Field(
         False,
         description="false (free), true (pinned) or one boolean per axis (a slider that moves "
@@ -71,10 +83,28 @@ class Vertex(Strict):
     )
 
 
+def _distinct_ends(ends: list[str]) -> list[str]:
+    if len(ends) == 2 and ends[0] == ends[1]:
+        raise PydanticCustomError("ends_distinct", "a bar joins two different vertices")
+    return ends
+
+
+def _unique(values: list[str]) -> list[str]:
+    if len(set(values)) != len(values):
+        raise PydanticCustomError("unique_items", "the items must be different")
+    return values
+
+
+#: Bar ids that may not repeat (``uniqueItems``), as the engine requires where it says so.
+UniqueIdents = Annotated[list[Ident], AfterValidator(_unique)]
+
+
 class Bar(Strict):
     id: Ident
-    ends: list[Ident] = Field(min_length=2, max_length=2, description="two vertex ids")
-    length: Positive | None = Field(
+    ends: Annotated[list[Ident], AfterValidator(_distinct_ends)] = Field(
+        min_length=2, max_length=2, json_schema_extra={"uniqueItems": True},
+        description="two different vertex ids")
+    length: Length | None = Field(
         None, description="target length; default: the distance between the ends as given"
     )
 

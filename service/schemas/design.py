@@ -4,25 +4,33 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic_core import PydanticCustomError
 
 from service.schemas.common import (
     EXAMPLE_LINKAGE,
     EXAMPLE_TOLERANCES,
-    Ident,
     Linkage,
     SearchReport,
     Strict,
     Tolerances,
     TolerancesUsed,
+    UniqueIdents,
     examples,
 )
 from service.schemas.space import SpaceOptions
 
 
+def _nonzero(sign: int) -> int:
+    if sign == 0:
+        raise PydanticCustomError("sign", "sign must be 1 or -1")
+    return sign
+
+
 class TargetIn(Strict):
     branch_point: Annotated[int, Field(strict=True, ge=0)]
-    sign: Annotated[int, Field(strict=True, ge=-1, le=1)]
+    sign: Annotated[int, Field(strict=True, ge=-1, le=1, json_schema_extra={"enum": [-1, 1]}),
+                    AfterValidator(_nonzero)]
 
 
 class DesignRequest(Strict):
@@ -33,7 +41,8 @@ class DesignRequest(Strict):
 
     linkage: Linkage
     targets: list[TargetIn] = Field(min_length=1, max_length=1000)
-    adjustable: list[Ident] = Field(min_length=1, max_length=10_000)
+    adjustable: UniqueIdents = Field(min_length=1, max_length=10_000,
+                                     json_schema_extra={"uniqueItems": True})
     max_change: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = None
     margin: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] | None = Field(
         None, description="required sign * Delta / |dDelta/dL| (default 1e-4 of the median "

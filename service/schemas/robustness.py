@@ -28,8 +28,8 @@ class RobustnessRequest(Strict):
 
     linkage: Linkage
     adjustable: list[Ident] | None = Field(
-        None, max_length=10_000, description="bars that may change (default: every bar with a "
-        "free end)"
+        None, min_length=1, max_length=10_000,
+        description="bars that may change (default: every bar with a free end)"
     )
     tolerances: Tolerances | None = None
     options: SpaceOptions | None = None

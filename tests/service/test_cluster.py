@@ -26,6 +26,7 @@ from fastapi.testclient import TestClient
 
 from service.cluster import embedded_cluster
 from service.main import create_app
+from service.workers import WORKER_NICE
 from tests.service.test_jobs import free_port, settings, wait
 
 pytestmark = [pytest.mark.dask, pytest.mark.process]
@@ -56,6 +57,11 @@ def test_the_embedded_cluster_listens_only_on_loopback_tls_and_serves_no_http():
     try:
         with Client(cluster, security=cluster.security, set_as_default=False) as client:
             assert client.submit(sum, [1, 2, 3]).result(timeout=60) == 6
+            # the workers that run the engine's tasks at the pool's lower priority (issue 28):
+            # os.nice(0) is the niceness of the process it runs in
+            own = os.nice(0)
+            assert client.submit(os.nice, 0, pure=False).result(timeout=60) == own + WORKER_NICE
+            assert set(client.run(os.nice, 0).values()) == {own + WORKER_NICE}
             info = client.scheduler_info()
             worker_pids = list(client.run(os.getpid).values())
             ours = (listening([os.getpid()]) - before) | listening(worker_pids)
@@ -104,6 +110,15 @@ def readme_openssl() -> str:
     return "\n".join(found)
 
 
+def readme_worker_nice() -> list[str]:
+    """The ``nice`` prefix of docs/jobs.md's ``dask worker`` command (the service cannot lower
+    the priority of workers it does not start: the operator does, as the docs say)."""
+    readme = (Path(__file__).resolve().parents[2] / "docs" / "jobs.md").read_text()
+    found = re.findall(r"^(nice -n \d+) \.venv/bin/dask worker ", readme, re.M)
+    assert len(found) == 1, found
+    return found[0].split()
+
+
 @pytest.fixture(scope="module")
 def certificates(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The certificates of docs/jobs.md: a CA and one certificate it signed, by ``openssl``."""
@@ -139,8 +154,8 @@ class External:
              "--port", str(self.port), "--no-dashboard", "--dashboard-address", "127.0.0.1:0",
              *tls_args(self.folder)], **quiet)]
         self.procs.append(subprocess.Popen(
-            [*dask_cli, "worker", self.address, "--host", "127.0.0.1", "--nthreads", "1",
-             "--no-dashboard", "--dashboard-address", "127.0.0.1:0",
+            [*readme_worker_nice(), *dask_cli, "worker", self.address, "--host", "127.0.0.1",
+             "--nthreads", "1", "--no-dashboard", "--dashboard-address", "127.0.0.1:0",
              *tls_args(self.folder)], **quiet))
         with dask.config.set(self.client_config()), Client(
                 self.address, timeout=60, set_as_default=False) as client:
@@ -191,6 +206,10 @@ def test_an_external_tls_cluster_lost_and_back(external):
         assert r.status_code == 202, r.text
         job = wait(api, r.headers["location"])
         assert [row["components"] for row in job["result"]["rows"]] == [2, 1]
+        # the worker started as docs/jobs.md says runs at the engine pool's lower priority
+        with Client(external.address, timeout=30, set_as_default=False) as client:
+            nice = set(client.run(os.nice, 0).values())
+        assert nice == {os.nice(0) + WORKER_NICE}, nice
 
         external.stop()
         time.sleep(1.0)

@@ -310,6 +310,8 @@ def test_residual_tolerance_that_is_not_small_against_the_bars(client: Any, atol
 ])
 def test_design_refuses_bad_requests_before_exploring(monkeypatch: Any, field: str, value: Json,
                                                      loc: list[str | int]) -> None:
+    from pydantic import ValidationError
+
     from engine.model.errors import InvalidRequest
     from service import jobs
     from service.config import Settings
@@ -320,6 +322,15 @@ def test_design_refuses_bad_requests_before_exploring(monkeypatch: Any, field: s
 
     monkeypatch.setattr(jobs, "explore", explore)
     body = {**bodies(four_bar())["/v1/design/splitting"], field: value}
+    if field == "targets":  # the schema states it (issue 28: sign is 1 or -1) ...
+        with pytest.raises(ValidationError) as invalid:
+            DesignRequest.model_validate(body)
+        assert list(invalid.value.errors()[0]["loc"]) == loc
+        # ... and the engine still refuses it when given past the schema
+        request = DesignRequest.model_validate({**body, field: [{"branch_point": 0, "sign": 1}]})
+        request.targets[0].sign = 0
+    else:
+        request = DesignRequest.model_validate(body)
     with pytest.raises(InvalidRequest) as err:
-        jobs.design_splitting(DesignRequest.model_validate(body), Settings())
+        jobs.design_splitting(request, Settings())
     assert list(err.value.loc) == loc

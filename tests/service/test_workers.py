@@ -449,3 +449,55 @@ def test_a_script_importing_the_app_starts_workers(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split()[-3:] == ["worker", "True", "0"], out.stdout
     assert "RuntimeError" not in out.stderr, out.stderr[-2000:]
+
+
+def test_the_analysis_routes_need_no_thread_for_their_dependencies():
+    """FastAPI runs a plain-function dependency in the thread pool: two thread hand-offs per
+    request, most of a small request's time on a loaded machine (bench/bench_lanes.py). The
+    analysis routes' dependencies (their settings) are coroutines, run on the event loop."""
+    import inspect
+
+    from fastapi.routing import APIRoute
+
+    def calls(dependant: Any) -> list[Any]:
+        out = []
+        for sub in dependant.dependencies:
+            out += [sub.call, *calls(sub)]
+        return out
+
+    from service.routers import analysis
+
+    routes = [r for r in analysis.router.routes if isinstance(r, APIRoute)]
+    assert len(routes) >= 7
+    for route in routes:
+        found = calls(route.dependant)
+        assert found, route.path  # the settings
+        assert all(inspect.iscoroutinefunction(call) for call in found), (route.path, found)
+
+
+def test_a_tiny_first_order_request_is_answered_on_the_event_loop(monkeypatch):
+    """A four-bar's rigidity (INLINE_MAX_VERTICES) is answered without the thread pool; a
+    larger light one still goes through it."""
+    import threading
+
+    from fastapi.testclient import TestClient
+
+    from service import jobs, workers
+
+    threads: list[str] = []
+    original = jobs.rigidity
+
+    def spy(body: Any, settings: Settings) -> Any:
+        threads.append(threading.current_thread().name)
+        return original(body, settings)
+
+    monkeypatch.setattr(jobs, "rigidity", spy)
+    client = TestClient(create_app(Settings(workers=1)))  # not entered: no workers started
+    four_bar = client.get("/v1/presets/four-bar").json()
+    chain = client.get("/v1/presets/kl-chain?n=12").json()
+    assert len(chain["vertices"]) > workers.INLINE_MAX_VERTICES
+    assert len(chain["vertices"]) <= workers.LIGHT_MAX_VERTICES
+    for linkage in (four_bar, chain):
+        assert client.post("/v1/analysis/rigidity", json={"linkage": linkage}).status_code == 200
+    loop_thread, pool_thread = threads
+    assert "AnyIO" not in loop_thread and "AnyIO" in pool_thread, threads
