@@ -18,14 +18,81 @@ from service.main import create_app
 SLOW_KINDS = ("process", "browser", "dask", "fuzz", "lint")
 
 
-@pytest.hookimpl(tryfirst=True)  # before -m selects
+#: The longest tests and modules of the suite (``--durations`` of a full run on 2 cores: the
+#: matrix 40 s, the costly fuzzing 140 s in all, the rigid point 30 s, the cold start-up 27 s,
+#: ...), longest first. ``-n auto`` hands tests out in collection order (``--dist loadgroup``
+#: in pyproject.toml: one test at a time to whichever worker is free), so these start first and
+#: the run does not end with one worker on a 40 s test while the other is idle. Only the order
+#: changes; a name that goes stale only costs time.
+LONGEST_FIRST = (
+    "tests/service/test_matrix_completeness.py",
+    "tests/service/test_fuzz_openapi.py::test_fuzz_costly_operation",
+    "tests/engine/space/test_witnesses.py::"
+    "test_the_largest_coupler_of_a_skew_four_bar_is_one_rigid_point",
+    "tests/service/test_health.py::test_the_port_answers_at_once_and_ready_follows_the_kernels",
+    "tests/service/test_every_map.py",
+    "tests/engine/local/test_critical_batched.py",
+    "tests/test_doc_blocks.py",
+    "tests/service/test_fuzz_openapi.py",
+    "tests/service/test_cli.py",
+    "tests/service/test_bounded.py",
+    "tests/engine/design/test_critical_values.py",
+    "tests/service/test_every_preset.py",
+    "tests/engine/design/test_region_labels.py",
+    "tests/test_examples.py",
+)
+#: Modules whose module-scoped fixtures start processes (Dask clusters, uvicorn, chromium): with
+#: ``--dist loadgroup`` each runs whole on one worker, so its fixtures start once in the run
+#: rather than once on each worker that gets some of its tests.
+ONE_WORKER = (
+    "tests/service/test_jobs.py", "tests/client/test_jobs.py", "tests/service/test_cluster.py",
+    "tests/service/test_fuzz_valid.py", "tests/service/test_viewer.py",
+    "tests/service/test_browser.py", "tests/service/test_served.py",
+)
+
+
+def _listed(nodeid: str) -> int | None:
+    """The rank of ``nodeid`` (a test's or a module's) in :data:`LONGEST_FIRST`, if named."""
+    for rank, prefix in enumerate(LONGEST_FIRST):
+        if nodeid == prefix or nodeid.startswith(prefix + ("[" if "::" in prefix else "::")):
+            return rank
+    return None
+
+
+def _longest_first(items: list[pytest.Item]) -> None:
+    """Sort ``items`` stably: the tests named in :data:`LONGEST_FIRST`, then whole modules in
+    its order, then the other modules with a ``slow`` test, then the rest (a module's tests stay
+    together, so its fixtures are set up once on a worker, except the tests named on their own).
+    """
+    rest = len(LONGEST_FIRST)
+    module_rank: dict[str, int] = {}
+    for item in items:
+        module = item.nodeid.split("::", 1)[0]
+        rank = _listed(module)
+        if rank is None:
+            rank = rest if item.get_closest_marker("slow") else rest + 1
+        module_rank[module] = min(module_rank.get(module, rest + 1), rank)
+
+    def key(item: pytest.Item) -> int:
+        rank = _listed(item.nodeid)
+        return rank if rank is not None else module_rank[item.nodeid.split("::", 1)[0]]
+
+    items.sort(key=key)
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m selects, and before xdist reads xdist_group
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Every test marked with one of ``SLOW_KINDS`` is also ``slow``, so that the README's quick
-    command (``-m "not slow"``) leaves it out without each module having to say it twice."""
+    command (``-m "not slow"``) leaves it out without each module having to say it twice; the
+    longest tests start first and the modules of :data:`ONE_WORKER` run on one worker each."""
     for item in items:
         if any(item.get_closest_marker(kind) for kind in SLOW_KINDS) \
                 and not item.get_closest_marker("slow"):
             item.add_marker(pytest.mark.slow)
+        module = item.nodeid.split("::", 1)[0]
+        if module in ONE_WORKER:
+            item.add_marker(pytest.mark.xdist_group(module))
+    _longest_first(items)
 
 
 # Fuzzing (tests/service/test_fuzz_openapi.py): examples per operation, fewer for the costly
