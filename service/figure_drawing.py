@@ -18,6 +18,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from scipy import ndimage
 
+from service.mappers.common import decimal_digits
 from service.schemas import common as c
 from service.schemas import critical_values as cv_schemas
 from service.schemas import space
@@ -340,6 +341,17 @@ def _region_raster(box: np.ndarray, curves: list[np.ndarray], n: int) -> np.ndar
     return labels
 
 
+#: Digits of a region's count drawn as they are; longer counts (a 20000-rotor chain's region
+#: has 2^19999 components: 6,020 digits, which ``int`` and ``str`` refuse) as a magnitude.
+LABEL_DIGITS_MAX = 18
+
+
+def _count_label(count: int | str | None) -> str:
+    """A region's count for its label and legend: its digits, or ``about 10^k``."""
+    digits = count if isinstance(count, str) else decimal_digits(int(count or 0))
+    return digits if len(digits) <= LABEL_DIGITS_MAX else f"about 10^{len(digits) - 1}"
+
+
 def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
                           ans: cv_schemas.CriticalValuesResponse) -> Figure:
     box = np.array([[a.min, a.max] for a in body.axes])
@@ -355,7 +367,7 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
     def kind(r: cv_schemas.RegionOut) -> str:
         if gate_map and r.components not in (0, "0"):
             return {True: "gated", False: "ungated", None: "undecided"}[r.gated]
-        return str(r.components)
+        return _count_label(r.components)
 
     counts = sorted({kind(r) for r in ans.regions if r.components is not None},
                     key=lambda c: (not c.isdigit(), int(c) if c.isdigit() else 0, c))

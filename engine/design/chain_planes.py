@@ -78,7 +78,10 @@ def _corners(lines: list[np.ndarray], box: np.ndarray) -> np.ndarray:
     for p, q in itertools.combinations(live, 2):
         m = np.array([p[1:], q[1:]])
         if abs(np.linalg.det(m)) > 0.0:
-            pts.append(np.linalg.solve(m, -np.array([p[0], q[0]])))
+            try:
+                pts.append(np.linalg.solve(m, -np.array([p[0], q[0]])))
+            except np.linalg.LinAlgError:  # (parallel to rounding: no crossing)
+                continue
     arr = np.array(pts)
     span = box[:, 1] - box[:, 0]
     inside = np.all((arr >= box[:, 0] - 1e-12 * span) & (arr <= box[:, 1] + 1e-12 * span), axis=1)

@@ -41,13 +41,21 @@ class Region:
     label: RegionLabel | None = None
 
 
+#: Seconds per bar of the chain rules' derivation of a region's label (``derive``, a pass in
+#: Python over the cells: 40,000 bars in about 2 s on the loaded machine), doubled.
+DERIVE_SECONDS_PER_BAR = 1e-4
+
+
 def _signature(linkage: Linkage, lengths: np.ndarray, options: SpaceOptions,
                tol: Tolerances, deadline: Deadline = NEVER, axes: tuple[str, ...] = ()
                ) -> tuple[int, str, Argument | None, RegionLabel]:
     at = linkage.with_lengths(lengths)
     # where the chain rules give the count and every component's rotor turns, nothing is traced
     # (a gated chain's region took 0.4-0.7 s of exploration, 6 regions most of a 4 s budget)
-    row = derive(at)
+    # (a pass over the chain's cells in Python: about 2 s for 20,000 rotors, so only when it
+    # fits in the time left)
+    fits = DERIVE_SECONDS_PER_BAR * at.n_bars <= deadline.remaining()
+    row = derive(at) if fits else None
     derived = None if row is None else derived_label(at, row, axes)
     if derived is not None:
         signature, argument = label_signature(derived, None)

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.model.linkage import Linkage
-from engine.space.gate_transfer import MAX_PATH_CELLS, GateTransfer, gate_transfer
+from engine.space.gate_transfer import GateTransfer, gate_transfer, transfer_decision
 
 #: Relative margin below which a length condition counts as an equality (non-generic lengths:
 #: a configuration space with a singular point, whose components are not counted here).
@@ -490,24 +490,8 @@ def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDeci
 
 
 def _decided_by_transfer(parts: GatedChain, kind: str) -> GateDecision:
-    """:func:`gate_decision` for a chain driven from another rotor than the gate's: the driver
-    turns once on a component that is a graph over its whole turn, and on one over an arc of
-    it every rotor goes forth and back (:mod:`engine.space.gate_transfer`)."""
+    """:func:`gate_decision` for a chain driven from another rotor than the gate's
+    (:func:`engine.space.gate_transfer.transfer_decision`)."""
     assert parts.driver is not None
-    driver = parts.rotors[parts.driver]
-    t = parts.transfer
-    if t is None:
-        return GateDecision(None, kind, f"the chain is driven from rotor {driver}, not from the "
-                            "gate rotor, and the gate's ends are within the generic margin of "
-                            "tangent along the cells between them (or more than "
-                            f"{MAX_PATH_CELLS} cells apart): not decided here")
-    if t.turning:
-        return GateDecision(False, kind, f"ungated: the chain is driven from rotor {driver}, "
-                            f"which completes a turn on {t.turning} of the components the gate "
-                            "closes on over the whole turn")
-    if not t.folded:
-        return GateDecision(None, kind, "no configuration: the gate closes nowhere along the "
-                            "chain's motion")
-    return GateDecision(True, kind, f"gated: the chain is driven from rotor {driver}, and the "
-                        "gate closes on arcs of its angle only: on each component every rotor "
-                        "goes forth and back, none completes a turn")
+    gated, reason = transfer_decision(parts.transfer, str(parts.rotors[parts.driver]))
+    return GateDecision(gated, kind, reason)

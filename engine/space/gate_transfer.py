@@ -153,3 +153,23 @@ def _carry_back(pins: np.ndarray, r: np.ndarray, path: list[tuple[int, int]],
         bits = (mode_side > 0).astype(np.int64) << bit
         tips, modes = back[keep], (np.concatenate([modes, modes]) | bits)[keep]
     return np.bincount(modes, minlength=2 ** len(path))
+
+
+def transfer_decision(t: GateTransfer | None, driver: str) -> tuple[bool | None, str]:
+    """Whether a gated chain driven from rotor ``driver`` (not the gate's) is gated, and why:
+    the driver turns once on a component that is a graph over its whole turn, and on one over
+    an arc of it every rotor goes forth and back."""
+    if t is None:
+        return None, (f"the chain is driven from rotor {driver}, not from the gate rotor, and "
+                      "the gate's ends are within the generic margin of tangent along the cells "
+                      f"between them (or more than {MAX_PATH_CELLS} cells apart): not decided "
+                      "here")
+    if t.turning:
+        return False, (f"ungated: the chain is driven from rotor {driver}, which completes a "
+                       f"turn on {t.turning} of the components the gate closes on over the "
+                       "whole turn")
+    if not t.folded:
+        return None, "no configuration: the gate closes nowhere along the chain's motion"
+    return True, (f"gated: the chain is driven from rotor {driver}, and the gate closes on "
+                  "arcs of its angle only: on each component every rotor goes forth and back, "
+                  "none completes a turn")

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.model.budget import NEVER, Deadline
+from engine.model.errors import NumericalFailure
 from engine.space.linear_product import NAME as LINEAR_PRODUCT
 from engine.space.linear_product import LinearProduct
 
@@ -246,7 +247,7 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
     patch = rng.normal(size=n + 1) + 1j * rng.normal(size=n + 1)
     patch /= np.linalg.norm(patch)
     if start is not None and not np.array_equal(start.total, degrees):
-        raise ValueError("the linear product's total degrees differ from the system's")
+        raise NumericalFailure("the linear product's total degrees differ from the system's")
     hom = _Homotopy(system, start if start is not None else (lambda x: _start(x, degrees)),
                     gamma, patch)
     x = start.solutions() if start is not None else start_solutions(degrees)
@@ -266,13 +267,7 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
         xa, ta = x[act], t[act]
         ha = np.minimum(h[act], ta)
         t1 = ta - ha
-        # RK4 predictor in t (steps of -ha)
-        k1 = hom.velocity(xa, ta)
-        k2 = hom.velocity(xa - 0.5 * ha[:, None] * k1, ta - 0.5 * ha)
-        k3 = hom.velocity(xa - 0.5 * ha[:, None] * k2, ta - 0.5 * ha)
-        k4 = hom.velocity(xa - ha[:, None] * k3, t1)
-        pred = xa - (ha / 6.0)[:, None] * (k1 + 2 * k2 + 2 * k3 + k4)
-        new, ok, first = hom.newton(pred, t1)
+        new, ok, first = hom.newton(_rk4(hom, xa, ta, ha), t1)
         ok &= (first <= TRUST) & np.isfinite(new).all(axis=1)
         good, bad = act[ok], act[~ok]
         x[good], t[good] = new[ok], t1[ok]
@@ -307,6 +302,15 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
     ) if m)
     return Tracked(x, state, t, steps, jumped, not message, message or "every path ended",
                    LINEAR_PRODUCT if start is not None else TOTAL_DEGREE)
+
+
+def _rk4(hom: _Homotopy, xa: np.ndarray, ta: np.ndarray, ha: np.ndarray) -> np.ndarray:
+    """The RK4 predictor in ``t``: each path's point a step ``-ha`` further."""
+    k1 = hom.velocity(xa, ta)
+    k2 = hom.velocity(xa - 0.5 * ha[:, None] * k1, ta - 0.5 * ha)
+    k3 = hom.velocity(xa - 0.5 * ha[:, None] * k2, ta - 0.5 * ha)
+    k4 = hom.velocity(xa - ha[:, None] * k3, ta - ha)
+    return xa - (ha / 6.0)[:, None] * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 def _finish_at_zero(hom: _Homotopy, x: np.ndarray, t: np.ndarray, state: np.ndarray) -> None:

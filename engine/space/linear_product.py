@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.model.errors import NumericalFailure
+
 #: Name of this start in search reports (the other: ``"total degree"``).
 NAME = "linear product"
 
@@ -100,7 +102,7 @@ class LinearProduct:
         self.total = np.asarray(total, dtype=int)
         per_eq = deg.sum(axis=1)
         if (per_eq > self.total).any():
-            raise ValueError("a factor count exceeds its equation's total degree")
+            raise NumericalFailure("a factor count exceeds its equation's total degree")
         kmax = int(per_eq.max())
         self.forms = np.zeros((n, kmax, n + 1), dtype=complex)
         self.group = np.full((n, kmax), -1, dtype=int)
@@ -155,7 +157,10 @@ class LinearProduct:
             gp = self.group[np.arange(st.n), pick]
             for g, cols in enumerate(st.groups):
                 a = rows[gp == g]
-                x[cols] = np.linalg.solve(a[:, cols], -a[:, 0])
+                try:
+                    x[cols] = np.linalg.solve(a[:, cols], -a[:, 0])
+                except np.linalg.LinAlgError as err:  # (random forms: probability zero)
+                    raise NumericalFailure("a singular start system: draw it again") from err
             out.append(x)
         return np.asarray(out).reshape(-1, st.n + 1)
 

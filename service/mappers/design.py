@@ -200,8 +200,10 @@ def region_out(r: Region) -> cv_schemas.RegionOut:
     explored."""
     lab = r.label
     if lab is None:
-        return cv_schemas.RegionOut(point=list(r.point), components=r.components,
-                                    signature=r.signature, cells=r.cells, argument=r.argument)
+        return cv_schemas.RegionOut(
+            point=list(r.point), components=None if r.components is None
+            else json_int(r.components), signature=r.signature, cells=r.cells,
+            argument=r.argument)
     return cv_schemas.RegionOut(
         point=list(r.point), components=None if r.components is None else json_int(r.components),
         signature=r.signature, cells=r.cells,

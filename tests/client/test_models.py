@@ -33,7 +33,8 @@ MODELS = {
     "Progress": models.Progress, "JobError": models.JobError, "JobOut": models.Job,
     "JobSummary": models.JobSummary, "Readiness": models.Readiness,
     "OperationOut": models.Operation, "CountClaim": models.CountClaim,
-    "ProvedSoFar": models.ProvedSoFar,
+    "ProvedSoFar": models.ProvedSoFar, "ConeSplitOut": models.ConeSplit,
+    "SurfaceSplitOut": models.SurfaceSplit,
 }
 
 

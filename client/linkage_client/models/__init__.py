@@ -14,6 +14,7 @@ from linkage_client.models.analysis import (
     BranchSplit,
     CellSigns,
     Component,
+    ConeSplit,
     Conflict,
     CriticalPoint,
     CriticalPointsResult,
@@ -35,6 +36,7 @@ from linkage_client.models.analysis import (
     SplittingResult,
     StressCertificate,
     Surface,
+    SurfaceSplit,
 )
 from linkage_client.models.jobs import (
     FINISHED,
@@ -66,14 +68,15 @@ from linkage_client.models.linkage import (
 )
 
 __all__ = [
-    "FINISHED", "RESULTS", "Bar", "BranchSplit", "CellSigns", "Component", "Conflict",
+    "FINISHED", "RESULTS", "Bar", "BranchSplit", "CellSigns", "Component", "ConeSplit", "Conflict",
     "CountClaim", "CriticalPoint", "CriticalPointsResult", "CriticalValuesResult", "DesignResult",
     "DualCertificate", "Health", "HeightCritical",
     "Job", "JobError", "JobSummary", "Linkage", "NearMiss", "Operation", "PresetInfo", "Predicted",
     "ProvedSoFar",
     "Progress", "Readiness", "Region", "RigidityResult", "RobustnessResult", "RobustnessSearch",
     "SearchReport", "SecondOrderFlex", "SecondOrderResult", "Segment", "SliceSearch",
-    "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SweepResult", "SweepRow",
+    "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SurfaceSplit",
+    "SweepResult", "SweepRow",
     "SweepSummary", "TangentForm", "TolerancesUsed", "Vertex", "linkage_json", "result_of",
     "sequence",
 ]

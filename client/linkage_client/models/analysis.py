@@ -261,6 +261,33 @@ class BranchSplit(Model):
 
 
 @dataclass(frozen=True)
+class ConeSplit(Model):
+    """A cone of a two-degree-of-freedom space and how a perturbation resolves it."""
+
+    configuration: Labelled
+    q_eigenvalues: np.ndarray
+    delta: float
+    delta_error: float
+    sign: int
+    sheets: int
+    euler_change: int
+
+
+@dataclass(frozen=True)
+class SurfaceSplit(Model):
+    """``splitting`` for two degrees of freedom: the cones, the predicted change of the Euler
+    characteristic and its check by re-meshing (``euler``, ``betti_q`` at ``L + dL``,
+    ``L - dL``)."""
+
+    cones: list[ConeSplit]
+    predicted_euler_difference: int | None
+    euler: list[int | None]
+    betti_q: list[list[int] | None]
+    verified: bool
+    message: str
+
+
+@dataclass(frozen=True)
 class SplittingResult(Model):
     """``POST /v1/analysis/splitting``."""
 
@@ -268,6 +295,7 @@ class SplittingResult(Model):
     critical_points_found: int
     search: SearchReport
     tolerances: TolerancesUsed
+    surface: SurfaceSplit | None = None
     raw: JSON = _raw()
 
 
