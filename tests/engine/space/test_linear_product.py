@@ -14,6 +14,7 @@ import pytest
 
 from engine.catalogue.presets import build_preset
 from engine.model.constraints import Constraints
+from engine.model.errors import NumericalFailure
 from engine.space.configuration_space import explore
 from engine.space.homotopy import REGULAR, SINGULAR, track
 from engine.space.linear_product import LinearProduct, Structure, bezout
@@ -84,7 +85,7 @@ def test_the_jacobian_is_the_derivative():
 
 def test_a_factor_count_beyond_the_total_degree_is_refused():
     st = Structure((np.array([1]),), np.array([[3]]))
-    with pytest.raises(ValueError):
+    with pytest.raises(NumericalFailure, match="exceeds its equation"):
         LinearProduct(st, np.array([2]), np.random.default_rng(0))
 
 
