@@ -269,23 +269,9 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
         t1 = ta - ha
         new, ok, first = hom.newton(_rk4(hom, xa, ta, ha), t1)
         ok &= (first <= TRUST) & np.isfinite(new).all(axis=1)
-        good, bad = act[ok], act[~ok]
+        good = act[ok]
         x[good], t[good] = new[ok], t1[ok]
-        wins[good] += 1
-        grow = good[(wins[good] >= 3) & ~endgame[good]]
-        h[grow] = np.minimum(2.0 * h[grow], H_MAX)
-        wins[grow] = 0
-        late = good[endgame[good]]
-        h[late] = (1.0 - ENDGAME_RATIO) * t[late]
-        state[good[t[good] == 0.0]] = REGULAR
-        # a failed step to t = 0 (a singular end, or one at infinity) puts the path in its
-        # endgame: t then falls tenfold per step while the path allows (halved steps where not)
-        to_zero = ha[~ok] >= ta[~ok]
-        endgame[bad[to_zero]] = True
-        h[bad] = np.where(to_zero, (1.0 - ENDGAME_RATIO) * ta[~ok], 0.5 * ha[~ok])
-        wins[bad] = 0
-        state[act[(t[act] <= T_END) & (state[act] == RUNNING)]] = SINGULAR
-        state[bad[(h[bad] < H_MIN) & (t[bad] > T_END)]] = FAILED
+        _adapt(act, ok, ta, ha, t, h, wins, endgame, state, H_MAX)
         if np.isfinite(far):
             zone = act[(t[act] <= T_FAR) & np.isin(state[act], (RUNNING, SINGULAR, FAILED))]
             gone = np.linalg.norm(x[zone, 1:], axis=1) > far * np.abs(x[zone, 0])
@@ -302,6 +288,30 @@ def track(system: System, degrees: np.ndarray | list[int], rng: np.random.Genera
     ) if m)
     return Tracked(x, state, t, steps, jumped, not message, message or "every path ended",
                    LINEAR_PRODUCT if start is not None else TOTAL_DEGREE)
+
+
+def _adapt(act: np.ndarray, ok: np.ndarray, ta: np.ndarray, ha: np.ndarray, t: np.ndarray,
+           h: np.ndarray, wins: np.ndarray, endgame: np.ndarray, state: np.ndarray,
+           h_max: float) -> None:
+    """After one step ``ha`` from ``ta`` of the paths ``act`` (``ok``: corrected): their step
+    sizes, endgame flags and states, in place (``t`` already moved where ``ok``). Three
+    steps in a row double a step (up to ``h_max``); in the endgame ``t`` falls tenfold per
+    step; a failed step halves it, and a failed step to ``t = 0`` (a singular end, or one at
+    infinity) puts the path in its endgame."""
+    good, bad = act[ok], act[~ok]
+    wins[good] += 1
+    grow = good[(wins[good] >= 3) & ~endgame[good]]
+    h[grow] = np.minimum(2.0 * h[grow], h_max)
+    wins[grow] = 0
+    late = good[endgame[good]]
+    h[late] = (1.0 - ENDGAME_RATIO) * t[late]
+    state[good[t[good] == 0.0]] = REGULAR
+    to_zero = ha[~ok] >= ta[~ok]
+    endgame[bad[to_zero]] = True
+    h[bad] = np.where(to_zero, (1.0 - ENDGAME_RATIO) * ta[~ok], 0.5 * ha[~ok])
+    wins[bad] = 0
+    state[act[(t[act] <= T_END) & (state[act] == RUNNING)]] = SINGULAR
+    state[bad[(h[bad] < H_MIN) & (t[bad] > T_END)]] = FAILED
 
 
 def _rk4(hom: _Homotopy, xa: np.ndarray, ta: np.ndarray, ha: np.ndarray) -> np.ndarray:

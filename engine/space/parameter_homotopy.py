@@ -13,17 +13,15 @@ import numpy as np
 
 from engine.model.budget import Deadline
 from engine.space.homotopy import (
-    ENDGAME_RATIO,
     FAILED,
     H_MAX,
-    H_MIN,
     REGULAR,
     RUNNING,
-    SINGULAR,
-    T_END,
     TRUST,
+    _adapt,
     _Homotopy,
     _jumped,
+    _rk4,
 )
 
 
@@ -84,29 +82,13 @@ def follow(hom: Parameter, x: np.ndarray, deadline: Deadline, max_steps: int = 4
         act = np.flatnonzero(state == RUNNING)
         xa, ta = x[act], t[act]
         ha = np.minimum(h[act], ta)
-        k1 = hom.velocity(xa, ta)
-        k2 = hom.velocity(xa - 0.5 * ha[:, None] * k1, ta - 0.5 * ha)
-        k3 = hom.velocity(xa - 0.5 * ha[:, None] * k2, ta - 0.5 * ha)
-        k4 = hom.velocity(xa - ha[:, None] * k3, ta - ha)
-        pred = xa - (ha / 6.0)[:, None] * (k1 + 2 * k2 + 2 * k3 + k4)
-        new, ok, first = hom.newton(pred, ta - ha)
+        new, ok, first = hom.newton(_rk4(hom, xa, ta, ha), ta - ha)
         ok &= (first <= TRUST) & np.isfinite(new).all(axis=1)
-        good, bad = act[ok], act[~ok]
+        good = act[ok]
         x[good], t[good] = new[ok], (ta - ha)[ok]
         if watch is not None and len(good):
             watch(good, x[good], t[good])
-        wins[good] += 1
-        grow = good[(wins[good] >= 3) & ~endgame[good]]
-        h[grow], wins[grow] = np.minimum(2.0 * h[grow], h_max), 0
-        late = good[endgame[good]]
-        h[late] = (1.0 - ENDGAME_RATIO) * t[late]
-        state[good[t[good] == 0.0]] = REGULAR
-        to_zero = ha[~ok] >= ta[~ok]
-        endgame[bad[to_zero]] = True
-        h[bad] = np.where(to_zero, (1.0 - ENDGAME_RATIO) * ta[~ok], 0.5 * ha[~ok])
-        wins[bad] = 0
-        state[act[(t[act] <= T_END) & (state[act] == RUNNING)]] = SINGULAR
-        state[bad[(h[bad] < H_MIN) & (t[bad] > T_END)]] = FAILED
+        _adapt(act, ok, ta, ha, t, h, wins, endgame, state, h_max)
     running, failed = int((state == RUNNING).sum()), int((state == FAILED).sum())
     jumped = _jumped(x[state == REGULAR])
     message = "; ".join(m for m in (
