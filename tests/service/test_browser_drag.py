@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.service.test_browser import ARTIFACTS, CHROMEDRIVER, CHROMIUM, browser, data, wait_for
+from tests.service.test_browser import ARTIFACTS, browser, data, wait_for
+from tests.service.test_browser import pytestmark as browser_marks
 from tests.service.test_viewer import (
     assert_stayed_local,
     base_url,
@@ -36,12 +37,8 @@ from tests.service.test_viewer import (
 
 __all__ = ["base_url", "browser"]  # the fixtures, shared with test_viewer
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.process,
-    pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
-                       reason="Debian's chromium and chromium-driver are not installed"),
-]
+# browser and process tests, skipped without Debian's chromium (the marks of test_browser)
+pytestmark = browser_marks
 
 LATENCIES = ARTIFACTS / "drag-latencies.json"
 RESET = ("for (const id of ['space', 'map']) { const d = document.getElementById(id).dataset;"

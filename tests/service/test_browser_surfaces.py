@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.service.test_browser import CHROMEDRIVER, CHROMIUM, browser, data, wait_for
+from tests.service.test_browser import browser, data, wait_for
+from tests.service.test_browser import pytestmark as browser_marks
 from tests.service.test_viewer import (
     assert_stayed_local,
     base_url,
@@ -28,12 +29,8 @@ from tests.service.test_viewer import (
 
 __all__ = ["base_url", "browser"]  # the fixtures, shared with test_viewer
 
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.process,
-    pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
-                       reason="Debian's chromium and chromium-driver are not installed"),
-]
+# browser and process tests, skipped without Debian's chromium (the marks of test_browser)
+pytestmark = browser_marks
 
 
 def pentagon(lengths: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0)) -> dict[str, Any]:
