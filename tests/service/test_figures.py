@@ -169,6 +169,29 @@ def test_configuration_space_figure_of_a_3d_linkage_is_a_422_not_a_500(client: A
 # -- critical values and splitting ---------------------------------------------------------
 
 
+def svg_text(response: Any) -> str:
+    root = ET.fromstring(response.content)
+    return " ".join("".join(el.itertext()) for el in root.iter(f"{SVG_NS}text"))
+
+
+def test_a_map_of_an_incomplete_analysis_says_so(client: Any) -> None:
+    """The three-rotor's map traced with a tenth of a second: the JSON answer is incomplete
+    (time), and the figure of the same body says so in its title; a complete map does not."""
+    linkage = preset(client, "three-rotor")
+    body = {"linkage": linkage, "options": {"time_budget_s": 0.1},
+            "axes": [{"bar": "r1", "min": 0.8, "max": 1.2}, {"bar": "r2", "min": 0.8, "max": 1.2}]}
+    answer = client.post("/v1/analysis/critical-values", json=body).json()
+    assert answer["search"]["complete"] is False and answer["search"]["reason"] == "time"
+    r = client.post("/v1/figures/critical-values", json=body)
+    assert r.status_code == 200
+    assert "incomplete (time)" in svg_text(r)
+    four_bar = {"linkage": preset(client, "four-bar"),
+                "axes": [{"bar": "L2", "min": 0.8, "max": 1.2},
+                         {"bar": "L3", "min": 0.8, "max": 1.2}]}
+    assert "incomplete" not in svg_text(client.post("/v1/figures/critical-values",
+                                                    json=four_bar))
+
+
 @pytest.mark.slow
 def test_critical_values_figure_draws_every_curve_and_region(client: Any) -> None:
     body = {"linkage": preset(client, "four-bar"),
