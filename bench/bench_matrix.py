@@ -223,15 +223,36 @@ WHY_INCOMPLETE = [
     "the gate four-bar's own lengths (the gate slice) and rotor chains (`kl-chain`: the flat "
     "planes of their four-bar cells where no two cells' alignments can combine in the box, "
     "`engine/design/chain_planes.py`) are closed form, and their regions are counted by the "
-    "chain rules without tracing. The gated chains mapped in two rotor lengths (`r0` x `r1`) "
-    "are still traced: with the gate four-bar hanging on the chain the planes hold only while "
-    "the gate rotor cranks the gate four-bar, and in the regions where no rotor drives the "
-    "chain (a four-bar does) no rule counts a gated chain yet; the three-rotor's map belongs "
-    "to the slice proofs (`slice_scan.py`).",
+    "chain rules without tracing. So are gated chains in their chain's lengths (`r0` x `r1`) "
+    "wherever the gate rotor cranks the gate four-bar over the whole box (`gated_chain_planes`:"
+    " the gate then closes at every angle, twice, and carries no self-stress, so the critical "
+    "values are the chain's), their regions counted by the chain rules also where a four-bar "
+    "drives the chain (four components per component of the chain, `sweep_rules`); a gate "
+    "that restricts the chain (the gate rotor rocking) leaves such a map traced. The "
+    "three-rotor's map belongs to the slice proofs (`slice_scan.py`).",
+    "- a figure is complete when the analysis it draws is (the JSON cell of the same preset: "
+    "`draws` names its reason); the figure says so in its title.",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
     "vertices each (40-90 MB of JSON as objects): mapping and serialising it takes seconds "
     "beyond the search budget; `options.points = \"compact\"` sends it as packed arrays.",
 ]
+
+
+#: The JSON endpoint whose answer each figure draws.
+DRAWS = {"/v1/figures/configuration-space": "/v1/analysis/configuration-space",
+         "/v1/figures/critical-values": "/v1/analysis/critical-values",
+         "/v1/figures/splitting": "/v1/analysis/splitting"}
+
+
+def figures_complete(rows: list[Json]) -> None:
+    """A figure's completeness is that of the analysis it draws (its preset's JSON cell)."""
+    by_cell = {(r["preset"], r["cell"]): r for r in rows}
+    for r in rows:
+        drawn = by_cell.get((r["preset"], DRAWS.get(r["cell"], "")))
+        if r["status"] == 200 and drawn is not None and drawn.get("complete") is not None:
+            r["complete"] = drawn["complete"]
+            if not drawn["complete"]:
+                r["reason"] = f"draws `{drawn['cell']}`: {drawn['reason']}"
 
 
 def commit() -> str:
@@ -304,6 +325,7 @@ def main() -> None:
                   f"local {'-' if ip is None else f'{ip:7.3f}'} {row['status']} "
                   f"complete={row['complete']} reason={row['reason']} load={row['load1']}",
                   flush=True)
+    figures_complete(rows)
     meta = {"date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores",
             "commit": served, "repeat": args.repeat, "load_before": load_before,

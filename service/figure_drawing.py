@@ -12,6 +12,7 @@ from collections.abc import Iterator, Sequence
 import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.collections import LineCollection
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -77,8 +78,13 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
     ids = [v.id for v in linkage.vertices]
     xy = np.array([conf[i][:2] for i in ids])  # (V, 2): 3D linkages in their x-y projection
     index = {vid: k for k, vid in enumerate(ids)}
-    lengths = [_bar_length(linkage, b) for b in linkage.bars]
-    scale = float(np.median(lengths)) if lengths else 1.0
+    ends = np.array([[index[b.ends[0]], index[b.ends[1]]] for b in linkage.bars],
+                    dtype=int).reshape(-1, 2)  # (E, 2)
+    given = np.array([np.nan if b.length is None else b.length for b in linkage.bars])
+    pos = np.array([v.position for v in linkage.vertices], dtype=float)  # (V, d) as given
+    lengths = np.where(np.isnan(given), np.linalg.norm(pos[ends[:, 0]] - pos[ends[:, 1]],
+                                                       axis=1), given)
+    scale = float(np.median(lengths)) if len(lengths) else 1.0
     fig = _figure(6.4, 5.0)
     ax = fig.add_subplot()
     ax.set_aspect("equal")
@@ -86,45 +92,19 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
     ax.set_ylabel("y")
     handles: list[object] = []
     stress = getattr(ans, "self_stress", None) if "self_stress" in show else None
-    for k, bar in enumerate(linkage.bars):
-        p, q = xy[index[bar.ends[0]]], xy[index[bar.ends[1]]]
-        colour, width = "#555555", 2.5
-        if stress is not None:
-            s = stress[bar.id]
-            colour = _TENSION if s > 0 else _COMPRESSION if s < 0 else "#999999"
-            width = 1.0 + 5.0 * abs(s) / max(abs(v) for v in stress.values())
-        ax.plot(*zip(p, q, strict=True), color=colour, lw=width, solid_capstyle="round",
-                zorder=2, gid=f"bar-{k}")
-        mid = (p + q) / 2
-        ax.annotate(bar.id, mid, xytext=(3, 3), textcoords="offset points", color="#333333",
-                    fontsize=8)
+    named = len(linkage.bars) <= NAMED_BARS_MAX
+    _draw_bars(ax, linkage, xy[ends], stress, named)
     if stress is not None:
         # A self-stress is defined up to its overall sign: the colours tell the bars that
         # pull from those that push, not which of the two is tension.
         handles += [Line2D([], [], color=_TENSION, lw=3, label="self-stress σ > 0"),
                     Line2D([], [], color=_COMPRESSION, lw=3, label="self-stress σ < 0 "
                            "(opposite sign: one pulls, the other pushes)")]
-    kinds = {"pin": 0, "slider": 0, "vertex": 0}
-    for k, v in enumerate(linkage.vertices):
-        mask = _fixed_axes(v, linkage.dimension)
-        kind = "pin" if all(mask) else "slider" if any(mask) else "vertex"
-        kinds[kind] += 1
-        marker, face = {"pin": ("^", "#111111"), "slider": ("s", "#9467bd"),
-                        "vertex": ("o", "white")}[kind]
-        ax.plot(*xy[k], marker=marker, ms=10 if kind != "vertex" else 8, mfc=face,
-                mec="#111111", zorder=4, ls="none", gid=f"{kind}-{k}")
-        if kind == "slider":  # the line along which it slides (its free axes, in x-y)
-            free = np.array([0.0 if f else 1.0 for f in mask[:2]])
-            if free.any():
-                seg = np.array([xy[k] - free * scale, xy[k] + free * scale])
-                ax.plot(seg[:, 0], seg[:, 1], ls="--", color="#9467bd", lw=1, zorder=1,
-                        gid=f"slider-axis-{k}")
-        ax.annotate(v.id, xy[k], xytext=(-10, -12), textcoords="offset points", fontsize=8)
+    kinds = _draw_vertices(ax, linkage, xy, scale, named)
     for kind, label in (("pin", "pin"), ("slider", "slider (dashed: its axis)"),
                         ("vertex", "joint")):
         if kinds[kind]:
-            marker, face = {"pin": ("^", "#111111"), "slider": ("s", "#9467bd"),
-                            "vertex": ("o", "white")}[kind]
+            marker, face, _ = _VERTEX_STYLE[kind]
             handles.append(Line2D([], [], marker=marker, mfc=face, mec="#111111", ls="none",
                                   ms=8, label=label))
     arrows: list[tuple[str, str, list[dict[str, list[float]]]]] = []
@@ -155,6 +135,8 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
     title = "Linkage" + (f" ({point_kind} configuration)" if point_kind else "")
     if linkage.dimension == 3:
         title += ", x-y projection"
+    if not named:
+        notes.append(f"{len(linkage.bars)} bars, {len(ids)} joints: drawn without their names")
     ax.set_title(title + ("\n" + "; ".join(notes) if notes else ""))
     ax.margins(0.15)
     ax.update_datalim(np.concatenate(tips))  # quiver's arrows do not widen the view
@@ -166,7 +148,70 @@ def _draw_linkage(linkage: c.Linkage, ans: object, show: Sequence[str]) -> Figur
     return fig
 
 
+#: Most bars drawn one artist each, with their SVG ids ``bar-<k>``, ``pin-<k>``, ... and names;
+#: a larger linkage's bars are one ``LineCollection`` (``bars``) and its joints one marker
+#: artist per kind (``pins``, ``sliders``, ``vertices``), without names (300 names are
+#: unreadable, and laying out their text took seconds).
+NAMED_BARS_MAX = 40
+_VERTEX_STYLE = {"pin": ("^", "#111111", 10), "slider": ("s", "#9467bd", 10),
+                 "vertex": ("o", "white", 8)}
+_PLURAL = {"pin": "pins", "slider": "sliders", "vertex": "vertices"}
+
+
+def _draw_bars(ax: Axes, linkage: c.Linkage, segments: np.ndarray,
+               stress: dict[str, float] | None, named: bool) -> None:
+    """The bars ``segments`` (E, 2, 2), coloured and widened by the self-stress where shown:
+    one artist and name each when ``named``, else one collection."""
+    colours = np.full(len(segments), "#555555", dtype=object)
+    widths = np.full(len(segments), 2.5)
+    if stress is not None and len(segments):
+        s = np.array([stress[b.id] for b in linkage.bars])
+        colours = np.where(s > 0, _TENSION, np.where(s < 0, _COMPRESSION, "#999999"))
+        widths = 1.0 + 5.0 * np.abs(s) / (np.max(np.abs(s)) or 1.0)
+    if not named:
+        ax.add_collection(LineCollection(list(segments), colors=list(colours),
+                                         linewidths=widths, capstyle="round", zorder=2,
+                                         gid="bars"))
+        return
+    for k, bar in enumerate(linkage.bars):
+        (p, q) = segments[k]
+        ax.plot(*zip(p, q, strict=True), color=colours[k], lw=widths[k],
+                solid_capstyle="round", zorder=2, gid=f"bar-{k}")
+        text = ax.annotate(bar.id, (p + q) / 2, xytext=(3, 3), textcoords="offset points",
+                           color="#333333", fontsize=8)
+        text.set_in_layout(False)  # (inside the axes: the layout need not measure it)
+
+
+def _draw_vertices(ax: Axes, linkage: c.Linkage, xy: np.ndarray, scale: float, named: bool
+                   ) -> dict[str, int]:
+    """Pins, sliders (with the dashed line they slide along) and joints; their number by
+    kind. One marker artist and name each when ``named``, else one artist per kind."""
+    masks = [_fixed_axes(v, linkage.dimension) for v in linkage.vertices]
+    kind_of = ["pin" if all(m) else "slider" if any(m) else "vertex" for m in masks]
+    for kind, (marker, face, size) in _VERTEX_STYLE.items():
+        at = [k for k, x in enumerate(kind_of) if x == kind]
+        if at and not named:
+            ax.plot(xy[at, 0], xy[at, 1], marker=marker, ms=size / 2, mfc=face, mec="#111111",
+                    zorder=4, ls="none", gid=_PLURAL[kind])
+        for k in at if named else []:
+            ax.plot(*xy[k], marker=marker, ms=size, mfc=face, mec="#111111", zorder=4,
+                    ls="none", gid=f"{kind}-{k}")
+            text = ax.annotate(linkage.vertices[k].id, xy[k], xytext=(-10, -12),
+                               textcoords="offset points", fontsize=8)
+            text.set_in_layout(False)
+    for k in (k for k, x in enumerate(kind_of) if x == "slider"):
+        free = np.array([0.0 if f else 1.0 for f in masks[k][:2]])
+        if free.any():  # the line along which it slides (its free axes, in x-y)
+            seg = np.array([xy[k] - free * scale, xy[k] + free * scale])
+            ax.plot(seg[:, 0], seg[:, 1], ls="--", color="#9467bd", lw=1, zorder=1,
+                    gid=f"slider-axis-{k}")
+    return {kind: kind_of.count(kind) for kind in _VERTEX_STYLE}
+
+
 # -- configuration space -----------------------------------------------------------------------
+
+#: Most components named one by one in the legend (beyond: one entry for all).
+LEGEND_COMPONENTS_MAX = 10
 
 
 def _angle(conf: dict[str, list[float]], ends: tuple[str, str]) -> float:
@@ -233,8 +278,9 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
         x, y = np.asarray(comp.angles[axes[0]]), np.asarray(comp.angles[axes[1]])
         for p, (px, py) in enumerate(_torus_pieces(x, y)):
             ax.plot(px, py, color=colour, lw=1.8, zorder=2, gid=f"component-{k}-{p}")
-        handles.append(Line2D([], [], color=colour, lw=2,
-                              label=f"component {k} ({'closed' if comp.closed else 'open'})"))
+        if len(ans.components) <= LEGEND_COMPONENTS_MAX:
+            handles.append(Line2D([], [], color=colour, lw=2, label=f"component {k} "
+                                  f"({'closed' if comp.closed else 'open'})"))
         # The segments: the walk cut where it passes through critical points, each piece
         # labelled with the critical points it joins (as in the answer's ``segments``).
         ids = list(comp.positions)
@@ -255,6 +301,10 @@ def _draw_space(ans: space.SpaceResponse, axes: list[str],
                         xytext=(4, 4), textcoords="offset points", fontsize=7,
                         color=colour, gid=f"segment-{labelled}")
             labelled += 1
+    if len(ans.components) > LEGEND_COMPONENTS_MAX:  # (a legend of 32 entries: unreadable)
+        closed = sum(comp.closed for comp in ans.components)
+        handles.insert(0, Line2D([], [], color=colours[0], lw=2, label=(
+            f"components 0-{len(ans.components) - 1} ({closed} closed), colours repeating")))
     seen = set()
     for cp in ans.critical_points:
         marker, colour, label = _KIND_MARKERS.get(cp.kind, ("D", "#7f7f7f", cp.kind))
@@ -421,6 +471,8 @@ def _draw_critical_values(body: cv_schemas.CriticalValuesRequest,
     ax.set_xlim(*box[0])
     ax.set_ylim(*box[1])
     ax.set_title(f"Critical values: {len(curves)} curve{'s' * (len(curves) != 1)}, "
-                 f"{len(ans.regions)} region{'s' * (len(ans.regions) != 1)}")
+                 f"{len(ans.regions)} region{'s' * (len(ans.regions) != 1)}"
+                 + ("" if ans.search.complete else
+                    f"\nincomplete ({ans.search.reason}): curves or regions may be missing"))
     fig.legend(handles=handles, loc="outside lower center", ncols=2 if gate_map else 3)
     return fig

@@ -52,7 +52,9 @@ def _draw_splitting(body: splitting_schemas.SplittingRequest,
     left_out = len(found) - len(branches)
     title = fig.suptitle(f"Splitting of the branch points under {change or 'no change'}" + (
         f"\n(first {len(branches)} of {len(found)} branch points drawn: {left_out} panels "
-        "left out to answer within the time budget)" if left_out else ""))
+        "left out to answer within the time budget)" if left_out else "") + (
+        "" if ans.search.complete else
+        f"\n(search incomplete: {ans.search.reason}; branch points may be missing)"))
     if left_out:
         title.set_gid(f"panels-left-out-{left_out}")  # (the text is drawn as paths)
     if not branches:

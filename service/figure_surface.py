@@ -127,5 +127,7 @@ def draw_surfaces(ans: SpaceResponse, axes: list[tuple[str, str, str]]) -> Figur
     genus = [s.genus for s in ans.surfaces or []]
     ax.set_title(f"configuration space: {len(genus)} surface(s), genus {genus}; "
                  "height critical points by index (blue min, green saddle, red max), "
-                 "linkage critical points x", fontsize=8, wrap=True)
+                 "linkage critical points x" + ("" if ans.search.complete else
+                                                 f" (search incomplete: {ans.search.reason})"),
+                 fontsize=8, wrap=True)
     return fig

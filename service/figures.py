@@ -12,9 +12,10 @@ after it is bounded by the answer's size: the engine's point limit, a PNG's pixe
 
 Drawn elements carry SVG ids (matplotlib's ``gid``) so that clients and tests can find them:
 ``bar-<k>``, ``pin-<k>``, ``vertex-<k>``, ``slider-<k>``, ``zero-mode-<j>``, ``tangent-<j>``
-(linkage); ``component-<k>-<piece>``, ``critical-<kind>-<index>``, ``segment-<k>`` (configuration
-space; with two degrees of freedom ``surface-<k>``, ``height-critical-<i>`` and
-``critical-<kind>-<index>``, :mod:`service.figure_surface`);
+(linkage; over ``NAMED_BARS_MAX`` bars one collection ``bars`` and ``pins``, ``sliders``,
+``vertices``, unnamed); ``component-<k>-<piece>``, ``critical-<kind>-<index>``,
+``segment-<k>`` (configuration space; with two degrees of freedom ``surface-<k>``,
+``height-critical-<i>`` and ``critical-<kind>-<index>``, :mod:`service.figure_surface`);
 ``cv-curve-<k>``, ``cv-regions``, ``region-<k>-<components>``, ``current-lengths``
 (critical values);
 ``ray-<b>-<r>``, ``split-<b>-<i>-<j>`` (splitting: branch point ``b``, ray ``r``, joined rays

@@ -46,7 +46,8 @@ import numpy as np
 
 from engine.design.dyad_margin import CriticalPlanes
 from engine.model.linkage import Linkage
-from engine.space.chain_count import GENERIC_RTOL, _chain_order
+from engine.space.chain_count import GENERIC_RTOL, _chain_order, _without_gate, gated_chain
+from engine.space.gate_transfer import gate_cranks
 
 SIGNS = np.array(list(itertools.product((1.0, -1.0), repeat=3)))  # (8, 3)
 
@@ -94,7 +95,9 @@ def chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
     module docstring): the flat planes ``+-r_k +-l_k +-r_(k+1) = a_k`` of every cell that may
     be flat, or None when the linkage is not a rotor chain, an axis is not one of its bars, or
     two cells' alignments may combine into a critical configuration somewhere in the box (the
-    critical value set is then not these planes alone).
+    critical value set is then not these planes alone). A chain with the paper's gate gets
+    its chain's planes where the gate rotor cranks the gate four-bar over the whole box
+    (:func:`gated_chain_planes`).
 
     Parameters
     ----------
@@ -112,6 +115,8 @@ def chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
     >>> [lk.bar_ids[b] for b in planes[0].bars], planes[0].dist, len(planes)
     (['r0', 'l0', 'r1'], 1.0, 1)
     """
+    if gated_chain(linkage) is not None:
+        return gated_chain_planes(linkage, axes, box)
     found = _chain_order(linkage)
     if found is None:
         return None
@@ -152,3 +157,55 @@ def chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
     flat = sorted(set(in_a.tolist()) & set(in_b.tolist()))
     return [CriticalPlanes(np.array([rotor_bars[k], couplers[k], rotor_bars[k + 1]]), SIGNS,
                            float(a[k])) for k in flat]
+
+
+def gated_chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
+                       ) -> list[CriticalPlanes] | None:
+    """The critical planes of a rotor chain with the paper's gate over the box of two of its
+    chain's bars: those of the chain without the gate (:func:`chain_planes`), where the slider
+    has its two places and the gate rotor cranks the gate four-bar with the rocker's two places
+    apart at every point of the box (:func:`engine.space.gate_transfer.gate_cranks`); None
+    otherwise (an axis one of the gate's bars ``D``, ``L1``, ``L2``, too).
+
+    Why: reduce the slider ``G`` to its place (the bar ``D`` pivots on its free coordinate,
+    nonzero with two places) and let ``phi`` be the rocker's angle. The gate's row of the
+    Jacobian has ``dh/dphi != 0`` (``L1`` and ``L2`` never on one line) and no other row has a
+    ``phi`` entry, so a self-stress has no weight on the gate: a configuration is critical iff
+    its chain is. The gate closes at every gate-rotor angle (twice), so every critical
+    configuration of the chain, and every point where the chain cannot close, is one of the
+    gated linkage: the critical value set is the chain's.
+
+    Examples
+    --------
+    >>> from engine.catalogue.presets import build_preset
+    >>> lk = build_preset("gated-kl-chain", {"n": 4, "gate": 2})
+    >>> planes = gated_chain_planes(lk, (0, 1), np.array([[1.2, 1.8], [1.2, 1.8]]))
+    >>> [lk.bar_ids[b] for b in planes[0].bars], len(planes)
+    (['r0', 'l0', 'r1'], 1)
+    >>> gated_chain_planes(build_preset("gated-kl-chain", {"n": 4, "gate": 2, "D": 3.0}),
+    ...                    (0, 1), np.array([[1.2, 1.8], [1.2, 1.8]])) is None
+    True
+    """
+    parts = gated_chain(linkage)
+    if parts is None or parts.slider_positions != 2:
+        return None
+    names = [linkage.bar_ids[b] for b in axes]
+    if set(names) & set(parts.gate_bars):
+        return None
+    d, r, l2, l1 = parts.sides
+    gate_rotor = parts.rotors[parts.gate]
+    # r_g over the box: |r_g - D| least at D (clipped), r_g + D greatest at the top
+    values = [r]
+    for name, (lo, hi) in zip(names, box, strict=True):
+        if name == gate_rotor:
+            values = [float(lo), float(hi), float(np.clip(d, lo, hi))]
+    if not all(gate_cranks((d, v, l2, l1), GENERIC_RTOL) for v in values):
+        return None
+    chain = _without_gate(linkage)
+    index = {b: k for k, b in enumerate(chain.bar_ids)}
+    planes = chain_planes(chain, (index[names[0]], index[names[1]]), box)
+    if planes is None:
+        return None
+    back = {b: k for k, b in enumerate(linkage.bar_ids)}
+    return [CriticalPlanes(np.array([back[chain.bar_ids[b]] for b in pl.bars]), pl.normals,
+                           pl.dist) for pl in planes]

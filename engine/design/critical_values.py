@@ -65,6 +65,7 @@ from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage, changeable_bar
 from engine.model.report import SearchReport, count_text
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
+from engine.space.chain_count import gated_chain
 from engine.space.configuration_space import SpaceOptions, find_critical_points
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
@@ -277,7 +278,8 @@ def _closed_form_curves(
     planes they are: every critical hyperplane ``n . (x_1, x_2, x_3) = D`` (of a one-dyad
     planar chain, :func:`engine.design.dyad_margin.critical_planes`; of the gate four-bar,
     :func:`~engine.design.dyad_margin.gate_planes`; of the flat cells of a rotor chain,
-    :func:`engine.design.chain_planes.chain_planes`) met with the plane of the two axes (the
+    :func:`engine.design.chain_planes.chain_planes`, a gated chain's whose gate rotor cranks
+    the gate four-bar too) met with the plane of the two axes (the
     other lengths as given) is a line; its piece inside the box (lengths at least the shortest
     critical bar) sampled at most ``step`` apart. None when no closed form applies (or a plane
     holds the whole box: every length there critical)."""
@@ -287,13 +289,15 @@ def _closed_form_curves(
     mine = [pl for pl in ([found[1]] if found is not None else []) + ([gate] if gate else [])
             if all(a.bar in pl.bars for a in ax)]
     planes: list[CriticalPlanes] | None
-    if found is not None or gate is not None:
+    if mine or found is not None:
         planes = mine or None
         what = "the one-dyad chain" if found is not None else "the gate four-bar"
-    else:
+    else:  # (a gated chain in its chain's lengths too: the gate cranking, never restricting)
         planes = chain_planes(linkage, (ax[0].bar, ax[1].bar), box)
         what = ("a four-bar cell of the rotor chain flat (no two cells' alignments combine in "
-                "the box)")
+                "the box" + ("; the gate rotor cranks the gate four-bar, whose rocker's two "
+                             "places never meet: the gate neither restricts the chain nor "
+                             "carries a self-stress)" if gated_chain(linkage) else ")"))
     if planes is None:
         return None
     curves: list[np.ndarray] = []

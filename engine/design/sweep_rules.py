@@ -28,8 +28,10 @@ Every component then has the same pattern but in that last case, so the row's ``
 is that one pattern (or those two).
 A four-bar of the chain (the gate four-bar, or the single four-bar) whose longest side is
 longer than the other three together closes nowhere: the linkage then has no configuration
-(0 components, derived). Anything else (other linkages, critical lengths, a chain driven
-from no rotor) gets None here and the sweep explores the point.
+(0 components, derived). A gated chain driven from no rotor is counted where its gate rotor
+cranks the gate four-bar (the gate then restricts nothing: four components per component of
+the chain, with its turns). Anything else (other linkages, critical lengths, a gated chain
+driven from no rotor whose gate restricts it) gets None here and the sweep explores the point.
 """
 
 from __future__ import annotations
@@ -44,11 +46,13 @@ from engine.space.chain_count import (
     GENERIC_RTOL,
     ChainCount,
     GatedChain,
+    _without_gate,
     chain_components,
     gate_decision,
     gated_chain,
     gated_chain_components,
 )
+from engine.space.gate_transfer import gate_cranks
 
 
 @dataclass(frozen=True)
@@ -180,9 +184,40 @@ def _rotor_chain(linkage: Linkage, count: ChainCount) -> DerivedRow | None:
                       True)
 
 
+def _cranked_gate(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
+    """A gated chain driven from no rotor, whose gate rotor cranks the gate four-bar with the
+    rocker's two places apart (:func:`engine.space.gate_transfer.gate_cranks`): the gate
+    closes twice at every gate angle and never meets itself, so each component of the chain
+    (counted by its rules, e.g. a four-bar driving it) is four of the gated linkage (two
+    places of the rocker, two of the slider), with the chain's turns (``D`` never turns); no
+    self-stress reaches the gate, so the chain's lack of critical points carries over."""
+    if parts.slider_positions != 2 or not gate_cranks(parts.sides, GENERIC_RTOL):
+        return None
+    chain = _without_gate(linkage)
+    count = chain_components(chain)
+    row = None if count is None else _rotor_chain(chain, count)
+    if row is None or row.turns is None:
+        return None
+    rule = (f"gated chain, the gate rotor a crank of the gate four-bar (its rocker's places "
+            f"apart): {row.components} chain components ({row.rule}) x 2 places of the rocker x "
+            "2 of the slider")
+    if not row.components:
+        return DerivedRow(0, rule, {}, None, row.gated_reason, True)
+    turns = dict(row.turns)
+    turns.update({linkage.bar_ids[k]: 0 for k in rotors(linkage)
+                  if linkage.bar_ids[k] not in turns})  # (the bar D: the slider never turns)
+    by_bar = _ordered(linkage, turns)
+    if by_bar is None or len(by_bar) != len(row.turns) + 1:
+        return None
+    return DerivedRow(4 * row.components, rule, by_bar, row.gated, row.gated_reason,
+                      row.no_critical)
+
+
 def _gated(linkage: Linkage, parts: GatedChain) -> DerivedRow | None:
     if not _closes(parts.sides):
         return _never_closes(parts.sides, "the gate four-bar (D, r, L2, L1)")
+    if parts.driver is None:
+        return _cranked_gate(linkage, parts)
     count = gated_chain_components(linkage, parts)
     if count is None:
         return None

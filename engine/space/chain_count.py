@@ -1,13 +1,10 @@
 """Exact number of components of a rotor chain, from its four-bar decomposition.
 
-A *rotor chain* (the Kane-Lubensky chain and its variants with unequal lengths) is a planar
-linkage of ``n >= 2`` rotors: tips ``T_k`` (free vertices) each joined to one pin ``P_k`` (a
-fully fixed vertex) by a bar of length ``r_k``, consecutive tips joined by couplers of length
-``l_k``, and nothing else (bars between two pins are inert). Its configuration space is the
-fibred product, over the rotor angles ``theta_k``, of the relations of the four-bars
-``P_k T_k T_{k+1} P_{k+1}`` (ground ``a_k = |P_k P_{k+1}|``).
-
-Two cases are counted, both without any tracing:
+A *rotor chain* (the Kane-Lubensky chain, any lengths) is a planar linkage of ``n >= 2``
+rotors: tips ``T_k`` each joined to a pin ``P_k`` by a bar ``r_k``, consecutive tips by
+couplers ``l_k``, nothing else (bars between pins are inert). Its configuration space is the
+fibred product, over the rotor angles ``theta_k``, of the four-bars ``P_k T_k T_{k+1}
+P_{k+1}`` (ground ``a_k = |P_k P_{k+1}|``). Three cases are counted, none by tracing:
 
 * ``n = 2``, one four-bar with generic lengths (no configuration with all four joints on a
   line, i.e. no signed sum ``+-a +-r_0 +-l +-r_1`` vanishes): 2 components when it satisfies
@@ -30,13 +27,12 @@ Two cases are counted, both without any tracing:
   collinear; outwards of four-bar ``k`` the drive conditions exclude it, tip by tip inwards,
   and four-bar ``k`` alone is never flat: no critical point.)
 
-Any other linkage (not a pure chain, sliders, 3D, non-generic or other length regimes) gets
-None: the count is then not known in closed form and the explorer's answer stands alone.
+Any other linkage (not a pure chain, 3D, non-generic, other regimes) gets None: the count is
+then not known in closed form and the explorer's answer stands alone.
 
-Both rules also prove that the configuration space has **no critical point**: a self-stress
-would have to vanish on the two bars at an end tip unless they are collinear (which the strict
-conditions exclude), and so on inwards tip by tip to the driver, whose rotor alone is left; a
-generic four-bar is never flat. The tests check this against the explorer too.
+The rules also prove that the configuration space has **no critical point**: a self-stress
+vanishes on the two bars at an end tip unless they are collinear (the strict conditions exclude
+it), and so tip by tip inwards to the driver; a generic four-bar is never flat.
 """
 
 from __future__ import annotations
@@ -46,7 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.model.linkage import Linkage
-from engine.space.gate_transfer import GateTransfer, gate_transfer, transfer_decision
+from engine.space.gate_transfer import (
+    GateTransfer,
+    cranked_decision,
+    gate_cranks,
+    gate_transfer,
+    transfer_decision,
+)
 
 #: Relative margin below which a length condition counts as an equality (non-generic lengths:
 #: a configuration space with a singular point, whose components are not counted here).
@@ -60,13 +62,15 @@ class ChainCount:
     ``rotors`` are the rotor bar ids from one end of the chain to the other; ``driver`` the
     index (in that order) of the rotor whose angle parametrises every component, or None for
     the four-bar rules; ``cell`` the index of the driving four-bar (rotors ``cell`` and
-    ``cell + 1``) where a four-bar drives the chain (None: a rotor drives it, or ``n = 2``)."""
+    ``cell + 1``) where a four-bar drives the chain (None: a rotor drives it, or ``n = 2``);
+    ``four_bar`` that four-bar's sides (ground, rotor, coupler, rotor) under the four-bar rules."""
 
     components: int
     rotors: tuple[str, ...]
     driver: int | None
     rule: str
     cell: int | None = None
+    four_bar: tuple[float, float, float, float] | None = None
 
 
 def _chain_order(linkage: Linkage) -> tuple[list[int], list[int], list[int]] | None:
@@ -156,20 +160,22 @@ def chain_components(linkage: Linkage) -> ChainCount | None:
             return ChainCount(2 ** (n - 1), ids, m, "driver rotor: two assembly modes per "
                               "four-bar, each a graph outward from the driver")
     if n == 2:
-        cell = _four_bar_circuits(np.array([a[0], r[0], lc[0], r[1]]), scale)
+        sides = (float(a[0]), float(r[0]), float(lc[0]), float(r[1]))
+        cell = _four_bar_circuits(np.array(sides), scale)
         if cell is None:
             return None  # a flat configuration exists: not generic
-        return ChainCount(cell[0], ids, None, cell[1])
+        return ChainCount(cell[0], ids, None, cell[1], four_bar=sides)
     for k in range(n - 1):  # a four-bar driving the chain (rotor drivers are tried above)
         if all(backward[:k]) and all(forward[k + 1:]):
-            cell = _four_bar_circuits(np.array([a[k], r[k], lc[k], r[k + 1]]), scale)
+            sides = (float(a[k]), float(r[k]), float(lc[k]), float(r[k + 1]))
+            cell = _four_bar_circuits(np.array(sides), scale)
             if cell is not None:
                 kind = {0: "it does not close", 1: "not Grashof: 1 circuit",
                         2: "Grashof: 2 circuits"}[cell[0]]
                 return ChainCount(cell[0] * 2 ** (n - 2), ids, None,
                                   f"driving four-bar {ids[k]}-{ids[k + 1]} ({kind}), two "
                                   "assembly modes per other four-bar, each a graph outward "
-                                  "from it", cell=k)
+                                  "from it", cell=k, four_bar=sides)
     return None
 
 
@@ -391,8 +397,9 @@ def gated_chain_components(linkage: Linkage, parts: GatedChain | None = None
                            ) -> ChainCount | None:
     """The exact number of components of a gated rotor chain, or None where the rule does not
     apply (not a gated chain, the chain driven from no rotor, critical lengths). Driven from
-    another rotor than the gate's, the count is :mod:`engine.space.gate_transfer`'s.
-    ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it already.
+    another rotor than the gate's, the count is :mod:`engine.space.gate_transfer`'s; driven
+    from none, :func:`engine.design.sweep_rules.derive` counts it where the gate rotor cranks
+    the gate four-bar. ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it.
 
     With the chain driven from the gate rotor (every cell's rotor turns fully outwards from it,
     its two assembly modes apart), each of the chain's ``2^(n-1)`` components is a graph over
@@ -446,13 +453,12 @@ def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDeci
     """Whether the gate stops every rotor from completing a full turn on every component.
 
     Decided from the gate four-bar's Grashof type and the chain's cells, not from a trace: with
-    the chain driven from the gate rotor, every rotor angle is a function of ``theta_g`` on each
-    component (a map of the circle), so no rotor completes a turn where the gate rotor does not
-    (its winding is that map's degree times 0), and the gate rotor itself turns iff it is a
-    crank of the gate four-bar (Grashof, with ``r_g`` or ``D`` the shortest side).
-    Otherwise ``gated`` is None with the reason (a neighbour cell could then turn fully while
-    the gate rotor rocks). ``parts``: :func:`gated_chain` of ``linkage`` where the caller has
-    it already.
+    the chain driven from the gate rotor every rotor angle is a function of ``theta_g`` on each
+    component, so none turns where the gate rotor does not, which turns iff it is a crank of
+    the gate four-bar; from another rotor, :mod:`.gate_transfer` decides; from none, where the
+    gate rotor cranks the gate four-bar (restricting nothing) and a four-bar drives the chain
+    (:func:`~engine.space.gate_transfer.cranked_decision`). Otherwise ``gated`` is None with
+    the reason. ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it already.
 
     Examples
     --------
@@ -472,15 +478,19 @@ def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDeci
                             "exceeds the sum of the other three: it does not assemble")
     if turns is None:
         return GateDecision(None, kind, "the gate four-bar has critical lengths (a flat "
-                            "configuration): its branch point joins the turning and rocking "
-                            "motions")
+                            "configuration): its branch point joins turning and rocking")
     if parts.driver is None:
-        return GateDecision(None, kind, "the chain is driven from no rotor (in every choice of "
-                            "driver some cell outwards from it has a rotor that does not turn "
-                            "fully, or assembly modes that meet): which rotors turn is not "
-                            "decided by the cells' closed form")
+        count = chain_components(_without_gate(linkage)) if parts.slider_positions == 2 and \
+            gate_cranks(parts.sides, GENERIC_RTOL) else None
+        if count is None or count.four_bar is None:
+            return GateDecision(None, kind, "the chain is driven from no rotor (in every choice "
+                                "of driver some cell outwards turns no rotor fully, or its modes "
+                                "meet) and its gate restricts it: not decided here")
+        rocks, why = cranked_decision(count.four_bar)
+        return GateDecision(rocks, kind, why)
     if not parts.chain_driven:
-        return _decided_by_transfer(parts, kind)
+        gated, why = transfer_decision(parts.transfer, str(parts.rotors[parts.driver]))
+        return GateDecision(gated, kind, why)
     if turns:
         return GateDecision(False, kind, "ungated: the gate rotor is a crank of the gate "
                             "four-bar: it completes a turn")
@@ -488,10 +498,3 @@ def gate_decision(linkage: Linkage, parts: GatedChain | None = None) -> GateDeci
                         "every rotor angle is a function of it on each component, so none "
                         "completes a turn")
 
-
-def _decided_by_transfer(parts: GatedChain, kind: str) -> GateDecision:
-    """:func:`gate_decision` for a chain driven from another rotor than the gate's
-    (:func:`engine.space.gate_transfer.transfer_decision`)."""
-    assert parts.driver is not None
-    gated, reason = transfer_decision(parts.transfer, str(parts.rotors[parts.driver]))
-    return GateDecision(gated, kind, reason)

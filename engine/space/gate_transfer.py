@@ -173,3 +173,44 @@ def transfer_decision(t: GateTransfer | None, driver: str) -> tuple[bool | None,
     return True, (f"gated: the chain is driven from rotor {driver}, and the gate closes on "
                   "arcs of its angle only: on each component every rotor goes forth and back, "
                   "none completes a turn")
+
+
+def gate_cranks(sides: tuple[float, float, float, float], rtol: float) -> bool:
+    """The gate rotor turns fully in the gate four-bar ``sides = (D, r_g, L2, L1)`` with the
+    rocker's two places ``R`` apart: ``|T_g - G|`` runs over ``[|r_g - D|, r_g + D]``, strictly
+    inside ``(|L2 - L1|, L2 + L1)`` (by ``rtol`` of the longest side). The gate then closes at
+    every angle of the gate rotor, twice, and ``L1``, ``L2`` are never on one line: it neither
+    restricts the chain nor carries a self-stress.
+
+    Examples
+    --------
+    >>> gate_cranks((2.0, 1.5, 2.0, 2.0), 1e-9), gate_cranks((3.0, 1.5, 2.0, 2.0), 1e-9)
+    (True, False)
+    """
+    d, r, l2, l1 = sides
+    margin = rtol * max(sides)
+    return abs(l2 - l1) < abs(r - d) - margin and r + d < l2 + l1 - margin
+
+
+def cranked_decision(four_bar: tuple[float, float, float, float]) -> tuple[bool, str]:
+    """Whether a gated chain whose gate rotor cranks the gate four-bar (:func:`gate_cranks`:
+    the gate restricts nothing) and which is driven from its four-bar with ``four_bar`` =
+    (ground, rotor, coupler, rotor) is gated, and why. Outwards from that four-bar each rotor
+    turns only where its inner neighbour does, so some rotor turns iff one of the four-bar's
+    own does: in a Grashof four-bar a rotor turns iff it or the ground is the shortest side;
+    in a non-Grashof one no rotor turns.
+
+    Examples
+    --------
+    >>> cranked_decision((1.0, 1.2, 1.5, 1.2))[0], cranked_decision((1.0, 1.5, 1.2, 1.6))[0]
+    (True, False)
+    """
+    srt = sorted(four_bar)
+    shortest = int(np.argmin(np.array(four_bar)))
+    if srt[0] + srt[3] < srt[1] + srt[2] and shortest != 2:
+        return False, ("ungated: the gate rotor cranks the gate four-bar (which restricts "
+                       "nothing) and the chain's driving four-bar is Grashof with a rotor or its "
+                       "ground shortest: a rotor completes a turn")
+    return True, ("gated: the gate rotor cranks the gate four-bar (which restricts nothing), and "
+                  "in the chain's driving four-bar no rotor turns (non-Grashof, or its coupler "
+                  "shortest), so none outwards from it does either")

@@ -8,6 +8,7 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from typing import Any
 
+import numpy as np
 import pytest
 
 SVG_NS = "{http://www.w3.org/2000/svg}"
@@ -79,6 +80,37 @@ def test_linkage_figure_draws_a_slider_with_its_axis(client: Any) -> None:
     assert len(with_prefix(ids, "bar-")) == len(linkage["bars"])
 
 
+def test_a_100_rotor_linkage_is_one_collection_of_bars(client: Any) -> None:
+    """199 bars and 200 joints: the bars one LineCollection (its segments the bars' ends as
+    the answer places them), the joints one marker artist per kind, no text per element (the
+    figure says so): a handful of artists, not 400 (counted on the drawn Figure); the SVG has
+    the collection's id and no per-bar ids."""
+    from matplotlib.collections import LineCollection
+
+    from service.config import Settings
+    from service.figure_drawing import _draw_linkage
+    from service.jobs import rigidity
+    from service.schemas.common import AnalysisRequest, Linkage
+
+    linkage = preset(client, "kl-chain", n=100)
+    assert len(linkage["bars"]) == 199 and len(linkage["vertices"]) == 200
+    model = Linkage.model_validate(linkage)
+    ans = rigidity(AnalysisRequest(linkage=model), Settings.from_env())
+    fig = _draw_linkage(model, ans, [])
+    ax = fig.axes[0]
+    assert len(ax.collections) == 1 and isinstance(ax.collections[0], LineCollection)
+    segments = ax.collections[0].get_segments()
+    assert len(segments) == 199
+    at = {v: ans.configuration[v][:2] for v in ans.configuration}
+    for bar, seg in zip(linkage["bars"], segments, strict=True):
+        assert np.allclose(seg, [at[bar["ends"][0]], at[bar["ends"][1]]])
+    assert len(ax.lines) == 2  # pins, joints
+    assert len(ax.texts) == 0 and "drawn without their names" in ax.get_title()
+    ids = svg_ids(client.post("/v1/figures/linkage", json={"linkage": linkage}))
+    assert {"bars", "pins", "vertices"} <= set(ids)
+    assert with_prefix(ids, "bar-") == [] and with_prefix(ids, "pin-") == []
+
+
 # -- configuration space ---------------------------------------------------------------------
 
 
@@ -135,6 +167,29 @@ def test_configuration_space_figure_of_a_3d_linkage_is_a_422_not_a_500(client: A
 
 
 # -- critical values and splitting ---------------------------------------------------------
+
+
+def svg_text(response: Any) -> str:
+    root = ET.fromstring(response.content)
+    return " ".join("".join(el.itertext()) for el in root.iter(f"{SVG_NS}text"))
+
+
+def test_a_map_of_an_incomplete_analysis_says_so(client: Any) -> None:
+    """The three-rotor's map traced with a tenth of a second: the JSON answer is incomplete
+    (time), and the figure of the same body says so in its title; a complete map does not."""
+    linkage = preset(client, "three-rotor")
+    body = {"linkage": linkage, "options": {"time_budget_s": 0.1},
+            "axes": [{"bar": "r1", "min": 0.8, "max": 1.2}, {"bar": "r2", "min": 0.8, "max": 1.2}]}
+    answer = client.post("/v1/analysis/critical-values", json=body).json()
+    assert answer["search"]["complete"] is False and answer["search"]["reason"] == "time"
+    r = client.post("/v1/figures/critical-values", json=body)
+    assert r.status_code == 200
+    assert "incomplete (time)" in svg_text(r)
+    four_bar = {"linkage": preset(client, "four-bar"),
+                "axes": [{"bar": "L2", "min": 0.8, "max": 1.2},
+                         {"bar": "L3", "min": 0.8, "max": 1.2}]}
+    assert "incomplete" not in svg_text(client.post("/v1/figures/critical-values",
+                                                    json=four_bar))
 
 
 @pytest.mark.slow

@@ -36,8 +36,8 @@ REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 #: Cells complete by an argument that takes no search time (closed forms of the one- and
 #: two-dyad chains; the chain rules of engine/space/chain_count.py, which prove that a spinner
 #: chain has no critical point; the maps of rotor chains and the gate slice, whose curves are
-#: flat four-bar planes and whose regions the chain rules count): complete on any machine,
-#: however loaded.
+#: flat four-bar planes and whose regions the chain rules count, gated chains' too): complete on
+#: any machine, however loaded.
 MUST_COMPLETE = {
     ("four-bar", path) for path in (
         "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
@@ -50,7 +50,12 @@ MUST_COMPLETE = {
     (chain, path) for chain in ("kl-chain", "kl-chain?n=100")
     for path in ("/v1/analysis/critical-points", "/v1/analysis/splitting",
                  "/v1/analysis/critical-values")
-} | {("gated-kl-chain?n=4&gate=2", "gate slice")}
+} | {("gated-kl-chain?n=4&gate=2", "gate slice")} | {
+    # gated chains in r0 x r1: the chain's flat planes (the gate rotor cranks the gate
+    # four-bar), regions counted by the chain rules (tests/service/test_gated_maps.py)
+    (chain, "/v1/analysis/critical-values")
+    for chain in ("gated-kl-chain", "gated-kl-chain?n=4&gate=2")
+}
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
+from engine.catalogue.presets import build_preset
 from engine.design.sweep_rules import derive
 from engine.model.linkage import BarSpec, VertexSpec, build_linkage
 from engine.space.chain_count import gate_decision, gated_chain, gated_chain_components
@@ -230,3 +231,50 @@ def test_count_and_gated_do_not_depend_on_the_order_of_the_lists(l1: float):
         assert again is not None and again.components == count.components
         assert again.rotors[again.driver] == count.rotors[count.driver] == "r0"
         assert gate_decision(other).gated is decision.gated
+
+
+# -- gated chains driven from no rotor, the gate rotor a crank of the gate four-bar ------------
+
+#: (r0, r1) in the corners of the matrix's map r0 x r1 in [1.2, 1.8]^2 of the spinner chain
+#: (a = 1, r = l = 1.5) beyond the first cell's Grashof lines s + l = p + q: there no rotor
+#: drives the chain (the first four-bar, non-Grashof, does); and one inside (a rotor drives).
+CORNERS = [(1.2, 1.2), (1.8, 1.2), (1.2, 1.8), (1.25, 1.7)]
+
+
+def written_grashof_turns(a: float, r0: float, coupler: float, r1: float) -> bool:
+    """Some rotor of the first four-bar (ground a) turns: Grashof (s + l < p + q) with a rotor
+    or the ground the shortest side, written out."""
+    sides = [a, r0, coupler, r1]
+    srt = sorted(sides)
+    return srt[0] + srt[3] < srt[1] + srt[2] and int(np.argmin(sides)) != 2
+
+
+@pytest.mark.parametrize(("n", "gate"), [(4, 2), (3, 1)])
+@pytest.mark.parametrize(("r0", "r1"), CORNERS)
+def test_a_cranking_gate_restricts_nothing(n: int, gate: int, r0: float, r1: float) -> None:
+    """Count and ``gated`` of gated chains whose gate rotor cranks the gate four-bar (D = 2,
+    r_g = 1.5 or r1, L1 = L2 = 2), driven from their first four-bar or a rotor, against dense
+    sampling of rotor 0's angle (its tip sampled round its circle, every other vertex by circle
+    intersections, folds joined): the chain's count (Grashof 2 circuits or not 1, times 2 per
+    other cell) times 2 places of the rocker times 2 of the slider."""
+    lk = build_preset("gated-kl-chain", {"n": n, "gate": gate})
+    lengths = lk.lengths.copy()
+    lengths[[lk.bar_ids.index("r0"), lk.bar_ids.index("r1")]] = r0, r1
+    lk = lk.with_lengths(lengths)
+    pins = np.column_stack([np.arange(n, dtype=float), np.zeros(n)])
+    r = np.array([r0, r1] + [1.5] * (n - 2))
+    sliders = np.array([pins[gate] + [0.0, -2.0], pins[gate] + [0.0, 2.0]])
+    count, turns = sampled_general_chain(pins, r, np.full(n - 1, 1.5), gate, sliders, 2.0, 2.0,
+                                         sampled=0, samples=3000)
+    sides = [1.0, r0, 1.5, r1]
+    srt = sorted(sides)
+    assert count == (2 if srt[0] + srt[3] < srt[1] + srt[2] else 1) * 2 ** (n - 2) * 4
+    row = derive(lk)
+    assert row is not None and row.components == count
+    decision = gate_decision(lk)
+    assert decision.gated is (not turns) is row.gated, decision
+    parts = gated_chain(lk)
+    assert parts is not None
+    if (r0, r1) != CORNERS[-1]:  # the corners: no rotor drives, the first four-bar does
+        assert parts.driver is None
+        assert turns == written_grashof_turns(1.0, r0, 1.5, r1)
