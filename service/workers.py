@@ -6,8 +6,8 @@ worker that died as ``ProcessExpired``; both are things ``concurrent.futures`` c
 Workers come from a ``forkserver`` that has imported the engine once, so a replacement is
 ready in well under a second, and each worker's BLAS runs on one thread (one worker per core).
 
-Small first- and second-order requests are bounded by their size (dense SVD of at most
-``LIGHT_MAX_VERTICES`` vertices and ``LIGHT_MAX_BARS`` bars, some milliseconds) and run in the
+Small first- and second-order requests, whose worst cost estimated from their sizes before any
+work is some milliseconds (``LIGHT_MAX_NUMBERS``, ``LIGHT_SECOND_ORDER_MAX_PRODUCT``), run in the
 service's thread pool instead, so they stay fast while every worker is busy; they are admitted
 under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it). The first
 order of a tiny linkage (``INLINE_MAX_VERTICES``, about a millisecond) is answered in the same
@@ -69,10 +69,20 @@ T = TypeVar("T")
 B = TypeVar("B")
 log = logging.getLogger("service.workers")
 
-#: Linkages up to this many vertices and bars are analysed to first and second order
-#: in-process.
-LIGHT_MAX_VERTICES = 64
-LIGHT_MAX_BARS = 512
+#: The small requests' lane takes a first- or second-order request by its worst cost, estimated
+#: from its sizes before any work (``M`` free coordinates, ``E`` bars: service.jobs.is_light).
+#: The first order's zero modes and self-stresses hold at most ``M^2 + E^2`` numbers (``k <= M``
+#: modes of ``M`` numbers, ``s <= E`` stresses of ``E``), whose mapping and JSON cost more than
+#: the SVD; degenerate linkages (collinear in 2D, flat in 3D) reach it. Measured in-process
+#: (load 2-6, bench/bench_lanes.py's notes in docs/benchmarks.md): at most 3 ms up to 4,096,
+#: 18 ms at 4,608, 64-191 ms from 5,760 (0.5-1.6 s for 3D flat linkages of 32-64 vertices and
+#: 512 bars, which a rule by vertex and bar counts alone let in).
+LIGHT_MAX_NUMBERS = 4608
+#: Second order adds the prestress SDP where there are two flexes and two self-stresses or more,
+#: of a size bounded by ``k <= M`` and ``s <= E``: at most 3.4 ms measured while ``M E <= 160``
+#: but 59 ms at 144 and 24-800 ms above (collinear linkages of 8-32 vertices), so the lane takes
+#: second order up to ``M E`` = 128.
+LIGHT_SECOND_ORDER_MAX_PRODUCT = 128
 #: First-order requests up to this many vertices and bars are answered on the event loop
 #: itself: about 1 ms (0.6-1.0 ms measured for 4-16 vertices and up to 40 bars, 2D and 3D), less
 #: than the two thread hand-offs of the thread pool cost on a loaded machine (each waits for the
