@@ -56,6 +56,9 @@ if TYPE_CHECKING:  # Dask is imported with the first job (JobManager.connection)
     from service.cluster import Connection
 
 log = logging.getLogger("service.tasks")
+#: uvicorn's own logger (at INFO under uvicorn): the first job's loading of Dask is a start-up
+#: step of its own, said beside the service's other start-up lines (service.main).
+startup_log = logging.getLogger("uvicorn.error")
 
 #: A job still running this long after its time limit is failed and its tasks cancelled.
 GRACE_S = 10.0
@@ -147,6 +150,9 @@ class JobManager:
         and a service that runs no job never loads."""
         with self._lock:
             if self._connection is None:
+                where = self.settings.dask_scheduler or (
+                    f"an embedded cluster of {self.settings.dask_workers} workers")
+                startup_log.info("jobs: the first job loads Dask and connects to %s", where)
                 from service.cluster import Connection  # on first use: see the docstring
 
                 # a task whose worker dies is run again once on another worker (embedded
