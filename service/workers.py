@@ -47,6 +47,7 @@ import logging
 import os
 import resource
 import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
@@ -59,6 +60,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import Response
 
+from engine.model.budget import OutOfTime
 from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
 from service import forkserver, serialise
@@ -74,14 +76,13 @@ log = logging.getLogger("service.workers")
 #: The first order's zero modes and self-stresses hold at most ``M^2 + E^2`` numbers (``k <= M``
 #: modes of ``M`` numbers, ``s <= E`` stresses of ``E``), whose mapping and JSON cost more than
 #: the SVD; degenerate linkages (collinear in 2D, flat in 3D) reach it. Measured in-process
-#: (load 2-6, bench/bench_lanes.py's notes in docs/benchmarks.md): at most 3 ms up to 4,096,
-#: 18 ms at 4,608, 64-191 ms from 5,760 (0.5-1.6 s for 3D flat linkages of 32-64 vertices and
-#: 512 bars, which a rule by vertex and bar counts alone let in).
+#: (load 2-6, docs/benchmarks.md): at most 3 ms up to 4,096, 18 ms at 4,608, 64-191 ms from
+#: 5,760 (0.5-1.6 s for flat 3D linkages of 32-64 vertices and 512 bars, which the former rule
+#: by counts, 64 vertices and 512 bars, let in).
 LIGHT_MAX_NUMBERS = 4608
 #: Second order adds the prestress SDP where there are two flexes and two self-stresses or more,
-#: of a size bounded by ``k <= M`` and ``s <= E``: at most 3.4 ms measured while ``M E <= 160``
-#: but 59 ms at 144 and 24-800 ms above (collinear linkages of 8-32 vertices), so the lane takes
-#: second order up to ``M E`` = 128.
+#: of a size bounded by ``k <= M`` and ``s <= E``: 3.4 ms at most up to ``M E`` = 128, 59 ms at
+#: 144 and up to 800 ms above (collinear linkages of 8-32 vertices).
 LIGHT_SECOND_ORDER_MAX_PRODUCT = 128
 #: First-order requests up to this many vertices and bars are answered on the event loop
 #: itself: about 1 ms (0.6-1.0 ms measured for 4-16 vertices and up to 40 bars, 2D and 3D), less
@@ -111,6 +112,10 @@ class ServiceFault(Exception):
         super().__init__(detail)
         self.detail = detail
         self.retry_after = retry_after
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # raised in a worker and pickled back: ``retry_after`` too (Exception keeps its args)
+        return type(self), (self.detail, self.retry_after)
 
 
 class TimeLimitExceeded(ServiceFault):
@@ -426,12 +431,35 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     file is gone, the file system full) the bytes are returned as for a small answer."""
     if kernel:
         trace_kernel.prepare()
-    parts = serialise.dumps_parts(fn(body, settings))
+    began = time.monotonic()
+    try:
+        answer = fn(body, settings)
+    except OutOfTime as err:
+        raise _queued_too_long(err, settings, began) from None
+    parts = serialise.dumps_parts(answer)
     if spill is not None:
         size = sum(len(part) for part in parts)
         if size >= SPILL_MIN_BYTES and write_spill(spill, parts):
             return size
     return b"".join(parts)
+
+
+#: A request that waited for a worker over this share of its time limit, whose analysis then
+#: would not end in the time left (``OutOfTime``), is a 503 ``busy`` (not a 422 ``too-costly``):
+#: the time went to the queue, not to the input (bench/bench_lanes.py: 20 ms of work refused
+#: after 3 s behind configuration spaces that run to the limit).
+QUEUE_SHARE = 0.1
+
+
+def _queued_too_long(err: OutOfTime, settings: Settings, began: float) -> Exception:
+    """``err`` as the engine raised it, or :class:`Busy` where the request spent more than
+    :data:`QUEUE_SHARE` of its time limit waiting before its work ``began``."""
+    waited = 0.0 if settings.arrived_at is None else began - settings.arrived_at
+    if waited <= QUEUE_SHARE * settings.time_limit_s:
+        return err
+    return Busy(f"the request waited {waited:.1f} s for an engine worker, and its analysis "
+                f"would not finish in the time left ({err}); retry when the service is less "
+                "busy", retry_after=max(1, round(waited)))
 
 
 def _read_spill(path: str, size: int) -> bytes:

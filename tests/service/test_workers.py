@@ -569,3 +569,26 @@ def test_a_request_beyond_the_estimate_is_answered_by_a_worker(monkeypatch):
     # it, every vertical motion is a first-order flex, n - 2 of them beyond the trivial ones
     assert len(heavy.json()["zero_modes"]) == 25 - 2
     assert len(light.json()["zero_modes"]) == 24 - 2
+
+
+def test_time_lost_in_the_queue_is_a_503_not_a_too_costly_422():
+    """An analysis that would not end in the time left (the engine's OutOfTime) is the input's
+    fault (422) when it started at once, the queue's (503 busy, Retry-After) when it waited for
+    a worker more than QUEUE_SHARE of the time limit; the 503 crosses the process boundary with
+    its Retry-After (pickled as a worker's exception is)."""
+    import pickle
+
+    from engine.model.budget import OutOfTime
+    from service import workers
+
+    settings = Settings(time_limit_s=10.0)
+    err = OutOfTime("a dense SVD takes about 9 s, more than the 2.0 s left")
+    now = time.monotonic()
+    fresh = settings.replace(arrived_at=now - 0.5)  # waited 0.5 s < 0.1 * 10 s
+    assert workers._queued_too_long(err, fresh, now) is err
+    queued = settings.replace(arrived_at=now - 3.2)
+    busy = workers._queued_too_long(err, queued, now)
+    assert isinstance(busy, workers.Busy) and busy.status == 503
+    assert "waited 3.2 s" in busy.detail and busy.retry_after == 3
+    back = pickle.loads(pickle.dumps(busy))
+    assert (type(back), back.detail, back.retry_after) == (workers.Busy, busy.detail, 3)
