@@ -21,6 +21,10 @@ An external cluster is reached as ``LINKAGE_DASK_SCHEDULER`` says (``tls://`` wi
 certificates in Dask's own settings, ``DASK_DISTRIBUTED__COMM__TLS__*``; see the README). The
 client is dropped when its scheduler is lost and made anew on the next use, so a scheduler that
 comes back is used again; meanwhile jobs are refused with 503 ``cluster-unavailable``.
+
+This module is the only one that imports ``distributed``: the service imports it with its first
+job (:attr:`service.tasks.JobManager.connection`), and a task's deadline on a Dask worker
+(:func:`task_deadline`: the job's time limit, cancel flag and progress) is made here too.
 """
 
 from __future__ import annotations

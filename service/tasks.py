@@ -11,10 +11,10 @@ Progress and cancellation cross the process boundary with Dask's own primitives,
 
 * each task builds a :class:`~engine.model.budget.Deadline` whose ``progress`` sink publishes what
   the engine reports (points done, components traced, ...) with ``Worker.log_event`` on the
-  topic :data:`TOPIC`, which the service's client subscribes to;
+  topic :data:`service.cluster.TOPIC`, which the service's client subscribes to;
 * ``DELETE`` sets a ``distributed.Event`` per job that the deadline's ``stop`` flag reads
-  (at most every :data:`STOP_CHECK_S`), so running tasks end at their next check, and
-  cancels the tasks not yet started.
+  (at most every :data:`service.cluster.STOP_CHECK_S`), so running tasks end at their next
+  check, and cancels the tasks not yet started.
 
 A task whose worker dies runs again once on another worker (the embedded scheduler's
 ``allowed_failures``; an external scheduler retries as its
