@@ -76,13 +76,12 @@ log = logging.getLogger("service.workers")
 #: The first order's zero modes and self-stresses hold at most ``M^2 + E^2`` numbers (``k <= M``
 #: modes of ``M`` numbers, ``s <= E`` stresses of ``E``), whose mapping and JSON cost more than
 #: the SVD; degenerate linkages (collinear in 2D, flat in 3D) reach it. Measured in-process
-#: (load 2-6, docs/benchmarks.md): at most 3 ms up to 4,096, 18 ms at 4,608, 64-191 ms from
-#: 5,760 (0.5-1.6 s for flat 3D linkages of 32-64 vertices and 512 bars, which the former rule
-#: by counts, 64 vertices and 512 bars, let in).
-LIGHT_MAX_NUMBERS = 4608
+#: with the answer's JSON (bench/bench_light_cost.py, one BLAS thread as here, load 4.8): at
+#: most 3.4 ms up to 13,572, 8-16 ms from 17,680 to 28,260, 36 ms at 100,132.
+LIGHT_MAX_NUMBERS = 12_288
 #: Second order adds the prestress SDP where there are two flexes and two self-stresses or more,
-#: of a size bounded by ``k <= M`` and ``s <= E``: 3.4 ms at most up to ``M E`` = 128, 59 ms at
-#: 144 and up to 800 ms above (collinear linkages of 8-32 vertices).
+#: of a size bounded by ``k <= M`` and ``s <= E``: at most 3 ms up to ``M E`` = 128, 7 ms at
+#: 144, 0.2 s at 288 and 0.63 s at 7,680 (the same bench).
 LIGHT_SECOND_ORDER_MAX_PRODUCT = 128
 #: First-order requests up to this many vertices and bars are answered on the event loop
 #: itself: about 1 ms (0.6-1.0 ms measured for 4-16 vertices and up to 40 bars, 2D and 3D), less

@@ -522,8 +522,8 @@ def collinear(n: int, bars: int, pinned: int = 0) -> dict[str, Any]:
 @pytest.mark.parametrize(("n", "bars", "pinned", "fixed", "light", "light_second"), [
     # M = 2 (n - pinned) free coordinates counted by hand, E = bars
     (4, 3, 2, None, True, True),        # the four-bar's sizes: M 4, E 3, M E 12
-    (24, 48, 0, None, True, False),     # M 48, E 48: 4,608 numbers, the largest taken
-    (25, 48, 0, None, False, False),    # M 50, E 48: 4,804 numbers
+    (32, 88, 0, None, True, False),     # M 64, E 88: 11,840 numbers, below 12,288
+    (32, 96, 0, None, False, False),    # M 64, E 96: 13,312 numbers
     (8, 8, 0, None, True, True),        # M 16, E 8: M E = 128, the largest second order taken
     (8, 9, 0, None, True, False),       # M 16, E 9: M E = 144 (measured 59 ms)
     (8, 15, 0, [True, False], True, True),  # a slider per vertex: M 8, E 15, M E = 120
@@ -548,9 +548,8 @@ def test_the_light_lane_takes_a_request_by_its_estimated_worst_cost(
 
 
 def test_a_request_beyond_the_estimate_is_answered_by_a_worker(monkeypatch):
-    """A collinear linkage of 25 vertices and 48 bars (estimated 4,804 numbers: in-process it
-    may take 100 ms and more) is answered by an engine worker; one of 24 vertices (4,608) by
-    the service's own process."""
+    """A collinear linkage of 32 vertices and 96 bars (estimated 13,312 numbers) is answered by
+    an engine worker; one of 88 bars (11,840) by the service's own process."""
     scheduled: list[Any] = []
     original = EnginePool.run
 
@@ -560,15 +559,14 @@ def test_a_request_beyond_the_estimate_is_answered_by_a_worker(monkeypatch):
 
     monkeypatch.setattr(EnginePool, "run", counted)
     app = create_app(Settings(workers=1))
-    heavy, light = run(app, [("/v1/analysis/rigidity", {"linkage": collinear(25, 48)}),
-                             ("/v1/analysis/rigidity", {"linkage": collinear(24, 48)})])
+    heavy, light = run(app, [("/v1/analysis/rigidity", {"linkage": collinear(32, 96)}),
+                             ("/v1/analysis/rigidity", {"linkage": collinear(32, 88)})])
     assert heavy.status_code == 200, heavy.text
     assert light.status_code == 200, light.text
     assert [fn.__name__ for fn in scheduled] == ["rigidity"]  # the heavy one only
     # the same analysis wherever it ran: on a line of n free vertices whose path of bars spans
     # it, every vertical motion is a first-order flex, n - 2 of them beyond the trivial ones
-    assert len(heavy.json()["zero_modes"]) == 25 - 2
-    assert len(light.json()["zero_modes"]) == 24 - 2
+    assert len(heavy.json()["zero_modes"]) == len(light.json()["zero_modes"]) == 32 - 2
 
 
 def test_time_lost_in_the_queue_is_a_503_not_a_too_costly_422():
