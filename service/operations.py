@@ -67,7 +67,7 @@ def figure_bytes(text: str) -> tuple[bytes, str]:
     return base64.b64decode(data, validate=True), head[len(DATA_URL):].split(";")[0]
 
 
-#: The module that draws figures (matplotlib, ezdxf: 0.5-0.8 s of a core to import), named here
+#: The module that draws figures (matplotlib: 0.5-0.8 s of a core to import), named here
 #: and imported only where a figure is drawn: the engine workers (their forkserver has loaded it
 #: before forking them: ``service.forkserver.PRELOAD``), a Dask worker or the command line, never
 #: the service process, whose start-up it would lengthen.

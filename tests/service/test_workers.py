@@ -525,7 +525,7 @@ def collinear(n: int, bars: int, pinned: int = 0) -> dict[str, Any]:
     (32, 88, 0, None, True, False),     # M 64, E 88: 11,840 numbers, below 12,288
     (32, 96, 0, None, False, False),    # M 64, E 96: 13,312 numbers
     (8, 8, 0, None, True, True),        # M 16, E 8: M E = 128, the largest second order taken
-    (8, 9, 0, None, True, False),       # M 16, E 9: M E = 144 (measured 59 ms)
+    (8, 9, 0, None, True, False),       # M 16, E 9: M E = 144
     (8, 15, 0, [True, False], True, True),  # a slider per vertex: M 8, E 15, M E = 120
 ])
 def test_the_light_lane_takes_a_request_by_its_estimated_worst_cost(
