@@ -75,7 +75,7 @@ def is_inline(body: AnalysisRequest) -> bool:
     """First order of a tiny linkage (at most ``INLINE_MAX_VERTICES`` vertices and
     ``INLINE_MAX_BARS`` bars: about a millisecond), answered on the event loop itself."""
     return (len(body.linkage.vertices) <= INLINE_MAX_VERTICES
-            and len(body.linkage.bars) <= INLINE_MAX_BARS and is_light(body))
+            and len(body.linkage.bars) <= INLINE_MAX_BARS)
 
 
 def rigidity(body: AnalysisRequest, settings: Settings) -> RigidityResponse:
