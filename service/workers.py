@@ -414,7 +414,8 @@ def engine_pool(request: Request) -> EnginePool:
 
 
 def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings,
-             spill: str | None = None, kernel: bool = True) -> bytes | int:
+             spill: str | None = None, kernel: bool = True,
+             queued_at: float | None = None) -> bytes | int:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop). The tracer's compiled
@@ -427,14 +428,16 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
 
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
-    file is gone, the file system full) the bytes are returned as for a small answer."""
+    file is gone, the file system full) the bytes are returned as for a small answer.
+    ``queued_at``: when the pool was handed the request (``time.monotonic``, one clock for the
+    machine's processes), to tell the time lost waiting for a worker (_queued_too_long)."""
+    waited = 0.0 if queued_at is None else time.monotonic() - queued_at
     if kernel:
         trace_kernel.prepare()
-    began = time.monotonic()
     try:
         answer = fn(body, settings)
     except OutOfTime as err:
-        raise _queued_too_long(err, settings, began) from None
+        raise _queued_too_long(err, settings, waited) from None
     parts = serialise.dumps_parts(answer)
     if spill is not None:
         size = sum(len(part) for part in parts)
@@ -443,17 +446,15 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     return b"".join(parts)
 
 
-#: A request that waited for a worker over this share of its time limit, whose analysis then
-#: would not end in the time left (``OutOfTime``), is a 503 ``busy`` (not a 422 ``too-costly``):
-#: the time went to the queue, not to the input (bench/bench_lanes.py: 20 ms of work refused
-#: after 3 s behind configuration spaces that run to the limit).
+#: A request that waited for a worker over this share of its time limit and then would not end
+#: in the time left (``OutOfTime``) is a 503 ``busy``, not a 422 ``too-costly``: the queue's
+#: fault (bench/bench_lanes.py: 20 ms of work refused after 3 s behind heavy requests).
 QUEUE_SHARE = 0.1
 
 
-def _queued_too_long(err: OutOfTime, settings: Settings, began: float) -> Exception:
-    """``err`` as the engine raised it, or :class:`Busy` where the request spent more than
-    :data:`QUEUE_SHARE` of its time limit waiting before its work ``began``."""
-    waited = 0.0 if settings.arrived_at is None else began - settings.arrived_at
+def _queued_too_long(err: OutOfTime, settings: Settings, waited: float) -> Exception:
+    """``err``, or :class:`Busy` where the request ``waited`` for a worker more than
+    :data:`QUEUE_SHARE` of its time limit (reading and parsing its body is its own time)."""
     if waited <= QUEUE_SHARE * settings.time_limit_s:
         return err
     return Busy(f"the request waited {waited:.1f} s for an engine worker, and its analysis "
@@ -489,7 +490,8 @@ async def engine_call(request: Request, settings: Settings,
         pool = engine_pool(request)
         spill, answered = pool.spill_files.take(), False
         try:
-            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill)
+            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill,
+                                    True, time.monotonic())
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
             answered = True
