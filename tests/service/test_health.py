@@ -125,12 +125,19 @@ def test_the_service_process_starts_without_the_figures_and_dask():
 def test_a_figure_and_a_job_load_what_they_need_on_first_use():
     """The figure route hands the worker a reference by name (service.operations.draw), which
     the worker resolves to service.figures; a job manager imports Dask with its first job."""
+    import inspect
     import pickle
     from functools import partial
 
-    from service import operations
+    from service import figures, operations
+    from service.routers import figures as figure_routes
     from service.tasks import JobManager
 
+    source = inspect.getsource(figure_routes)
+    names = ("linkage_figure", "configuration_space_figure", "critical_values_figure",
+             "splitting_figure")
+    for name in names:  # each route's name is a figure of service.figures
+        assert f'"{name}"' in source and callable(getattr(figures, name))
     fn = pickle.loads(pickle.dumps(partial(operations.draw, "linkage_figure")))
     assert fn.func is operations.draw and fn.args == ("linkage_figure",)
     manager = JobManager(Settings(dask_workers=1))
