@@ -3,14 +3,17 @@
 every worker busy with configuration spaces that run to the time limit (run on demand,
 bounded in time and requests, loopback only).
 
-    .venv/bin/python bench/bench_lanes.py [--seconds 20] [--heavy 4] [--cheap 8]
+    .venv/bin/python bench/bench_lanes.py [--seconds 20] [--heavy 4] [--cheap 8] [--medium 2]
                                           [--json bench/results/lanes.json] [--max-p99-ms 100]
                                           [--repo ../other-checkout]
 
 A real ``uvicorn service.main:app`` process (``LINKAGE_WORKERS`` 2, ``LINKAGE_TIME_LIMIT_S``
 5) on a free loopback port, asked once ``/health/ready`` answers. ``--heavy`` clients post a
 300-rotor chain's configuration space (it always meets the time limit: 504) in a loop,
-``--cheap`` clients alternate ``/health`` and the four-bar's rigidity; every request must get
+``--cheap`` clients alternate ``/health`` and the four-bar's rigidity, ``--medium`` clients post
+the rigidity of a flat 3D linkage (48 vertices, 144 bars: small by its counts, but its zero
+modes and self-stresses make it 0.1-0.7 s of work, which the light lane must leave to the
+workers: ``service.jobs.is_light``); every request must get
 an HTTP answer (a transport error is a lost request and fails the run); with ``--max-p99-ms``
 the cheap requests' p99 must be under it too. The engine workers run at a lower priority
 (``service.workers.WORKER_NICE``) than the service process, whose event loop and small
@@ -31,7 +34,24 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 from harness import Table, served_process  # bench/ is on sys.path when run as a script
+
+
+def flat_linkage(vertices: int = 48, bars: int = 144, seed: int = 0) -> dict[str, Any]:
+    """A 3D linkage with every vertex in the plane z = 0 (seeded): each vertex's motion out of
+    the plane is a first-order flex, so its answer holds some 10^4-10^5 numbers."""
+    rng = np.random.default_rng(seed)
+    pos = np.column_stack([rng.normal(size=(vertices, 2)), np.zeros(vertices)])
+    pairs = {(i, i + 1) for i in range(vertices - 1)}
+    while len(pairs) < bars:
+        i, j = sorted(int(x) for x in rng.choice(vertices, 2, replace=False))
+        pairs.add((i, j))
+    return {"dimension": 3,
+            "vertices": [{"id": f"v{i}", "position": p.tolist(), "fixed": i < 3}
+                         for i, p in enumerate(pos)],
+            "bars": [{"id": f"b{k}", "ends": [f"v{i}", f"v{j}"]}
+                     for k, (i, j) in enumerate(sorted(pairs))]}
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -39,8 +59,10 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-async def run(url: str, seconds: float, heavy: int, cheap: int) -> dict[str, Any]:
-    latencies: dict[str, list[float]] = {"health": [], "rigidity": [], "heavy": []}
+async def run(url: str, seconds: float, heavy: int, cheap: int,
+              medium: int = 0) -> dict[str, Any]:
+    latencies: dict[str, list[float]] = {"health": [], "rigidity": [], "medium": [],
+                                         "heavy": []}
     statuses: Counter[tuple[str, int]] = Counter()
     lost: list[str] = []
     async with httpx.AsyncClient(base_url=url, timeout=120, trust_env=False) as c:
@@ -51,6 +73,7 @@ async def run(url: str, seconds: float, heavy: int, cheap: int) -> dict[str, Any
         chain = (await c.get("/v1/presets/kl-chain?n=300")).json()
         four_bar = (await c.get("/v1/presets/four-bar")).json()
         heavy_body = {"linkage": chain, "options": {"max_components": 1000}}
+        medium_body = {"linkage": flat_linkage()}
         stop = time.monotonic() + seconds
 
         async def client(kind: str, k: int) -> None:
@@ -59,6 +82,8 @@ async def run(url: str, seconds: float, heavy: int, cheap: int) -> dict[str, Any
                 if kind == "heavy":
                     name, call = "heavy", c.post("/v1/analysis/configuration-space",
                                                  json=heavy_body)
+                elif kind == "medium":
+                    name, call = "medium", c.post("/v1/analysis/rigidity", json=medium_body)
                 elif (n + k) % 2:
                     name, call = "health", c.get("/health")
                 else:
@@ -73,11 +98,12 @@ async def run(url: str, seconds: float, heavy: int, cheap: int) -> dict[str, Any
                     continue
                 latencies[name].append(time.perf_counter() - t0)
                 statuses[(name, r.status_code)] += 1
-                if kind == "cheap":
+                if kind != "heavy":
                     await asyncio.sleep(0.02)
 
         await asyncio.gather(*[client("heavy", k) for k in range(heavy)],
-                             *[client("cheap", k) for k in range(cheap)])
+                             *[client("cheap", k) for k in range(cheap)],
+                             *[client("medium", k) for k in range(medium)])
         exposition = (await c.get("/metrics")).text
     return {"latencies": latencies, "statuses": statuses, "lost": lost,
             "server": server_side(exposition)}
@@ -111,6 +137,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--heavy", type=int, default=4)
     parser.add_argument("--cheap", type=int, default=8)
+    parser.add_argument("--medium", type=int, default=2)
     parser.add_argument("--json", type=Path)
     parser.add_argument("--repo", type=Path, default=None,
                         help="serve this checkout instead (another version, for alternated runs)")
@@ -119,8 +146,9 @@ def main() -> None:
     args = parser.parse_args()
     env = {"LINKAGE_WORKERS": "2", "LINKAGE_TIME_LIMIT_S": "5"}
     with served_process(env=env, timeout=120, repo=args.repo) as url:
-        out = asyncio.run(run(url, args.seconds, args.heavy, args.cheap))
-    table = Table(f"cheap requests beside {args.heavy} heavy clients on 2 engine workers, "
+        out = asyncio.run(run(url, args.seconds, args.heavy, args.cheap, args.medium))
+    table = Table(f"cheap requests beside {args.heavy} heavy and {args.medium} medium clients "
+                  "on 2 engine workers, "
                   f"{args.seconds:g} s, load average {os.getloadavg()[0]:.1f}")
     for name, values in out["latencies"].items():
         if not values:

@@ -21,6 +21,10 @@ An external cluster is reached as ``LINKAGE_DASK_SCHEDULER`` says (``tls://`` wi
 certificates in Dask's own settings, ``DASK_DISTRIBUTED__COMM__TLS__*``; see the README). The
 client is dropped when its scheduler is lost and made anew on the next use, so a scheduler that
 comes back is used again; meanwhile jobs are refused with 503 ``cluster-unavailable``.
+
+This module is the only one that imports ``distributed``: the service imports it with its first
+job (:attr:`service.tasks.JobManager.connection`), and a task's deadline on a Dask worker
+(:func:`task_deadline`: the job's time limit, cancel flag and progress) is made here too.
 """
 
 from __future__ import annotations
@@ -33,11 +37,23 @@ import time
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from distributed import Client, Nanny, Scheduler, Security, SpecCluster, Worker
+from distributed import (
+    Client,
+    Event,
+    Future,
+    Nanny,
+    Scheduler,
+    Security,
+    SpecCluster,
+    Worker,
+    get_worker,
+)
 from distributed.comm.core import CommClosedError
 from distributed.http.routing import RoutingApplication
 
-from service.workers import WORKER_NICE, ServiceFault
+from engine.model.budget import Deadline, ProgressSink
+from service.job_state import ClusterUnavailable
+from service.workers import WORKER_NICE
 
 log = logging.getLogger("service.cluster")
 T = TypeVar("T")
@@ -51,6 +67,10 @@ RECONNECT_S = 2.0
 
 #: The one interface the embedded cluster listens on.
 LOOPBACK = "127.0.0.1"
+#: Shortest interval between two progress reports of one task (the last one always goes).
+PROGRESS_INTERVAL_S = 0.1
+#: Shortest interval between two reads of a job's cancel flag by one task.
+STOP_CHECK_S = 0.2
 
 
 class _NoHttp:
@@ -107,12 +127,6 @@ def connect(address: str, timeout: float) -> Client:
 def usable(client: Client) -> bool:
     """The client is connected to its scheduler (not reconnecting, closing or closed)."""
     return client.status == "running"
-
-
-class ClusterUnavailable(ServiceFault):
-    status = 503
-    kind = "cluster-unavailable"
-    title = "Dask cluster unavailable"
 
 
 class Connection:
@@ -198,6 +212,20 @@ class Connection:
             raise ClusterUnavailable(f"lost the Dask scheduler at {self.where}: "
                                      f"{type(err).__name__}: {err}", retry_after=5) from None
 
+    def stop_tasks(self, job_id: str, unstarted: list[Future]) -> None:
+        """Set the job's cancel flag (its running tasks stop at their next check) and cancel
+        its ``unstarted`` tasks, through the client now (nothing without one)."""
+        client = self.current()
+        if client is not None:
+            Event(cancel_flag(job_id), client=client).set()
+            client.cancel(unstarted)
+
+    def forget_flag(self, job_id: str) -> None:
+        """Clear the job's cancel flag (the scheduler forgets it)."""
+        client = self.current()
+        if client is not None:
+            Event(cancel_flag(job_id), client=client).clear()
+
     def workers(self) -> int:
         """Workers of the cluster now (at least one)."""
         return max(1, len(self.call(lambda client: client.nthreads())))
@@ -218,3 +246,37 @@ def _close_quietly(client: Client) -> None:
         client.close(timeout=5)
     except Exception as err:  # its scheduler is gone: nothing to close there
         log.debug("closing a lost Dask client: %s", err)
+
+
+# -- in the Dask worker ----------------------------------------------------------------------
+
+
+def cancel_flag(job_id: str) -> str:
+    """The name of the job's cancel flag (a ``distributed.Event``)."""
+    return f"linkage-cancel-{job_id}"
+
+
+def task_deadline(job_id: str, chunk: int, end_wall: float) -> Deadline:
+    """The deadline of one task: the job's time limit (wall clock, as workers may run on
+    other machines), its cancel flag, and a progress sink that publishes to :data:`TOPIC`."""
+    worker = get_worker()
+    flag = Event(cancel_flag(job_id))
+    checked = {"at": -math.inf, "set": False, "sent": -math.inf}
+
+    def stop() -> bool:
+        now = time.monotonic()
+        if not checked["set"] and now - checked["at"] >= STOP_CHECK_S:
+            checked["at"], checked["set"] = now, bool(flag.is_set())
+        return bool(checked["set"])
+
+    def progress(fraction: float, message: str) -> None:
+        now = time.monotonic()
+        if fraction < 1.0 and now - checked["sent"] < PROGRESS_INTERVAL_S:
+            return
+        checked["sent"] = now
+        worker.log_event(TOPIC, {"job": job_id, "chunk": chunk, "fraction": fraction,
+                                 "message": message})
+
+    sink: ProgressSink = progress
+    sink(0.0, f"started on {worker.address}")
+    return Deadline.after(end_wall - time.time(), stop=stop, progress=sink)

@@ -40,7 +40,7 @@ from matplotlib.figure import Figure
 
 from engine.model.budget import Deadline
 from engine.model.errors import InvalidRequest
-from service import figure_dxf, figure_tikz, jobs
+from service import figure_tikz, jobs
 from service.config import Settings
 from service.figure_drawing import (
     _draw_critical_values,
@@ -81,6 +81,10 @@ def linkage_figure(body: LinkageFigureRequest, settings: Settings) -> bytes:
     if fmt == "tikz":
         return figure_tikz.linkage(body.linkage, ans, body.show)
     if fmt == "dxf":
+        # ezdxf on the first DXF only: 0.22 s of a core that the workers' forkserver (which
+        # preloads this module) would otherwise spend before the service is ready
+        from service import figure_dxf
+
         return figure_dxf.linkage(body.linkage, ans, body.show)
     return _render(body, _draw_linkage, body.linkage, ans, body.show)
 

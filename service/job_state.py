@@ -7,8 +7,19 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from service.workers import ServiceFault
+
 if TYPE_CHECKING:  # a type only: the command line's in-process runs never import Dask
     from distributed import Future
+
+
+class ClusterUnavailable(ServiceFault):
+    """No Dask scheduler to run a job on (503; ``service.cluster`` raises it, and the job
+    manager catches it without importing Dask)."""
+
+    status = 503
+    kind = "cluster-unavailable"
+    title = "Dask cluster unavailable"
 
 
 @dataclass

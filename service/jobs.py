@@ -27,7 +27,7 @@ from engine.space.surfaces.explore import explore_surfaces
 from service import answers, mappers
 from service.config import Settings
 from service.schemas.analysis import RigidityResponse, SecondOrderResponse
-from service.schemas.common import AnalysisRequest
+from service.schemas.common import AnalysisRequest, Linkage
 from service.schemas.critical_values import (
     CriticalValuesOptions,
     CriticalValuesRequest,
@@ -46,17 +46,29 @@ from service.schemas.splitting import SplittingRequest, SplittingResponse
 from service.workers import (
     INLINE_MAX_BARS,
     INLINE_MAX_VERTICES,
-    LIGHT_MAX_BARS,
-    LIGHT_MAX_VERTICES,
+    LIGHT_MAX_NUMBERS,
+    LIGHT_SECOND_ORDER_MAX_PRODUCT,
 )
 
 
-def is_light(body: AnalysisRequest) -> bool:
-    """First/second order of a small linkage (at most ``LIGHT_MAX_VERTICES`` vertices and
-    ``LIGHT_MAX_BARS`` bars: a dense SVD of at most 512 x 192): bounded cost, answered
-    in-process."""
-    return (len(body.linkage.vertices) <= LIGHT_MAX_VERTICES
-            and len(body.linkage.bars) <= LIGHT_MAX_BARS)
+def free_coordinates(linkage: Linkage) -> int:
+    """``M``, the linkage's free coordinates, from the request alone (a pinned vertex has none,
+    a slider those of its free axes); a ``fixed`` the engine will refuse counts as given."""
+    d = linkage.dimension
+    return sum(d if v.fixed is False else 0 if v.fixed is True else
+               sum(not axis for axis in v.fixed) for v in linkage.vertices)
+
+
+def is_light(body: AnalysisRequest, second_order: bool = False) -> bool:
+    """The request's worst cost, estimated from its sizes before any work, is small enough for
+    the service's own process (``M`` free coordinates, ``E`` bars): at most
+    ``LIGHT_MAX_NUMBERS`` numbers of zero modes and self-stresses (``M^2 + E^2``), and for
+    ``second_order`` a prestress SDP of at most ``LIGHT_SECOND_ORDER_MAX_PRODUCT`` (``M E``).
+    Anything larger goes to the engine workers, whatever it turns out to cost."""
+    m, e = free_coordinates(body.linkage), len(body.linkage.bars)
+    if m * m + e * e > LIGHT_MAX_NUMBERS:
+        return False
+    return not second_order or m * e <= LIGHT_SECOND_ORDER_MAX_PRODUCT
 
 
 def is_inline(body: AnalysisRequest) -> bool:

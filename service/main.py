@@ -39,12 +39,14 @@ async def _start(pool: EnginePool) -> None:
     (:mod:`service.warm`; compiled there where numba's cache is cold: 20-30 s on an idle machine
     after an install, 78 s on a loaded 2-core one; the Docker image compiles them at build
     time), and every worker is forked from it with them loaded. The service process itself
-    loads no kernel: its small requests (first and second order) trace nothing."""
+    loads no kernel: its small requests (first and second order) trace nothing, nor the
+    figures (drawn in the workers) nor Dask (loaded by the first job)."""
     t0 = time.perf_counter()
     try:
         log.info("start-up: starting %d engine workers (their forkserver imports the engine "
                  "and loads the compiled kernels, compiled now if numba's cache is cold); "
-                 "/health/live answers, /health/ready will when they have started",
+                 "/health/live answers, /health/ready will when they have started; figures "
+                 "load in the workers, Dask with the first job",
                  pool.workers)
         # the service process reads and sends the workers' answers: megabytes per request
         tune_malloc()

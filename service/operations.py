@@ -28,7 +28,7 @@ from service.schemas.robustness import RobustnessRequest
 from service.schemas.space import SpaceRequest
 from service.schemas.splitting import SplittingRequest
 
-__all__ = ["OPERATIONS", "REQUESTS", "SWEEPS", "Operation"]
+__all__ = ["OPERATIONS", "REQUESTS", "SWEEPS", "Operation", "draw"]
 
 
 @dataclass(frozen=True)
@@ -67,12 +67,27 @@ def figure_bytes(text: str) -> tuple[bytes, str]:
     return base64.b64decode(data, validate=True), head[len(DATA_URL):].split(";")[0]
 
 
+#: The module that draws figures (matplotlib: 0.5-0.8 s of a core to import), named here
+#: and imported only where a figure is drawn: the engine workers (their forkserver has loaded it
+#: before forking them: ``service.forkserver.PRELOAD``), a Dask worker or the command line, never
+#: the service process, whose start-up it would lengthen.
+FIGURES = "service.figures"
+
+
+def draw(name: str, body: Any, settings: Settings) -> bytes:
+    """``service.figures.<name>(body, settings)``: a figure route's work, run in an engine
+    worker (``functools.partial(draw, name)`` pickles by name, so the service process that
+    schedules it never imports the figures)."""
+    fn: Callable[[Any, Settings], bytes] = getattr(import_module(FIGURES), name)
+    return fn(body, settings)
+
+
 def _figure_job(draw: str) -> Callable[[Any, Settings], str]:
     """A figure as a job's answer: ``service.figures.<draw>``'s figure as text (a JSON
     string in the job: see figure_text)."""
 
     def figure(body: Any, settings: Settings, deadline: Any = None) -> str:
-        fn = getattr(import_module("service.figures"), draw)
+        fn = getattr(import_module(FIGURES), draw)
         # the job's deadline (its time limit, cancel flag and progress) for the search
         given = "deadline" in inspect.signature(fn).parameters and deadline is not None
         data: bytes = fn(body, settings, **({"deadline": deadline} if given else {}))

@@ -11,10 +11,10 @@ Progress and cancellation cross the process boundary with Dask's own primitives,
 
 * each task builds a :class:`~engine.model.budget.Deadline` whose ``progress`` sink publishes what
   the engine reports (points done, components traced, ...) with ``Worker.log_event`` on the
-  topic :data:`TOPIC`, which the service's client subscribes to;
+  topic :data:`service.cluster.TOPIC`, which the service's client subscribes to;
 * ``DELETE`` sets a ``distributed.Event`` per job that the deadline's ``stop`` flag reads
-  (at most every :data:`STOP_CHECK_S`), so running tasks end at their next check, and
-  cancels the tasks not yet started.
+  (at most every :data:`service.cluster.STOP_CHECK_S`), so running tasks end at their next
+  check, and cancels the tasks not yet started.
 
 A task whose worker dies runs again once on another worker (the embedded scheduler's
 ``allowed_failures``; an external scheduler retries as its
@@ -32,34 +32,34 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import logging
-import math
 import threading
 import time
 import uuid
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from distributed import Client, Event, Future, get_worker
 from pydantic import BaseModel
 
 from engine.design.sweep import PointResult, run_points
-from engine.model.budget import Deadline, ProgressSink
 from engine.model.errors import EngineError, NumericalFailure
 from engine.space import trace_kernel
-from service import cluster, mappers, serialise
-from service.cluster import TOPIC, ClusterUnavailable
+from service import mappers, serialise
 from service.config import Settings
-from service.job_state import Job
+from service.job_state import ClusterUnavailable, Job
 from service.operations import OPERATIONS, SWEEPS
 from service.workers import Busy, ServiceFault
 
-log = logging.getLogger("service.tasks")
+if TYPE_CHECKING:  # Dask is imported with the first job (JobManager.connection), not before
+    from distributed import Client, Future
 
-#: Shortest interval between two progress reports of one task (the last one always goes).
-PROGRESS_INTERVAL_S = 0.1
-#: Shortest interval between two reads of a job's cancel flag by one task.
-STOP_CHECK_S = 0.2
+    from service.cluster import Connection
+
+log = logging.getLogger("service.tasks")
+#: uvicorn's own logger (at INFO under uvicorn): the first job's loading of Dask is a start-up
+#: step of its own, said beside the service's other start-up lines (service.main).
+startup_log = logging.getLogger("uvicorn.error")
+
 #: A job still running this long after its time limit is failed and its tasks cancelled.
 GRACE_S = 10.0
 #: Finished jobs kept at most, per job that may be active (``LINKAGE_MAX_JOBS``).
@@ -91,42 +91,13 @@ class NotAcceptable(ServiceFault):
 # -- in the Dask worker ----------------------------------------------------------------------
 
 
-def _cancel_flag(job_id: str) -> str:
-    return f"linkage-cancel-{job_id}"
-
-
-def _task_deadline(job_id: str, chunk: int, end_wall: float) -> Deadline:
-    """The deadline of one task: the job's time limit (wall clock, as workers may run on
-    other machines), its cancel flag, and a progress sink that publishes to :data:`TOPIC`."""
-    worker = get_worker()
-    flag = Event(_cancel_flag(job_id))
-    checked = {"at": -math.inf, "set": False, "sent": -math.inf}
-
-    def stop() -> bool:
-        now = time.monotonic()
-        if not checked["set"] and now - checked["at"] >= STOP_CHECK_S:
-            checked["at"], checked["set"] = now, bool(flag.is_set())
-        return bool(checked["set"])
-
-    def progress(fraction: float, message: str) -> None:
-        now = time.monotonic()
-        if fraction < 1.0 and now - checked["sent"] < PROGRESS_INTERVAL_S:
-            return
-        checked["sent"] = now
-        worker.log_event(TOPIC, {"job": job_id, "chunk": chunk, "fraction": fraction,
-                                 "message": message})
-
-    sink: ProgressSink = progress
-    sink(0.0, f"started on {worker.address}")
-    return Deadline.after(end_wall - time.time(), stop=stop, progress=sink)
-
-
 def run_operation(job_id: str, operation: str, body: BaseModel, settings: Settings,
                   end_wall: float) -> bytes:
     """One analysis as a task: the synchronous endpoint's JSON answer."""
+    from service.cluster import task_deadline  # in a Dask worker: Dask is loaded there
     trace_kernel.prepare()  # one tracer path per worker process (see engine/space/trace_kernel.py)
     fn = OPERATIONS[operation].run
-    deadline = _task_deadline(job_id, 0, end_wall)
+    deadline = task_deadline(job_id, 0, end_wall)
     # the engine searches take the deadline as they gain one (engine/model/budget.py)
     kwargs = {"deadline": deadline} if "deadline" in inspect.signature(fn).parameters else {}
     payload = serialise.dumps(fn(body, settings, **kwargs))
@@ -138,9 +109,10 @@ def run_sweep_chunk(job_id: str, chunk: int, sweep: mappers.SweepJob, points: np
                     end_wall: float) -> list[PointResult]:
     """Some ``points`` of a sweep as a task (fewer rows than points when stopped); ``sweep``
     says what to compute (its own points are not used)."""
+    from service.cluster import task_deadline  # in a Dask worker: Dask is loaded there
     trace_kernel.prepare()  # one tracer path per worker process (see engine/space/trace_kernel.py)
     return run_points(sweep.family, points, sweep.compute, sweep.tolerances, sweep.options,
-                      _task_deadline(job_id, chunk, end_wall))
+                      task_deadline(job_id, chunk, end_wall))
 
 
 # -- in the service --------------------------------------------------------------------------
@@ -167,11 +139,33 @@ class JobManager:
         self.settings = settings
         self._lock = threading.RLock()
         self._jobs: dict[str, Job] = {}
-        # a task whose worker dies is run again once on another worker (embedded cluster)
-        self.connection = cluster.Connection(settings.dask_scheduler, settings.dask_workers,
-                                             self._on_event, allowed_failures=1)
+        self._connection: Connection | None = None
 
     # -- cluster ------------------------------------------------------------------------
+
+    @property
+    def connection(self) -> Connection:
+        """The connection to the Dask cluster, made on first use: ``service.cluster`` imports
+        ``distributed`` (0.2-0.4 s of a core), which the service's start-up does not wait for
+        and a service that runs no job never loads."""
+        with self._lock:
+            if self._connection is None:
+                where = self.settings.dask_scheduler or (
+                    f"an embedded cluster of {self.settings.dask_workers} workers")
+                startup_log.info("jobs: the first job loads Dask and connects to %s", where)
+                from service.cluster import Connection  # on first use: see the docstring
+
+                # a task whose worker dies is run again once on another worker (embedded
+                # cluster)
+                self._connection = Connection(self.settings.dask_scheduler,
+                                              self.settings.dask_workers, self._on_event,
+                                              allowed_failures=1)
+            return self._connection
+
+    def _current(self) -> Client | None:
+        """The Dask client now, without connecting or importing Dask (None when there is
+        none)."""
+        return None if self._connection is None else self._connection.current()
 
     def client(self) -> Client:
         """The Dask client (connected on first use; see :class:`service.cluster.Connection`)."""
@@ -183,13 +177,13 @@ class JobManager:
 
     def close(self) -> None:
         """Cancel unfinished jobs, then close the client and the embedded cluster."""
-        client = self.connection.current()
         with self._lock:
             unfinished = [j for j in self._jobs.values() if not j.finished_state]
-        if client is not None:
+        if self._current() is not None:
             for job in unfinished:
-                self._stop(client, job, "cancelled", "the service shut down")
-        self.connection.close()
+                self._stop(job, "cancelled", "the service shut down")
+        if self._connection is not None:
+            self._connection.close()
 
     # -- jobs ---------------------------------------------------------------------------
 
@@ -271,7 +265,7 @@ class JobManager:
         arrives after the job ended (a task stopped by the cancel flag, or still running when
         another failed) joins its partial result."""
         if future.cancelled():  # by us (a task not started when the job ended), or a lost cluster
-            self._stop(self.connection.current(), job, "failed", error={
+            self._stop(job, "failed", error={
                 "title": "Worker failed", "loc": [], "detail": "the Dask cluster dropped this "
                 "job's task (scheduler restarted or unreachable); the job may be resubmitted"})
             return
@@ -282,7 +276,7 @@ class JobManager:
                 if job.finished_state:
                     return
             log.warning("job %s failed: %s: %s", job.id, type(err).__name__, err)
-            self._stop(self.connection.current(), job, "failed", error=_failure(err))
+            self._stop(job, "failed", error=_failure(err))
             return
         with self._lock:
             job.parts[k] = part
@@ -308,7 +302,7 @@ class JobManager:
         if job.operation == SWEEPS:
             rows = [row for k in range(len(job.sizes)) for row in job.parts[k]]
             if len(rows) < sum(job.sizes):  # a task stopped early: the time limit
-                self._stop(self.connection.current(), job, "failed", error={
+                self._stop(job, "failed", error={
                     "title": "Time limit exceeded", "loc": [],
                     "detail": f"{len(rows)} of {sum(job.sizes)} points were done within "
                     f"LINKAGE_JOB_TIME_LIMIT_S = {self.settings.job_time_limit_s:g} s (the "
@@ -324,7 +318,7 @@ class JobManager:
             job.futures = []
         self._forget_flag(job)
 
-    def _stop(self, client: Client | None, job: Job, status: str, reason: str = "",
+    def _stop(self, job: Job, status: str, reason: str = "",
               error: dict[str, Any] | None = None) -> None:
         """End a job: its running tasks stop at their next check (cancel flag) and what they
         finished joins the partial result; the tasks not started are dropped."""
@@ -341,25 +335,23 @@ class JobManager:
             # the running ones stay referenced (a future let go is released by the scheduler,
             # and its rows with it) until they hand their rows in
             job.futures = [f for k, f in pending if k in job.started_chunks]
-        if client is None:
+        if self._connection is None:
             return
         try:
-            Event(_cancel_flag(job.id), client=client).set()
-            client.cancel(unstarted)
+            self._connection.stop_tasks(job.id, unstarted)
         except Exception as err:  # e.g. the cluster went away: nothing left to stop
             log.warning("could not stop the tasks of job %s: %s", job.id, err)
 
     def _forget_flag(self, job: Job) -> None:
-        client = self.connection.current()
-        if client is not None:
+        if self._connection is not None:
             try:
-                Event(_cancel_flag(job.id), client=client).clear()
+                self._connection.forget_flag(job.id)
             except Exception as err:
                 log.debug("cancel flag of job %s: %s", job.id, err)
 
     def cancel(self, job_id: str) -> Job:
         job = self.get(job_id)
-        self._stop(self.connection.current(), job, "cancelled", "cancelled on request")
+        self._stop(job, "cancelled", "cancelled on request")
         return job
 
     def get(self, job_id: str) -> Job:
@@ -399,7 +391,7 @@ class JobManager:
             if job.status != "done":
                 self._forget_flag(job)
         for job in overdue:
-            self._stop(self.connection.current(), job, "failed", error={
+            self._stop(job, "failed", error={
                 "title": "Time limit exceeded", "loc": [],
                 "detail": f"the job ran longer than LINKAGE_JOB_TIME_LIMIT_S = "
                 f"{self.settings.job_time_limit_s:g} s and was stopped"})

@@ -6,8 +6,8 @@ worker that died as ``ProcessExpired``; both are things ``concurrent.futures`` c
 Workers come from a ``forkserver`` that has imported the engine once, so a replacement is
 ready in well under a second, and each worker's BLAS runs on one thread (one worker per core).
 
-Small first- and second-order requests are bounded by their size (dense SVD of at most
-``LIGHT_MAX_VERTICES`` vertices and ``LIGHT_MAX_BARS`` bars, some milliseconds) and run in the
+Small first- and second-order requests, whose worst cost estimated from their sizes before any
+work is some milliseconds (``LIGHT_MAX_NUMBERS``, ``LIGHT_SECOND_ORDER_MAX_PRODUCT``), run in the
 service's thread pool instead, so they stay fast while every worker is busy; they are admitted
 under the same ``LINKAGE_MAX_QUEUE`` (a lane of their own: 503 ``busy`` beyond it). The first
 order of a tiny linkage (``INLINE_MAX_VERTICES``, about a millisecond) is answered in the same
@@ -47,6 +47,7 @@ import logging
 import os
 import resource
 import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
@@ -59,6 +60,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 from starlette.responses import Response
 
+from engine.model.budget import OutOfTime
 from engine.space import trace_kernel
 from engine.space.dyads import kernel as dyads_kernel
 from service import forkserver, serialise
@@ -69,10 +71,18 @@ T = TypeVar("T")
 B = TypeVar("B")
 log = logging.getLogger("service.workers")
 
-#: Linkages up to this many vertices and bars are analysed to first and second order
-#: in-process.
-LIGHT_MAX_VERTICES = 64
-LIGHT_MAX_BARS = 512
+#: The small requests' lane takes a first- or second-order request by its worst cost, estimated
+#: from its sizes before any work (``M`` free coordinates, ``E`` bars: service.jobs.is_light).
+#: The first order's zero modes and self-stresses hold at most ``M^2 + E^2`` numbers (``k <= M``
+#: modes of ``M`` numbers, ``s <= E`` stresses of ``E``), whose mapping and JSON cost more than
+#: the SVD; degenerate linkages (collinear in 2D, flat in 3D) reach it. Measured in-process
+#: with the answer's JSON (bench/bench_light_cost.py, one BLAS thread as here, load 4.8): at
+#: most 3.4 ms up to 13,572, 8-16 ms from 17,680 to 28,260, 36 ms at 100,132.
+LIGHT_MAX_NUMBERS = 12_288
+#: Second order adds the prestress SDP where there are two flexes and two self-stresses or more,
+#: of a size bounded by ``k <= M`` and ``s <= E``: at most 3 ms up to ``M E`` = 128, 7 ms at
+#: 144, 0.2 s at 288 and 0.63 s at 7,680 (the same bench).
+LIGHT_SECOND_ORDER_MAX_PRODUCT = 128
 #: First-order requests up to this many vertices and bars are answered on the event loop
 #: itself: about 1 ms (0.6-1.0 ms measured for 4-16 vertices and up to 40 bars, 2D and 3D), less
 #: than the two thread hand-offs of the thread pool cost on a loaded machine (each waits for the
@@ -101,6 +111,10 @@ class ServiceFault(Exception):
         super().__init__(detail)
         self.detail = detail
         self.retry_after = retry_after
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # raised in a worker and pickled back: ``retry_after`` too (Exception keeps its args)
+        return type(self), (self.detail, self.retry_after)
 
 
 class TimeLimitExceeded(ServiceFault):
@@ -400,7 +414,8 @@ def engine_pool(request: Request) -> EnginePool:
 
 
 def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings,
-             spill: str | None = None, kernel: bool = True) -> bytes | int:
+             spill: str | None = None, kernel: bool = True,
+             queued_at: float | None = None) -> bytes | int:
     """Run a job and serialise its answer where it ran: in a worker that is in parallel with
     the event loop, and one bytes object crosses the process boundary instead of a model tree
     (for answers with many points this is most of the cost of the hop). The tracer's compiled
@@ -413,15 +428,38 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
 
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
-    file is gone, the file system full) the bytes are returned as for a small answer."""
+    file is gone, the file system full) the bytes are returned as for a small answer.
+    ``queued_at``: when the pool was handed the request (``time.monotonic``, one clock for the
+    machine's processes), to tell the time lost waiting for a worker (_queued_too_long)."""
+    waited = 0.0 if queued_at is None else time.monotonic() - queued_at
     if kernel:
         trace_kernel.prepare()
-    parts = serialise.dumps_parts(fn(body, settings))
+    try:
+        answer = fn(body, settings)
+    except OutOfTime as err:
+        raise _queued_too_long(err, settings, waited) from None
+    parts = serialise.dumps_parts(answer)
     if spill is not None:
         size = sum(len(part) for part in parts)
         if size >= SPILL_MIN_BYTES and write_spill(spill, parts):
             return size
     return b"".join(parts)
+
+
+#: A request that waited for a worker over this share of its time limit and then would not end
+#: in the time left (``OutOfTime``) is a 503 ``busy``, not a 422 ``too-costly``: the queue's
+#: fault (bench/bench_lanes.py: 20 ms of work refused after 3 s behind heavy requests).
+QUEUE_SHARE = 0.1
+
+
+def _queued_too_long(err: OutOfTime, settings: Settings, waited: float) -> Exception:
+    """``err``, or :class:`Busy` where the request ``waited`` for a worker more than
+    :data:`QUEUE_SHARE` of its time limit (reading and parsing its body is its own time)."""
+    if waited <= QUEUE_SHARE * settings.time_limit_s:
+        return err
+    return Busy(f"the request waited {waited:.1f} s for an engine worker, and its analysis "
+                f"would not finish in the time left ({err}); retry when the service is less "
+                "busy", retry_after=max(1, round(waited)))
 
 
 def _read_spill(path: str, size: int) -> bytes:
@@ -452,7 +490,8 @@ async def engine_call(request: Request, settings: Settings,
         pool = engine_pool(request)
         spill, answered = pool.spill_files.take(), False
         try:
-            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill)
+            answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill,
+                                    True, time.monotonic())
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
             answered = True

@@ -13,7 +13,7 @@ import numpy as np
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
 
-from engine.catalogue.presets import build_preset
+from engine.catalogue.presets import build_preset, parameter_bounds, resolve_parameters
 from engine.design.region_labels import touched_cells
 from engine.design.sweep import (
     COMPUTE,
@@ -82,6 +82,7 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
             raise InvalidRequest(err.message, loc=(axes_loc, names[err.loc[0]])) from None
         raise
     if body.grid is not None:
+        _check_grid(body)
         points = grid_points([GridAxis(k, a.min, a.max, a.steps) for k, a in body.grid.items()])
     else:
         assert body.samples is not None and body.count is not None
@@ -90,6 +91,33 @@ def sweep_in(body: job_schemas.SweepRequest, limits: Limits) -> SweepJob:
     compute = tuple(c for c in COMPUTE if c in body.compute)
     return SweepJob(family, points, compute, tol, space_options_in(body.options), names,
                     len(touched_cells(base, names)))
+
+
+def _check_grid(body: job_schemas.SweepRequest) -> None:
+    """Refuse (422 naming the axis) a grid with a point that no row could analyse whatever the
+    other axes' values: a bar's length at most 0, a preset parameter outside its own bounds
+    (an integer, a side, a positive length; ``gate`` below ``n`` joins two parameters, and
+    Monte Carlo samples are random: those points are rows with an ``error``)."""
+    assert body.grid is not None
+    for name, axis in body.grid.items():
+        values = np.linspace(axis.min, axis.max, axis.steps)
+        if body.linkage is not None:
+            if axis.min <= 0:
+                raise InvalidRequest(f"a bar's length must be positive: min = {axis.min:g}",
+                                     loc=("grid", name, "min"))
+            continue
+        assert body.preset is not None
+        if parameter_bounds(body.preset.name)[name].below is not None:
+            continue
+        for value in values:
+            try:
+                resolve_parameters(body.preset.name, {**body.preset.parameters,
+                                                      name: float(value)})
+            except InvalidParameter as err:
+                if err.loc == (name,):
+                    raise InvalidRequest(f"the grid's point {name} = {value:g}: {err.message}",
+                                         loc=("grid", name)) from None
+                raise
 
 
 def sweep_out(names: tuple[str, ...], rows: list[PointResult],

@@ -37,7 +37,7 @@ async def second_order_analysis(
     body: AnalysisRequest, request: Request, settings: SettingsDep
 ) -> Response:
     """Second-order analysis: regular, branch (with branch tangents), rigid or degenerate."""
-    light = jobs.is_light(body)
+    light = jobs.is_light(body, second_order=True)
     return await engine_call(request, settings, jobs.second_order_analysis, body, light=light)
 
 

@@ -1,16 +1,18 @@
 """Figures: pictures of the analyses in SVG, PNG, PDF, TikZ or DXF, drawn in the engine worker
-pool (service.figures); the format is the body's ``format`` or the best the ``Accept`` header
-allows (service.figure_formats)."""
+pool (service.figures, imported there only: see service.operations.draw); the format is the
+body's ``format`` or the best the ``Accept`` header allows (service.figure_formats)."""
 
 from collections.abc import Callable
+from functools import partial
 from typing import Any, TypeVar
 
 from fastapi import APIRouter, Request, Response
 
-from service import figure_formats, figures
+from service import figure_formats
 from service.bodies import JsonBodyRoute
 from service.config import Settings, SettingsDep, with_arrival
 from service.errors import problem, problem_responses
+from service.operations import draw
 from service.schemas.figures import (
     CriticalValuesFigureRequest,
     FigureOutput,
@@ -46,9 +48,10 @@ def _responses(figure: str) -> dict[int | str, dict[str, Any]]:
     }
 
 
-async def _figure(request: Request, settings: Settings, figure: str,
-                  fn: Callable[[B, Settings], bytes], body: B) -> Response:
-    """``fn(body, settings)`` in a worker under the time limit, in the negotiated format."""
+async def _figure(request: Request, settings: Settings, figure: str, name: str,
+                  body: B) -> Response:
+    """``service.figures.<name>(body, settings)`` in a worker under the time limit, in the
+    negotiated format."""
     try:
         choice = figure_formats.negotiate(figure, body.format, request.headers.get("accept"))
     except figure_formats.NotAcceptable as err:
@@ -56,6 +59,7 @@ async def _figure(request: Request, settings: Settings, figure: str,
                        [{"loc": ["header", "accept"], "msg": err.detail}])
     figure_formats.check_png_before_drawing(figure, choice.format, body.dpi)
     body = body.model_copy(update={"format": choice.format})
+    fn: Callable[[B, Settings], bytes] = partial(draw, name)
     data = await engine_pool(request).run(settings.time_limit_s, fn, body,
                                           with_arrival(request, settings))
     name = f"{figure}{figure_formats.SUFFIXES[choice.format]}"
@@ -70,7 +74,7 @@ async def linkage(body: LinkageFigureRequest, request: Request,
     """The linkage at its analysed configuration: pins, sliders with their axis, bars labelled
     by id; on request its zero modes or branch tangents as arrows and its self-stress as bar
     colours. In SVG, PNG, PDF, TikZ or DXF (its geometry for CAD)."""
-    return await _figure(request, settings, "linkage", figures.linkage_figure, body)
+    return await _figure(request, settings, "linkage", "linkage_figure", body)
 
 
 @router.post(
@@ -83,7 +87,7 @@ async def configuration_space(body: SpaceFigureRequest, request: Request,
     torus, each its own colour; critical points marked by kind; segments labelled. In SVG,
     PNG, PDF or TikZ."""
     return await _figure(request, settings, "configuration-space",
-                         figures.configuration_space_figure, body)
+                         "configuration_space_figure", body)
 
 
 @router.post(
@@ -94,7 +98,7 @@ async def critical_values(body: CriticalValuesFigureRequest, request: Request,
                           settings: SettingsDep) -> Response:
     """The slice of ``/v1/analysis/critical-values``: its curves, each region shaded and
     labelled with its number of components. In SVG, PNG or PDF."""
-    return await _figure(request, settings, "critical-values", figures.critical_values_figure,
+    return await _figure(request, settings, "critical-values", "critical_values_figure",
                          body)
 
 
@@ -105,4 +109,4 @@ async def splitting(body: SplittingFigureRequest, request: Request,
     """For each branch point of ``/v1/analysis/splitting``: the two crossing lines (four
     rays) and the conic the perturbation turns them into, with the rays it joins. In SVG, PNG
     or PDF."""
-    return await _figure(request, settings, "splitting", figures.splitting_figure, body)
+    return await _figure(request, settings, "splitting", "splitting_figure", body)

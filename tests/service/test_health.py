@@ -101,3 +101,46 @@ def test_the_port_answers_at_once_and_ready_follows_the_kernels(tmp_path):
     assert early.status_code == 503 and early.json()["type"] == "/problems/not-ready"
     assert ready.json()["workers"] == 1
     print(f"live after {t_live:.1f} s, ready after {t_ready:.1f} s (cold numba cache)")
+
+
+def test_the_service_process_starts_without_the_figures_and_dask():
+    """The service's own start-up imports neither matplotlib and ezdxf (the figures are drawn in
+    the workers, whose forkserver has them) nor Dask (loaded by the first job): 0.7-0.9 s of a
+    core on the way to /health/live. A fresh interpreter, as uvicorn starts one; the
+    forkserver's own launch is left out (its imports are another process's)."""
+    import subprocess
+    import sys
+
+    from tests.service.test_uvicorn_process import ROOT
+
+    code = ("import sys; import service.forkserver as f; f.start = lambda: None; "
+            "import service.main; "
+            "print(' '.join(m for m in ('matplotlib', 'ezdxf', 'distributed', 'dask', "
+            "'service.figures', 'service.cluster') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "", out.stdout
+
+
+def test_a_figure_and_a_job_load_what_they_need_on_first_use():
+    """The figure route hands the worker a reference by name (service.operations.draw), which
+    the worker resolves to service.figures; a job manager imports Dask with its first job."""
+    import inspect
+    import pickle
+    from functools import partial
+
+    from service import figures, operations
+    from service.routers import figures as figure_routes
+    from service.tasks import JobManager
+
+    source = inspect.getsource(figure_routes)
+    names = ("linkage_figure", "configuration_space_figure", "critical_values_figure",
+             "splitting_figure")
+    for name in names:  # each route's name is a figure of service.figures
+        assert f'"{name}"' in source and callable(getattr(figures, name))
+    fn = pickle.loads(pickle.dumps(partial(operations.draw, "linkage_figure")))
+    assert fn.func is operations.draw and fn.args == ("linkage_figure",)
+    manager = JobManager(Settings(dask_workers=1))
+    assert manager._current() is None  # no connection, nothing imported for it
+    manager.close()  # closing a manager that ran no job connects to nothing
+    assert manager._connection is None

@@ -196,3 +196,176 @@ def test_the_design_loops_single_field_rules_are_in_the_schema(module, message, 
     valid = {**body, **({"adjustable": ["b"]} if model == "RobustnessRequest" else DESIGN)}
     {"DesignRequest": DesignRequest, "RobustnessRequest": RobustnessRequest}[
         model].model_validate(valid)
+
+
+# -- presets, sweeps, critical-value axes and splitting ----------------------------------------
+# Every refusal of the engine's checks of a preset's parameters (engine/catalogue), a sweep's
+# names and values (engine/design/sweep.py, checked when the sweep is submitted), a
+# critical-value slice's axes (engine/design/critical_values.py) and a splitting perturbation
+# (engine/design/splitting.py and the bars it may change, engine/model/linkage.py) is stated by
+# the OpenAPI schema (a keyword at a path of components.schemas, or of a preset route's query
+# parameter: ("query", route, parameter, keyword)), listed in docs/API.md as a rule joining
+# several fields and answered 422 naming the field, or not reachable through the service.
+
+FOUR_BAR = {
+    "dimension": 2,
+    "vertices": [{"id": "P0", "position": [0.0, 0.0], "fixed": True},
+                 {"id": "P1", "position": [1.0, 0.0], "fixed": True},
+                 {"id": "A", "position": [0.5, 0.8660254037844386]},
+                 {"id": "B", "position": [1.5, 0.8660254037844386]}],
+    "bars": [{"id": "a", "ends": ["P0", "P1"]}, {"id": "L1", "ends": ["P0", "A"]},
+             {"id": "L2", "ends": ["A", "B"]}, {"id": "L3", "ends": ["P1", "B"]}],
+}
+NOT_EXPOSED = "not exposed"
+
+
+def _axes(first: dict[str, Any], second: dict[str, Any]) -> dict[str, Any]:
+    return {"linkage": FOUR_BAR, "axes": [first, second]}
+
+
+AXIS = {"bar": "L2", "min": 0.5, "max": 2.0}
+OTHER = {"bar": "L3", "min": 0.5, "max": 2.0}
+
+# (engine module, message fragment, request (method, path, body or query), where, loc named)
+RULES: list[tuple[str, str, tuple[str, str, Any], tuple[Any, ...] | str, list[Any]]] = [
+    ("engine/catalogue/presets.py", "admit no configuration",
+     ("GET", "/v1/presets/four-bar", {"a": 10}),
+     "a preset's parameters admit a configuration", ["query"]),
+    ("engine/catalogue/presets.py", "an integer",
+     ("GET", "/v1/presets/kl-chain", {"n": 3.5}),
+     ("query", "/v1/presets/kl-chain", "n", "multipleOf"), ["query", "n"]),
+    ("engine/catalogue/presets.py", "length must be positive",
+     ("GET", "/v1/presets/four-bar", {"a": 0}),
+     ("query", "/v1/presets/four-bar", "a", "exclusiveMinimum"), ["query", "a"]),
+    ("engine/catalogue/presets.py", "must be one of",
+     ("GET", "/v1/presets/four-bar", {"side": 0}),
+     ("query", "/v1/presets/four-bar", "side", "enum"), ["query", "side"]),
+    ("engine/catalogue/presets.py", "must lie in",
+     ("GET", "/v1/presets/kl-chain", {"n": 1}),
+     ("query", "/v1/presets/kl-chain", "n", "minimum"), ["query", "n"]),
+    ("engine/catalogue/presets.py", "must lie in",  # the same check: gate below n
+     ("GET", "/v1/presets/gated-kl-chain", {"n": 3}),
+     "`gate` is below `n`", ["query", "gate"]),
+    ("engine/catalogue/presets.py", "unknown parameter",
+     ("GET", "/v1/presets/four-bar", {"zz": 1}),
+     "a query parameter the preset does not have", ["query", "zz"]),
+    ("engine/catalogue/presets.py", "must be finite",
+     ("GET", "/v1/presets/four-bar", {"a": "inf"}),
+     ("query", "/v1/presets/four-bar", "a", "type"), ["query", "a"]),
+    ("engine/catalogue/presets.py", "gives no valid linkage",
+     ("GET", "/v1/presets/three-prism", {"ratio": 0}),
+     "give a valid linkage (no bar's ends coincide)", ["query", "ratio"]),
+    # the builders' own checks lie outside the bounds resolve_parameters checks first
+    ("engine/catalogue/catalogue.py", "must be even and between 8 and 200",
+     ("GET", "/v1/presets/cn-symmetric-four-regular", {"n": 202}),
+     ("query", "/v1/presets/cn-symmetric-four-regular", "n", "maximum"), ["query", "n"]),
+    ("engine/catalogue/catalogue.py", "must lie between 2 and 2000",
+     ("GET", "/v1/presets/rotor-chain-3d", {"n": 2001}),
+     ("query", "/v1/presets/rotor-chain-3d", "n", "maximum"), ["query", "n"]),
+    ("engine/catalogue/catalogue.py", "must be positive",
+     ("GET", "/v1/presets/rotor-chain-3d", {"h": 0}),
+     ("query", "/v1/presets/rotor-chain-3d", "h", "exclusiveMinimum"), ["query", "h"]),
+    ("engine/catalogue/catalogue.py", "admit no configuration",
+     ("GET", "/v1/presets/rotor-chain-3d", {"l": 10}),
+     "a preset's parameters admit a configuration", ["query"]),
+    ("engine/design/critical_values.py", "give exactly two axes",
+     ("POST", "/v1/analysis/critical-values", {"linkage": FOUR_BAR, "axes": [AXIS]}),
+     ("CriticalValuesRequest", "properties", "axes", "minItems"), ["body", "axes"]),
+    ("engine/design/critical_values.py", "need 0 < min < max",
+     ("POST", "/v1/analysis/critical-values", _axes({**AXIS, "min": 0.0}, OTHER)),
+     ("AxisIn", "properties", "min", "exclusiveMinimum"), ["body", "axes", 0, "min"]),
+    ("engine/design/critical_values.py", "need 0 < min < max",
+     ("POST", "/v1/analysis/critical-values", _axes({**AXIS, "min": 2.0, "max": 1.0}, OTHER)),
+     "a critical-values axis has `min < max`", ["body", "axes", 0]),
+    ("engine/design/critical_values.py", "the two axes name the same bar",
+     ("POST", "/v1/analysis/critical-values", _axes(AXIS, AXIS)),
+     "the two axes name different bars", ["body", "axes", 1, "bar"]),
+    ("engine/design/critical_values.py", "unknown method",
+     ("POST", "/v1/analysis/critical-values", _axes(AXIS, OTHER)), NOT_EXPOSED, []),
+    ("engine/model/linkage.py", "unknown bar",
+     ("POST", "/v1/analysis/critical-values", _axes({**AXIS, "bar": "zz"}, OTHER)),
+     "names a bar that may change", ["body", "axes", 0, "bar"]),
+    ("engine/model/linkage.py", "joins two fixed vertices",
+     ("POST", "/v1/analysis/splitting", {"linkage": FOUR_BAR, "perturbation": {"a": 0.1}}),
+     "names a bar that may change", ["body", "perturbation", "a"]),
+    ("engine/design/splitting.py", "must be finite",
+     ("POST", "/v1/analysis/splitting",
+      {"linkage": FOUR_BAR, "perturbation": {"L2": math.inf}}),
+     ("SplittingRequest", "properties", "perturbation", "patternProperties"),
+     ["body", "perturbation", "L2"]),
+    ("engine/design/splitting.py", "would make the length non-positive",
+     ("POST", "/v1/analysis/splitting", {"linkage": FOUR_BAR, "perturbation": {"L2": -5.0}}),
+     "leaves every length positive", ["body", "perturbation", "L2"]),
+    ("engine/design/sweep.py", "must be positive",
+     ("POST", "/v1/sweeps",
+      {"linkage": FOUR_BAR, "grid": {"L2": {"min": 0.0, "max": 2.0, "steps": 3}}}),
+     "a bar's grid starts above 0", ["body", "grid", "L2", "min"]),
+    ("engine/catalogue/presets.py", "must be one of",  # a preset's bounds at a grid point
+     ("POST", "/v1/sweeps",
+      {"preset": {"name": "four-bar"}, "grid": {"side": {"min": -1.0, "max": 1.0, "steps": 3}}}),
+     "within that parameter's bounds at every point", ["body", "grid", "side"]),
+    ("engine/design/sweep.py", "unknown parameter",
+     ("POST", "/v1/sweeps",
+      {"preset": {"name": "four-bar"}, "grid": {"zz": {"min": 1.0, "max": 2.0, "steps": 3}}}),
+     "parameters of its preset", ["body", "grid", "zz"]),
+]
+#: The functions whose refusals RULES covers, by module (the whole module where None).
+CHECKED = {
+    "engine/catalogue/presets.py": None,
+    "engine/catalogue/catalogue.py": None,
+    "engine/design/critical_values.py": ("def _validate(", "def critical_value_slice("),
+    "engine/model/linkage.py": ("def changeable_bar(",),
+    "engine/design/splitting.py": ("def length_change(",),
+    "engine/design/sweep.py": ("class BarFamily", "class PresetFamily"),
+}
+
+
+def _function(source: str, start: str) -> str:
+    """The text of the top-level function or class beginning with ``start``."""
+    head = source.index(start)
+    tail = re.search(r"\n(?:def |class |@)", source[head + 1:])
+    return source[head:] if tail is None else source[head:head + 1 + tail.start()]
+
+
+def test_every_refusal_of_presets_sweeps_axes_and_splitting_has_a_case():
+    for module, starts in CHECKED.items():
+        source = (ROOT / module).read_text()
+        text = source if starts is None else "".join(_function(source, s) for s in starts)
+        sites = re.findall(r"raise (?:InvalidParameter|InvalidRequest|InvalidLinkage)\(", text)
+        fragments = {case[1] for case in RULES if case[0] == module}
+        # a refusal with its own message has its own case (two cases may share one site)
+        assert len(sites) == len(fragments), module
+
+
+def _query_schema(route: str, name: str) -> dict[str, Any]:
+    operation = OPENAPI["paths"][route]["get"]
+    return next(p["schema"] for p in operation["parameters"] if p["name"] == name)
+
+
+@pytest.mark.parametrize(("module", "message", "call", "where", "loc"), RULES,
+                         ids=[f"{c[0].rsplit('/', 1)[1]}: {c[1]}" for c in RULES])
+def test_each_engine_refusal_is_stated_by_the_schema_or_a_rule_naming_the_field(
+        module, message, call, where, loc):
+    assert message in (ROOT / module).read_text()  # the engine's own refusal
+    method, path, payload = call
+    if where == NOT_EXPOSED:  # the service never passes it: no request can reach it
+        assert "method" not in openapi_at(("CriticalValuesRequest", "properties"))
+        return
+    if isinstance(where, tuple) and where[0] == "query":
+        schema = _query_schema(where[1], where[2])
+        assert where[3] in schema or any(where[3] in s for s in schema.get("anyOf", [])), schema
+    elif isinstance(where, tuple):
+        assert openapi_at(where) is not None
+    else:
+        bullets = [line for line in API_MD.splitlines() if line.startswith(("- ", "  "))]
+        assert any(where in line for line in bullets), where
+    r = (client.get(path, params=payload) if method == "GET"
+         else client.post(path, content=json.dumps(payload, allow_nan=True),
+                          headers={"content-type": "application/json"}))
+    assert r.status_code == 422, r.text
+    assert r.headers["content-type"] == "application/problem+json"
+    errors = r.json()["errors"]
+    assert errors and errors[0]["loc"][:len(loc)] == loc, errors
+    if isinstance(where, str):  # a rule: the engine's own message, at that field
+        assert message in r.json()["detail"] or message in json.dumps(errors)
+    assert client.get("/health/live").status_code == 200

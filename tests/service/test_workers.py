@@ -22,6 +22,7 @@ import pytest
 from bench.bench_memory import floppy_chain
 from service.config import Settings, default_worker_memory_mb, machine_memory_mb
 from service.main import create_app
+from service.schemas.common import AnalysisRequest
 from service.workers import WORKER_NICE, EnginePool, MemoryLimit, WorkerFailed
 from tests.service.test_hardening import (
     OVERRUN_PATH,
@@ -496,8 +497,93 @@ def test_a_tiny_first_order_request_is_answered_on_the_event_loop(monkeypatch):
     four_bar = client.get("/v1/presets/four-bar").json()
     chain = client.get("/v1/presets/kl-chain?n=12").json()
     assert len(chain["vertices"]) > workers.INLINE_MAX_VERTICES
-    assert len(chain["vertices"]) <= workers.LIGHT_MAX_VERTICES
+    assert jobs.is_light(AnalysisRequest.model_validate({"linkage": chain}))
     for linkage in (four_bar, chain):
         assert client.post("/v1/analysis/rigidity", json={"linkage": linkage}).status_code == 200
     loop_thread, pool_thread = threads
     assert "AnyIO" not in loop_thread and "AnyIO" in pool_thread, threads
+
+
+def collinear(n: int, bars: int, pinned: int = 0) -> dict[str, Any]:
+    """``n`` vertices on a line in the plane (the first ``pinned`` of them pinned) and ``bars``
+    bars: a path, then chords in a fixed order. Every vertical motion of a free vertex is a
+    zero mode and most bars carry a self-stress: the degenerate case the light lane's estimate
+    has to bound."""
+    pairs = [(i, i + 1) for i in range(n - 1)]
+    pairs += [(i, j) for gap in range(2, n) for i in range(n - gap) for j in (i + gap,)]
+    assert bars <= len(pairs)
+    return {"dimension": 2,
+            "vertices": [{"id": f"v{i}", "position": [float(i) + 0.1 * i * i, 0.0],
+                          "fixed": i < pinned} for i in range(n)],
+            "bars": [{"id": f"b{k}", "ends": [f"v{i}", f"v{j}"]}
+                     for k, (i, j) in enumerate(pairs[:bars])]}
+
+
+@pytest.mark.parametrize(("n", "bars", "pinned", "fixed", "light", "light_second"), [
+    # M = 2 (n - pinned) free coordinates counted by hand, E = bars
+    (4, 3, 2, None, True, True),        # the four-bar's sizes: M 4, E 3, M E 12
+    (32, 88, 0, None, True, False),     # M 64, E 88: 11,840 numbers, below 12,288
+    (32, 96, 0, None, False, False),    # M 64, E 96: 13,312 numbers
+    (8, 8, 0, None, True, True),        # M 16, E 8: M E = 128, the largest second order taken
+    (8, 9, 0, None, True, False),       # M 16, E 9: M E = 144
+    (8, 15, 0, [True, False], True, True),  # a slider per vertex: M 8, E 15, M E = 120
+])
+def test_the_light_lane_takes_a_request_by_its_estimated_worst_cost(
+        n, bars, pinned, fixed, light, light_second):
+    """Zero modes and self-stresses of at most M^2 + E^2 numbers (``LIGHT_MAX_NUMBERS``) and,
+    for second order, ``M E`` at most ``LIGHT_SECOND_ORDER_MAX_PRODUCT``; sizes counted here
+    from the request by hand, not by the service's counter."""
+    from service import jobs, workers
+
+    linkage = collinear(n, bars, pinned)
+    if fixed is not None:
+        for v in linkage["vertices"]:
+            v["fixed"] = fixed
+    body = AnalysisRequest.model_validate({"linkage": linkage})
+    free = sum(2 - (sum(v["fixed"]) if isinstance(v["fixed"], list) else 2 * v["fixed"])
+               for v in linkage["vertices"])
+    assert jobs.free_coordinates(body.linkage) == free
+    assert jobs.is_light(body) is (free**2 + bars**2 <= workers.LIGHT_MAX_NUMBERS) is light
+    assert jobs.is_light(body, second_order=True) is light_second
+
+
+def test_a_request_beyond_the_estimate_is_answered_by_a_worker(monkeypatch):
+    """A collinear linkage of 32 vertices and 96 bars (estimated 13,312 numbers) is answered by
+    an engine worker; one of 88 bars (11,840) by the service's own process."""
+    scheduled: list[Any] = []
+    original = EnginePool.run
+
+    async def counted(self: EnginePool, time_limit: float, fn: Any, *args: Any) -> Any:
+        scheduled.append(args[0])  # the job run by service.workers._as_json
+        return await original(self, time_limit, fn, *args)
+
+    monkeypatch.setattr(EnginePool, "run", counted)
+    app = create_app(Settings(workers=1))
+    heavy, light = run(app, [("/v1/analysis/rigidity", {"linkage": collinear(32, 96)}),
+                             ("/v1/analysis/rigidity", {"linkage": collinear(32, 88)})])
+    assert heavy.status_code == 200, heavy.text
+    assert light.status_code == 200, light.text
+    assert [fn.__name__ for fn in scheduled] == ["rigidity"]  # the heavy one only
+    # the same analysis wherever it ran: on a line of n free vertices whose path of bars spans
+    # it, every vertical motion is a first-order flex, n - 2 of them beyond the trivial ones
+    assert len(heavy.json()["zero_modes"]) == len(light.json()["zero_modes"]) == 32 - 2
+
+
+def test_time_lost_in_the_queue_is_a_503_not_a_too_costly_422():
+    """An analysis that would not end in the time left (the engine's OutOfTime) is the input's
+    fault (422) when it started at once, the queue's (503 busy, Retry-After) when it waited for
+    a worker more than QUEUE_SHARE of the time limit; the 503 crosses the process boundary with
+    its Retry-After (pickled as a worker's exception is)."""
+    import pickle
+
+    from engine.model.budget import OutOfTime
+    from service import workers
+
+    settings = Settings(time_limit_s=10.0)
+    err = OutOfTime("a dense SVD takes about 9 s, more than the 2.0 s left")
+    assert workers._queued_too_long(err, settings, 0.5) is err  # 0.5 s < 0.1 * 10 s
+    busy = workers._queued_too_long(err, settings, 3.2)
+    assert isinstance(busy, workers.Busy) and busy.status == 503
+    assert "waited 3.2 s" in busy.detail and busy.retry_after == 3
+    back = pickle.loads(pickle.dumps(busy))
+    assert (type(back), back.detail, back.retry_after) == (workers.Busy, busy.detail, 3)
