@@ -25,9 +25,10 @@ from engine.design.sweep_rules import DerivedRow
 from engine.model.budget import ARGUMENT_DERIVED, Argument
 from engine.model.linkage import Linkage
 from engine.model.report import count_text
-from engine.space.chain_count import exact_components, gate_decision, gated_chain
+from engine.space.chain_count import gate_decision, gated_chain
 from engine.space.configuration_space import SpaceResult, rotor_angles, winding
 from engine.space.four_bar_cells import FourBarCell, four_bar_cells
+from engine.space.gated_count import exact_components
 
 
 @dataclass(frozen=True)

@@ -194,21 +194,6 @@ def _four_bar_circuits(sides: np.ndarray, scale: float) -> tuple[int, str] | Non
     return 2 if grashof else 1, "four-bar: Grashof (2 components) or not (1)"
 
 
-def exact_components(linkage: Linkage) -> ChainCount | None:
-    """The exact number of components of a rotor chain (:func:`chain_components`) or of a
-    rotor chain with the paper's gate (:func:`gated_chain_components`), None where neither
-    rule applies (the count is then what a search traced: a lower bound unless its argument
-    proves it). Where it is not None the rules also prove there is no critical point.
-
-    Examples
-    --------
-    >>> from engine.catalogue.presets import build_preset
-    >>> exact_components(build_preset("gated-kl-chain", {"n": 4, "gate": 1})).components
-    32
-    """
-    return chain_components(linkage) or gated_chain_components(linkage)
-
-
 # -- chains with the paper's gate ------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -398,8 +383,8 @@ def gated_chain_components(linkage: Linkage, parts: GatedChain | None = None
     """The exact number of components of a gated rotor chain, or None where the rule does not
     apply (not a gated chain, the chain driven from no rotor, critical lengths). Driven from
     another rotor than the gate's, the count is :mod:`engine.space.gate_transfer`'s; driven
-    from none, :func:`engine.design.sweep_rules.derive` counts it where the gate rotor cranks
-    the gate four-bar. ``parts``: :func:`gated_chain` of ``linkage`` where the caller has it.
+    from none, :func:`engine.space.gated_count.cranked_gate_components` counts it where the gate
+    rotor cranks the gate four-bar. ``parts``: :func:`gated_chain` of ``linkage`` where given.
 
     With the chain driven from the gate rotor (every cell's rotor turns fully outwards from it,
     its two assembly modes apart), each of the chain's ``2^(n-1)`` components is a graph over

@@ -94,7 +94,8 @@ def test_the_gated_maps_are_the_closed_form(client: Any, query: dict[str, float]
 def test_a_corner_region_is_what_the_search_traces(client: Any) -> None:
     """The corner region of the 4-rotor map nearest (1.2, 1.2) (the first four-bar drives the
     chain, non-Grashof): the configuration space explored at its sample traces as many closed
-    components as the label counts, and says the same ``gated``."""
+    components as the label counts, no other curve, and says the same ``gated``; complete, the
+    count derived (4 x the chain's: the gate rotor cranks the gate four-bar)."""
     linkage, ans = the_map(client, {"n": 4, "gate": 2})
     region = min(ans["regions"], key=lambda g: g["point"][0] + g["point"][1])
     bars = [{**b, "length": dict(zip(("r0", "r1"), region["point"], strict=True))[b["id"]]}
@@ -105,6 +106,7 @@ def test_a_corner_region_is_what_the_search_traces(client: Any) -> None:
     assert r.status_code == 200, r.text[:500]
     space = r.json()
     closed = sum(c["closed"] for c in space["components"])
-    assert closed == int(region["components"]) == 16
+    assert len(space["components"]) == closed == int(region["components"]) == 16
+    assert space["search"]["complete"] and space["search"]["argument"] == "derived", space["search"]
     assert space["search"]["gated"] is region["gated"] is True
     assert space["search"]["gated_reason"].startswith("gated: the gate rotor cranks")

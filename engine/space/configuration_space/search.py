@@ -16,7 +16,7 @@ from engine.model.budget import (
 )
 from engine.model.linkage import Linkage
 from engine.model.tolerances import Tolerances
-from engine.space.chain_count import exact_components, gate_decision, gated_chain
+from engine.space.chain_count import gate_decision, gated_chain
 from engine.space.configuration_space.closed_form import (
     NO_CANDIDATE,
     closed_form_answer,
@@ -41,6 +41,7 @@ from engine.space.configuration_space.segments import (
     mark_through_start,
     trace_segments,
 )
+from engine.space.gated_count import exact_components
 
 
 def find_critical_points(

@@ -17,9 +17,10 @@ from engine.design.region_labels import derived_label, label_region, label_signa
 from engine.design.sweep_rules import derive
 from engine.model.errors import InvalidParameter
 from engine.model.linkage import Linkage
-from engine.space.chain_count import exact_components, gate_decision
+from engine.space.chain_count import gate_decision
 from engine.space.configuration_space import SpaceOptions, explore
 from engine.space.four_bar_cells import four_bar_cells
+from engine.space.gated_count import exact_components
 from tests.gated_reference import sampled_gated_chain
 
 

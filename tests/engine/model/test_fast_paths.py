@@ -347,7 +347,7 @@ def _on_curve_full_query(ex, us, curve):
     k = min(NEAREST, len(pts))
     dist, idx = cKDTree(pts).query(us, k=k)
     dist, idx = dist.reshape(len(us), k), idx.reshape(len(us), k)
-    candidate = (dist <= ex.h_max) & pass_minima(pts, us, idx, dist)
+    candidate = (dist <= ex.h_max) & pass_minima(pts, us, idx)
     on = np.zeros(len(us), dtype=bool)
     for r in range(k):
         which = np.flatnonzero(~on & candidate[:, r])
