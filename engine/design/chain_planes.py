@@ -46,23 +46,16 @@ import numpy as np
 
 from engine.design.dyad_margin import CriticalPlanes
 from engine.model.linkage import Linkage
-from engine.space.chain_count import GENERIC_RTOL, _chain_order, _without_gate, gated_chain
+from engine.space.chain_count import (
+    GENERIC_RTOL,
+    _chain_order,
+    _without_gate,
+    chain_sides,
+    gated_chain,
+)
 from engine.space.gate_transfer import gate_cranks
 
 SIGNS = np.array(list(itertools.product((1.0, -1.0), repeat=3)))  # (8, 3)
-
-
-def _affine(bars: list[int], axes: tuple[int, int], lengths: np.ndarray) -> np.ndarray:
-    """Each bar's length as ``c + ex x + ey y`` over the map's axes: (len(bars), 3)."""
-    out = np.zeros((len(bars), 3))
-    for row, b in enumerate(bars):
-        if b == axes[0]:
-            out[row, 1] = 1.0
-        elif b == axes[1]:
-            out[row, 2] = 1.0
-        else:
-            out[row, 0] = float(lengths[b])
-    return out
 
 
 def _corners(lines: list[np.ndarray], box: np.ndarray) -> np.ndarray:
@@ -123,21 +116,21 @@ def chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
     tips, rotor_bars, couplers = found
     if not set(axes) <= set(rotor_bars) | set(couplers):
         return None
-    pos = np.asarray(linkage.positions, dtype=float)
-    pins = [int(linkage.ends[b, 0]) if int(linkage.ends[b, 1]) == t else int(linkage.ends[b, 1])
-            for b, t in zip(rotor_bars, tips, strict=True)]
     n_cells = len(tips) - 1
-    a = np.array([float(np.linalg.norm(pos[pins[k + 1]] - pos[pins[k]]))
-                  for k in range(n_cells)])
+    a = chain_sides(linkage, found)[3]
     # per cell the affine lengths (r_k, l_k, r_(k+1)) over the axes, (K, 3, 3), and a_k
-    cells = np.array([_affine([rotor_bars[k], couplers[k], rotor_bars[k + 1]], axes,
-                              linkage.lengths) for k in range(n_cells)])
+    cell_bars = np.column_stack([rotor_bars[:-1], couplers, rotor_bars[1:]])  # (K, 3)
+    cells = np.zeros((n_cells, 3, 3))
+    cells[:, :, 0] = np.asarray(linkage.lengths, dtype=float)[cell_bars]
+    for col, axis in enumerate(axes, start=1):
+        on = cell_bars == axis
+        cells[on, 0], cells[on, col] = 0.0, 1.0
     ground = np.zeros((n_cells, 3))
     ground[:, 0] = a
     # the kinks of the drive conditions: l_k = r_(k+1), r_k = a_k, l_k = r_k, r_(k+1) = a_k
     kinks = [cells[:, 1] - cells[:, 2], cells[:, 0] - ground, cells[:, 1] - cells[:, 0],
              cells[:, 2] - ground]
-    touching = [k for k in range(n_cells) if np.any(cells[k][:, 1:] != 0.0)]
+    touching = np.flatnonzero(np.any(cells[:, :, 1:] != 0.0, axis=(1, 2))).tolist()
     pts = _corners([kink[k] for kink in kinks for k in touching], box)  # (m, 2)
     xy1 = np.column_stack([np.ones(len(pts)), pts])  # (m, 3)
     r0, lc, r1 = (np.einsum("kj,mj->km", cells[:, s], xy1) for s in range(3))  # (K, m)
@@ -152,7 +145,7 @@ def chain_planes(linkage: Linkage, axes: tuple[int, int], box: np.ndarray
 
     in_a = np.flatnonzero(~drives(r1, r0))  # alpha_k may vanish
     in_b = np.flatnonzero(~drives(r0, r1))  # beta_k may vanish
-    if any(i < j for i in in_a for j in in_b):
+    if len(in_a) and len(in_b) and in_a.min() < in_b.max():  # some i < j
         return None
     flat = sorted(set(in_a.tolist()) & set(in_b.tolist()))
     return [CriticalPlanes(np.array([rotor_bars[k], couplers[k], rotor_bars[k + 1]]), SIGNS,

@@ -76,11 +76,10 @@ def touched_cells(linkage: Linkage, names: tuple[str, ...] = ()) -> tuple[FourBa
     >>> len(touched_cells(lk, ("a",)))
     3
     """
-    cells = four_bar_cells(linkage)
     wanted = set(names)
     if not wanted or wanted - set(linkage.bar_ids):
-        return tuple(cells)
-    return tuple(c for c in cells if c.touches(wanted))
+        return tuple(four_bar_cells(linkage))
+    return tuple(c for c in four_bar_cells(linkage, wanted) if c.touches(wanted))
 
 
 def label_region(linkage: Linkage, result: SpaceResult, axes: tuple[str, ...] = ()
@@ -133,7 +132,8 @@ def derived_label(linkage: Linkage, row: DerivedRow, axes: tuple[str, ...] = ()
     windings = row.windings
     if windings is None:
         return None
-    cells = tuple(c for c in four_bar_cells(linkage) if not axes or c.touches(set(axes)))
+    wanted = set(axes) if axes else None
+    cells = tuple(c for c in four_bar_cells(linkage, wanted) if wanted is None or c.touches(wanted))
     gate = gated_chain(linkage) is not None  # (label_region's gated: chains with a gate only)
     return RegionLabel(row.components, True, None, row.rule, cells, row.gated if gate else None,
                        row.gated_reason if gate else None, windings)

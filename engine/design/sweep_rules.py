@@ -90,14 +90,12 @@ def _cells(linkage: Linkage, chain_rotors: tuple[str, ...]) -> tuple[np.ndarray,
     """Rotor lengths ``r`` (n,) and pin distances ``a`` (n - 1,) of the rotors in chain order."""
     full = np.asarray(linkage.fixed.all(axis=1), dtype=bool)
     pos = np.asarray(linkage.positions, dtype=float)
-    r, pins = [], []
-    for bar in chain_rotors:
-        k = linkage.bar_ids.index(bar)
-        i, j = (int(x) for x in linkage.ends[k])
-        pins.append(pos[i] if full[i] else pos[j])
-        r.append(float(linkage.lengths[k]))
-    p = np.array(pins)
-    return np.array(r), np.linalg.norm(np.diff(p, axis=0), axis=1)
+    index = {b: k for k, b in enumerate(linkage.bar_ids)}  # (tuple.index per rotor: O(n^2))
+    bars = np.array([index[bar] for bar in chain_rotors], dtype=np.intp)
+    ends = np.asarray(linkage.ends, dtype=np.intp).reshape(-1, 2)[bars]
+    pins = np.where(full[ends[:, 0]], ends[:, 0], ends[:, 1])
+    r = np.asarray(linkage.lengths, dtype=float)[bars]
+    return r, np.linalg.norm(np.diff(pos[pins], axis=0), axis=1)
 
 
 def _chain_turns(r: np.ndarray, a: np.ndarray, driver: int, driver_turns: int) -> list[int]:

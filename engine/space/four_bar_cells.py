@@ -19,6 +19,7 @@ from engine.space.chain_count import (
     _chain_order,
     _gate_bars,
     _without_gate,
+    chain_sides,
     gated_chain,
 )
 
@@ -36,11 +37,16 @@ def tau_signs(sides: tuple[float, float, float, float]) -> tuple[int, int, int]:
     >>> tau_signs((2.5, 1.5, 2.0, 2.0)), tau_signs((2.4, 1.5, 2.0, 2.0))
     ((1, 1, 0), (1, 1, 1))
     """
-    a, l1, l2, l3 = sides
-    taus = (a - l1 + l2 - l3, a - l1 - l2 + l3, l2 + l3 - a - l1)
-    eps = GENERIC_RTOL * max(abs(x) for x in sides)
-    s1, s2, s3 = (0 if abs(t) <= eps else (1 if t > 0 else -1) for t in taus)
-    return s1, s2, s3
+    return _tau_signs(np.array([sides], dtype=float))[0]
+
+
+def _tau_signs(sides: np.ndarray) -> list[tuple[int, int, int]]:
+    """:func:`tau_signs` of each row of ``sides`` (K, 4)."""
+    a, l1, l2, l3 = sides.T
+    taus = np.column_stack([a - l1 + l2 - l3, a - l1 - l2 + l3, l2 + l3 - a - l1])
+    eps = GENERIC_RTOL * np.max(np.abs(sides), axis=1, keepdims=True)
+    signs = np.where(np.abs(taus) <= eps, 0, np.sign(taus)).astype(int)
+    return [(s1, s2, s3) for s1, s2, s3 in signs.tolist()]
 
 
 @dataclass(frozen=True)
@@ -60,11 +66,12 @@ class FourBarCell:
         return bool(bars & {*self.bars, *([self.ground] if self.ground else [])})
 
 
-def four_bar_cells(linkage: Linkage) -> list[FourBarCell]:
+def four_bar_cells(linkage: Linkage, bars: set[str] | None = None) -> list[FourBarCell]:
     """The four-bar cells of a rotor chain (each ``P_k T_k T_(k+1) P_(k+1)``, ground the pin
     spacing) and, for a chain with the paper's gate, the gate four-bar first (ground ``D``,
     input the gate rotor, coupler ``L2``, output ``L1``: the cell Fig. 5b labels); empty for
-    any other linkage.
+    any other linkage. ``bars``: only the chain's cells with one of these bars as a side (the
+    gate's cell is kept either way).
 
     Examples
     --------
@@ -86,14 +93,19 @@ def four_bar_cells(linkage: Linkage) -> list[FourBarCell]:
     if found is None:
         return out
     tips, rotor_bars, couplers = found
-    pos = np.asarray(chain.positions, dtype=float)
-    pins = [int(chain.ends[b, 0]) if int(chain.ends[b, 1]) == t else int(chain.ends[b, 1])
-            for b, t in zip(rotor_bars, tips, strict=True)]
-    for k in range(len(tips) - 1):
-        ground = float(np.linalg.norm(pos[pins[k + 1]] - pos[pins[k]]))
-        idx = (rotor_bars[k], couplers[k], rotor_bars[k + 1])
-        bars = (chain.bar_ids[idx[0]], chain.bar_ids[idx[1]], chain.bar_ids[idx[2]])
-        sides = (ground, float(chain.lengths[idx[0]]), float(chain.lengths[idx[1]]),
-                 float(chain.lengths[idx[2]]))
-        out.append(FourBarCell("-".join(bars), bars, sides, tau_signs(sides)))
+    a = chain_sides(chain, found)[3]
+    lengths = np.asarray(chain.lengths, dtype=float)
+    sides = np.column_stack([a, lengths[rotor_bars[:-1]], lengths[couplers],
+                             lengths[rotor_bars[1:]]])  # (K, 4): ground, input, coupler, output
+    ids = chain.bar_ids
+    keep = np.arange(len(couplers))
+    if bars is not None:  # (20,000 cells as objects: 0.3 s; a map's axes touch two or three)
+        touched = np.array([b in bars for b in ids], dtype=bool)
+        rb, cb = np.asarray(rotor_bars), np.asarray(couplers, dtype=np.intp)
+        keep = np.flatnonzero(touched[rb[:-1]] | touched[cb] | touched[rb[1:]])
+    for k, side, signs in zip(keep.tolist(), sides[keep].tolist(), _tau_signs(sides[keep]),
+                              strict=True):
+        names = (ids[rotor_bars[k]], ids[couplers[k]], ids[rotor_bars[k + 1]])
+        out.append(FourBarCell("-".join(names), names, (side[0], side[1], side[2], side[3]),
+                               signs))
     return out
