@@ -52,6 +52,11 @@ FOLD_ZERO_RTOL = 1e-10
 #: A root ``z`` of a fold polynomial lies on the unit circle when ``| |z| - 1 |`` is below this
 #: (a double root, at a cell's singular point, is off it by about the square root of rounding).
 UNIT_ROOT_TOL = 1e-5
+#: Roots this close to the unit circle are taken as folds too, where a wrong claim could follow
+#: from missing one (seeds, run starts, the rule's "no fold"): lengths within about its square
+#: (relative) of a critical length; a candidate from one that refines to no critical point
+#: leaves the answer unresolved rather than guessed.
+NEAR_ROOT_TOL = 1e-3
 #: ``|b_j|`` (relative to ``|M_j|``) below which a walked run is a critical candidate, refined
 #: on the augmented system.
 CANDIDATE_RTOL = 1e-4
@@ -196,9 +201,10 @@ def hinge_chain(linkage: Linkage) -> HingeChain | None:
                       cells)
 
 
-def fold_angles(q: np.ndarray) -> np.ndarray | None:
+def fold_angles(q: np.ndarray, tol: float = UNIT_ROOT_TOL) -> np.ndarray | None:
     """Real roots of ``x(t)^T q x(t)`` (q (3, 3) symmetric) in ``[-pi, pi)``, or None when it
-    vanishes identically. Degree 2 in ``cos t, sin t``: a quartic in ``z = e^(it)``."""
+    vanishes identically. Degree 2 in ``cos t, sin t``: a quartic in ``z = e^(it)``, whose
+    roots within ``tol`` of the unit circle are taken (polished by Newton)."""
     a0 = q[0, 0] + 0.5 * (q[1, 1] + q[2, 2])
     a1, b1 = 2 * q[0, 1], 2 * q[0, 2]
     a2, b2 = 0.5 * (q[1, 1] - q[2, 2]), q[1, 2]
@@ -209,7 +215,7 @@ def fold_angles(q: np.ndarray) -> np.ndarray | None:
         return None
     lead = np.flatnonzero(np.abs(coef) > FOLD_ZERO_RTOL * size)[0]
     z = np.roots(coef[lead:]) if lead < 4 else np.zeros(0)
-    t = np.angle(z[np.abs(np.abs(z) - 1.0) <= UNIT_ROOT_TOL])
+    t = np.angle(z[np.abs(np.abs(z) - 1.0) <= tol])
 
     def value(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         c, s, c2, s2 = np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t)
@@ -232,11 +238,12 @@ def fold_angles(q: np.ndarray) -> np.ndarray | None:
 _S = np.diag([-1.0, 1.0, 1.0])
 
 
-def folds(m: np.ndarray, side: str) -> np.ndarray | None:
+def folds(m: np.ndarray, side: str, tol: float = NEAR_ROOT_TOL) -> np.ndarray | None:
     """Points (F, 2) ``(theta_k, theta_(k+1))`` of the cell ``m`` with ``a = 0`` (side "a":
-    a double root in ``theta_k``) or ``b = 0`` (side "b"); None: a continuum of folds."""
+    a double root in ``theta_k``) or ``b = 0`` (side "b"), and near misses within ``tol`` (see
+    :data:`NEAR_ROOT_TOL`); None: a continuum of folds."""
     mat = m if side == "a" else m.T  # rows: the angle that has the double root
-    roots = fold_angles(mat.T @ _S @ mat)
+    roots = fold_angles(mat.T @ _S @ mat, tol)
     if roots is None:
         return None
     coef = mat @ _x(roots).T  # (3, F): C, A, B of the double root's equation
@@ -362,7 +369,10 @@ def _runs(w: _Walker) -> tuple[np.ndarray, np.ndarray, str | None]:
                 margins.append(_margins_of(rows[hit], i, full, rel[hit]))
     if not found:
         return np.zeros((0, chain.n)), np.zeros(0), None
-    return np.vstack(found), np.concatenate(margins), None
+    rows, rel = np.vstack(found), np.concatenate(margins)
+    # one row per configuration (a fold that is a double root is met twice)
+    _, first = np.unique(np.round(np.mod(rows, 2 * np.pi), 6), axis=0, return_index=True)
+    return rows[np.sort(first)], rel[np.sort(first)], None
 
 
 def _margins_of(run: np.ndarray, first: int, full: np.ndarray, rel: np.ndarray) -> np.ndarray:
@@ -440,7 +450,7 @@ def derive(chain: HingeChain, deadline: Deadline = NEVER, points_max: int = POIN
         return Derivation(chain, empty, crit, margins, 0.0, counts,
                           stopped=f"seeds: {exc}")
     counts.update(walked=w.walked, fibre=len(fibre), turning=sum(len(t) for t in turning))
-    return Derivation(chain, np.vstack([fibre, *turning, crit]), crit, margins, t0, counts)
+    return Derivation(chain, np.vstack([fibre, *turning]), crit, margins, t0, counts)
 
 
 def angles_of(chain: HingeChain, tips: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from engine.local.critical import CriticalPoint, NearMiss
 from engine.model.budget import ARGUMENT_DERIVED, Argument, granted
@@ -36,6 +37,7 @@ from engine.space.hinge_chain import (
     sheet_of,
     sheets,
 )
+from engine.space.trace import Curve
 
 #: A candidate or seed is at a found critical point within this (relative to the median bar).
 AT_CRITICAL_REL = 1e-3
@@ -207,3 +209,36 @@ def argument(ex: Explorer, proof: HingeProof, crit: list[CriticalPoint],
                  f"chain ({c.get('turning', 0)} points), all on the {len(ex.curves)} traced "
                  "curves or at a critical point")
     return ARGUMENT_DERIVED, text
+
+
+def drop_open_through_critical(ex: Explorer, crit: list[CriticalPoint]) -> int:
+    """Drop the open curves (stopped by a budget) that pass within the step bound of a
+    critical point: traced through a branch point they may wander on past it, but the
+    segments from that point reach their whole component (the components are assembled from
+    those segments, not from such curves). Returns how many were dropped, and recounts
+    ``report["open_curves"]``."""
+    if not crit:
+        return 0
+    at = np.array([c.u for c in crit])
+    keep = [c for c in ex.curves if c.stop == "closed" or np.linalg.norm(
+        c.array("points")[:, None, :] - at[None], axis=2).min() > ex.h_max]
+    dropped = len(ex.curves) - len(keep)
+    if dropped:
+        ex.curves = keep
+        ex._rebuild_tree()
+        ex.report["open_curves"] = sum(c.stop != "closed" for c in keep)
+        ex.report["open_curves_through_critical"] = dropped
+    return dropped
+
+
+def off_components(ex: Explorer, traced: list[Curve], components: list[Component]) -> int:
+    """Traced curves with a point farther than the step bound from every point of the
+    assembled components: a part of the space the answer would leave out (the segments
+    through a branch point missed a loop), so the answer is not complete."""
+    pts = [c.points for c in components if len(c.points)]
+    if not traced:
+        return 0
+    if not pts:
+        return len(traced)
+    tree = cKDTree(np.vstack(pts))
+    return sum(bool((tree.query(c.array("points"))[0] > ex.h_max).any()) for c in traced)

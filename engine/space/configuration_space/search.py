@@ -24,7 +24,12 @@ from engine.space.configuration_space.closed_form import (
 )
 from engine.space.configuration_space.critical_search import critical_points, resolve
 from engine.space.configuration_space.explorer import Explorer
-from engine.space.configuration_space.hinge import HingeProof, sheet_answer
+from engine.space.configuration_space.hinge import (
+    HingeProof,
+    drop_open_through_critical,
+    off_components,
+    sheet_answer,
+)
 from engine.space.configuration_space.hinge import argument as hinge_argument
 from engine.space.configuration_space.hinge import gather as hinge_gather
 from engine.space.configuration_space.proof import (
@@ -82,10 +87,10 @@ def find_critical_points(
     # The curves then serve only the near misses, and the components a budget would
     # trace are an arbitrary few of 2^(n-1) (a 100-rotor chain: 32 of 2^99, the whole default
     # budget): the near misses are those of the component the linkage is on.
-    count = _count(linkage)
+    count = _count(linkage, opt)
     ex = Explorer(linkage, tol, opt, deadline or NEVER)
     # a 3D hinged chain: every critical point among the runs walked in closed form
-    hinge = hinge_gather(ex, seeds=False) if count is None else None
+    hinge = hinge_gather(ex, seeds=False) if count is None and opt.closed_form else None
     sample = start_on_space and (count is not None or (
         hinge is not None and hinge.derivation.critical_done))
     start = linkage.coordinates() if start_on_space else None
@@ -129,10 +134,11 @@ def find_critical_points(
     return CriticalSearch(crit, misses if not crit else [], search, degenerate)
 
 
-def _count(linkage: Linkage) -> ChainCount | None:
-    """The chain rules' count: planar rotor chains (:mod:`engine.space.chain_count`) or 3D
-    hinged chains none of whose cells turns (:func:`engine.space.hinge_chain.hinge_count`)."""
-    return exact_components(linkage) or hinge_count(linkage)
+def _count(linkage: Linkage, opt: SpaceOptions) -> ChainCount | None:
+    """The chain rules' count: planar rotor chains (:mod:`engine.space.chain_count`) or (with
+    ``opt.closed_form``) 3D hinged chains none of whose cells turns
+    (:func:`engine.space.hinge_chain.hinge_count`)."""
+    return exact_components(linkage) or (hinge_count(linkage) if opt.closed_form else None)
 
 
 def _hinge_claims(ex: Explorer, hinge: HingeProof | None, crit: list[CriticalPoint],
@@ -173,16 +179,18 @@ def _gate_details(report: dict[str, object], linkage: Linkage) -> None:
 
 
 def _seeds_and_isolated(ex: Explorer, seeds: np.ndarray | None,
-                        critical_starts: np.ndarray | None
+                        critical_starts: np.ndarray | None, every: bool = False
                         ) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """A proof's seeds, and the rigid critical points among its critical starts (refined
-    before tracing: no seed is traced from an isolated point)."""
+    """A proof's seeds, and the rigid critical points among its critical starts (``every``:
+    all of them), refined before tracing: no seed is traced from an isolated point (nor, with
+    ``every``, from a branch point, whose segments reach its component)."""
     if seeds is None:
         return None, None
     rigid = None
     if critical_starts is not None and len(critical_starts):
         found, _, _, _ = resolve(ex, list(critical_starts))
-        rigid = np.array([c.u for c in found if c.kind == "rigid"]).reshape(-1, ex.cons.n_free)
+        rigid = np.array([c.u for c in found if every or c.kind == "rigid"]).reshape(
+            -1, ex.cons.n_free)
     return seeds, rigid
 
 
@@ -222,17 +230,17 @@ def explore(
         if fast is not None:
             return _with_found(fast)
     # -- general path ---------------------------------------------------------------------
-    count = _count(linkage)
+    count = _count(linkage, opt)
     if count is not None and count.rule == HINGE_RULE:
         sheets = sheet_answer(ex, count, start, near_misses)
         if sheets is not None:
             return sheets
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
-    hinge = hinge_gather(ex) if count is None else None
+    hinge = hinge_gather(ex) if count is None and opt.closed_form else None
     proof = gather(ex) if count is None and hinge is None else None
     if hinge is not None:
-        ex.trace_all(start, *_seeds_and_isolated(ex, hinge.seeds, hinge.candidates),
+        ex.trace_all(start, *_seeds_and_isolated(ex, hinge.seeds, hinge.candidates, every=True),
                      sweeps=not hinge.derivation.seeds_done)
     else:
         ex.trace_all(start, *_seeds_and_isolated(
@@ -250,12 +258,23 @@ def explore(
         crit, misses, degenerate = critical_points(
             ex, proof.critical_starts if proof is not None else (
                 hinge.candidates if hinge is not None else None))
+    why = None
+    traced = list(ex.curves)
+    if hinge is not None:  # (its seeds checked on every traced curve, then the open ones
+        why = hinge_argument(ex, hinge, crit)  # through a branch point left to the segments)
+        if not degenerate:
+            drop_open_through_critical(ex, crit)
     # Segments need every critical point classified; with a degenerate one the traced curves
     # themselves are the answer (they may pass through critical points).
     segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
     components = assemble_components(ex, crit, segs, degenerate)
     mark_through_start(components, start, ex.h_max)
     agreed = True
+    if hinge is not None and why is not None and why[0] is not None and (
+            off := off_components(ex, traced, components)):
+        agreed = False  # (a second method disagrees: never a confident count)
+        why = (None, f"3D hinged chain: {off} traced curves leave the assembled components")
+        ex.report["components_disagree"] = why[1]
     if count is not None:
         # the true total for rotor chains (four-bar decomposition), also when the budget of
         # traced components is far below it (a 100-rotor spinner chain has 2^99)
@@ -268,8 +287,8 @@ def explore(
             ex.report["components_disagree"] = (
                 f"traced {len(components)} components, {count.rule} gives "
                 f"{count_text(count.components)}")
-    why = hinge_argument(ex, hinge, crit) if hinge is not None else \
-        argument(ex, proof, crit, count, len(components))
+    if why is None:
+        why = argument(ex, proof, crit, count, len(components))
     _gate_details(ex.report, linkage)
     search = ex.finish(degenerate, seg_complete, agreed, why,
                        seeds_needed=count is None or why[0] is None,
