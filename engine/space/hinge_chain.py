@@ -28,8 +28,9 @@ every value on it, and the fibre ``theta_0 = const`` (all ``2^(n-1)`` sign choic
 form) meets it, or ``theta_0`` has an extremum on it: a critical point, or a regular point whose
 tangent has ``t_0 = 0``; the bidiagonal system then forces ``t_0 = .. = t_k = 0 != t_(k+1)`` and
 ``b_k = 0`` for some cell ``k``: a ``b``-fold of cell ``k``, completed through the other cells.
-A fold polynomial that vanishes identically (a cell with a continuum of folds: one circle's
-point on the other's axis for all angles) makes the argument fail: ``degenerate``.
+A fold polynomial that vanishes identically, or a fold where the other tip lies on this
+hinge's axis (a whole circle of the cell folds: kites and rhombi built from hinges), makes the
+derivation decline as ``degenerate``; the answers then take the general path (the homotopy).
 
 Every enumeration is bounded up front (``points_max`` angles in all, about ``(n + 3) 2^n`` for
 a chain whose cells all have two branches) and by the deadline; beyond them the derivation says
@@ -44,7 +45,6 @@ import numpy as np
 
 from engine.model.budget import NEVER, Deadline
 from engine.model.linkage import Linkage
-from engine.space.chain_count import ChainCount
 
 #: A fold polynomial whose coefficients are all below this (relative to ``|M|^2``) vanishes
 #: identically: a continuum of folds (the derivation declines as degenerate).
@@ -57,6 +57,9 @@ UNIT_ROOT_TOL = 1e-5
 #: (relative) of a critical length; a candidate from one that refines to no critical point
 #: leaves the answer unresolved rather than guessed.
 NEAR_ROOT_TOL = 1e-3
+#: At a fold, the amplitude ``hypot(A, B)`` (relative to ``|M|``) below which the other tip is
+#: on this hinge's axis: every angle of this rotor closes the cell there (a circle of folds).
+AXIS_RTOL = 1e-6
 #: ``|b_j|`` (relative to ``|M_j|``) below which a walked run is a critical candidate, refined
 #: on the augmented system.
 CANDIDATE_RTOL = 1e-4
@@ -241,12 +244,16 @@ _S = np.diag([-1.0, 1.0, 1.0])
 def folds(m: np.ndarray, side: str, tol: float = NEAR_ROOT_TOL) -> np.ndarray | None:
     """Points (F, 2) ``(theta_k, theta_(k+1))`` of the cell ``m`` with ``a = 0`` (side "a":
     a double root in ``theta_k``) or ``b = 0`` (side "b"), and near misses within ``tol`` (see
-    :data:`NEAR_ROOT_TOL`); None: a continuum of folds."""
+    :data:`NEAR_ROOT_TOL`); None: a continuum of folds (the polynomial vanishes, or at a root
+    the other tip lies on this hinge's axis, so a whole circle of the cell folds: kites and
+    rhombi built from hinges)."""
     mat = m if side == "a" else m.T  # rows: the angle that has the double root
     roots = fold_angles(mat.T @ _S @ mat, tol)
     if roots is None:
         return None
     coef = mat @ _x(roots).T  # (3, F): C, A, B of the double root's equation
+    if np.any(np.hypot(coef[1], coef[2]) <= AXIS_RTOL * np.linalg.norm(m)):
+        return None  # a tip on the other hinge's axis: a whole circle of the cell are folds
     base = np.arctan2(coef[2], coef[1]) + np.where(coef[0] > 0, np.pi, 0.0)
     pair = np.column_stack([base, roots])
     return pair if side == "a" else pair[:, ::-1]
@@ -351,7 +358,7 @@ def _runs(w: _Walker) -> tuple[np.ndarray, np.ndarray, str | None]:
     for i in range(chain.n - 1):
         start = folds(chain.cells[i], "a")
         if start is None:
-            return np.zeros((0, chain.n)), np.zeros(0), f"cell {i}: a continuum of folds"
+            return np.zeros((0, chain.n)), np.zeros(0), f"cell {i}: a circle of folds"
         rows = start
         for j in range(i, chain.n - 1):
             if j > i:
@@ -443,7 +450,7 @@ def derive(chain: HingeChain, deadline: Deadline = NEVER, points_max: int = POIN
             if pts is None:
                 counts["walked"] = w.walked
                 return Derivation(chain, empty, crit, margins, t0, counts,
-                                  degenerate=f"cell {k}: a continuum of folds")
+                                  degenerate=f"cell {k}: a circle of folds")
             turning.append(w.complete(pts, k))
     except TooMany as exc:
         counts["walked"] = w.walked
@@ -451,76 +458,3 @@ def derive(chain: HingeChain, deadline: Deadline = NEVER, points_max: int = POIN
                           stopped=f"seeds: {exc}")
     counts.update(walked=w.walked, fibre=len(fibre), turning=sum(len(t) for t in turning))
     return Derivation(chain, np.vstack([fibre, *turning]), crit, margins, t0, counts)
-
-
-def angles_of(chain: HingeChain, tips: np.ndarray) -> np.ndarray:
-    """Rotor angles (..., n) of tip positions (..., n, 3) on the hinge circles."""
-    rel = tips - chain.centres
-    return np.arctan2(np.einsum("...ki,ki->...k", rel, chain.frames[:, 1]),
-                      np.einsum("...ki,ki->...k", rel, chain.frames[:, 0]))
-
-
-def sheet_of(chain: HingeChain, theta: np.ndarray) -> np.ndarray:
-    """The branch (n - 1,) of each cell at angles ``theta`` (n,): 0 for ``base + spread``, 1 for
-    ``base - spread`` (:func:`solve_next`), whichever is nearer ``theta_(k+1)``."""
-    bits = np.zeros(chain.n - 1, dtype=int)
-    for k in range(chain.n - 1):
-        nxt, _ = solve_next(chain.cells[k], theta[k:k + 1])
-        bits[k] = int(np.argmin(np.abs(np.angle(np.exp(1j * (nxt[0] - theta[k + 1]))))))
-    return bits
-
-
-def sheets(chain: HingeChain, bits: np.ndarray, theta0: np.ndarray) -> np.ndarray:
-    """Angles (S, K, n) of the sheets with branches ``bits`` (S, n - 1) over ``theta0`` (K,)
-    (NaN where a sheet does not exist)."""
-    s_count = len(bits)
-    rows = np.empty((s_count, len(theta0), chain.n))
-    rows[:, :, 0] = theta0
-    for k in range(chain.n - 1):
-        nxt, ok = solve_next(chain.cells[k], rows[:, :, k].ravel())
-        pick = np.repeat(bits[:, k], len(theta0))
-        val = nxt[np.arange(len(pick)), pick]
-        rows[:, :, k + 1] = np.where(ok[np.arange(len(pick)), pick], val, np.nan).reshape(
-            s_count, -1)
-    return rows
-
-
-def hinge_count(linkage: Linkage) -> ChainCount | None:
-    """The exact number of components of a hinged rotor chain none of whose cells turns in its
-    outer angle (no ``b``-fold: every fold polynomial in ``theta_k`` has no real root), else
-    None. Each cell's relation is then two disjoint graphs over ``theta_k`` at every angle (or
-    none at all), so every choice of one graph per cell is one component, a graph over
-    ``theta_0``: ``2^(n-1)`` (0 where a cell never closes); and since a critical point needs
-    some ``b_j = 0``, there is none.
-
-    Examples
-    --------
-    >>> from engine.catalogue.presets import build_preset
-    >>> hinge_count(build_preset("rotor-chain-3d", {"n": 5})).components
-    16
-    """
-    chain = hinge_chain(linkage)
-    if chain is None:
-        return None
-    for m in chain.cells:
-        pts = folds(m, "b")
-        if pts is None or len(pts):
-            return None
-    theta = np.zeros(1)
-    closes = True
-    for m in chain.cells:
-        nxt, ok = solve_next(m, theta)
-        if not ok[0, 0]:
-            closes = False
-            break
-        theta = nxt[:, 0]
-    bars = linkage.bar_ids
-    rotors = tuple(bars[int(np.flatnonzero((np.asarray(linkage.ends) == t).any(axis=1))[0])]
-                   for t in chain.tips)
-    return ChainCount(2 ** (chain.n - 1) if closes else 0, rotors, 0, HINGE_RULE)
-
-
-#: The rule of :func:`hinge_count`, as the answers name it.
-HINGE_RULE = ("3D hinged rotor chain, no cell turns in its outer angle (the fold polynomials "
-              "in theta_k have no real root): each choice of one branch per cell is one "
-              "component, a graph over theta_0")

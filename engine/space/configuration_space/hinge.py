@@ -27,16 +27,8 @@ from engine.space.configuration_space.closed_form import walk_curve, walk_distan
 from engine.space.configuration_space.critical_search import critical_points
 from engine.space.configuration_space.explorer import Explorer
 from engine.space.configuration_space.results import Component, SpaceResult
-from engine.space.hinge_chain import (
-    CERTAIN_RTOL,
-    Derivation,
-    HingeChain,
-    angles_of,
-    derive,
-    hinge_chain,
-    sheet_of,
-    sheets,
-)
+from engine.space.hinge_chain import CERTAIN_RTOL, Derivation, HingeChain, derive, hinge_chain
+from engine.space.hinge_sheets import angles_of, sheet_of, sheets
 from engine.space.trace import Curve
 
 #: A candidate or seed is at a found critical point within this (relative to the median bar).

@@ -12,6 +12,7 @@ import numpy as np
 from engine.local.critical import CriticalPoint, NearMiss
 from engine.model.budget import (
     NEVER,
+    Argument,
     Deadline,
 )
 from engine.model.linkage import Linkage
@@ -33,12 +34,14 @@ from engine.space.configuration_space.hinge import (
 from engine.space.configuration_space.hinge import argument as hinge_argument
 from engine.space.configuration_space.hinge import gather as hinge_gather
 from engine.space.configuration_space.proof import (
+    Proof,
     argument,
     count_text,
     gather,
     proved_so_far,
 )
 from engine.space.configuration_space.results import (
+    Component,
     CriticalSearch,
     SpaceOptions,
     SpaceResult,
@@ -48,7 +51,8 @@ from engine.space.configuration_space.segments import (
     mark_through_start,
     trace_segments,
 )
-from engine.space.hinge_chain import HINGE_RULE, hinge_count
+from engine.space.hinge_sheets import HINGE_RULE, hinge_count
+from engine.space.trace import Curve
 
 
 def find_critical_points(
@@ -91,6 +95,8 @@ def find_critical_points(
     ex = Explorer(linkage, tol, opt, deadline or NEVER)
     # a 3D hinged chain: every critical point among the runs walked in closed form
     hinge = hinge_gather(ex, seeds=False) if count is None and opt.closed_form else None
+    if hinge is not None and not hinge.derivation.critical_done:
+        hinge = None  # (degenerate or cut short: the homotopy's turn, as for any linkage)
     sample = start_on_space and (count is not None or (
         hinge is not None and hinge.derivation.critical_done))
     start = linkage.coordinates() if start_on_space else None
@@ -178,6 +184,31 @@ def _gate_details(report: dict[str, object], linkage: Linkage) -> None:
     report["gated_reason"] = decision.reason
 
 
+def _trace(ex: Explorer, start: np.ndarray | None, hinge: HingeProof | None,
+           proof: Proof | None) -> None:
+    """Trace from the start and the seeds: a hinged chain's alone (they meet every
+    component; every critical point skipped as a seed), else a proof's and the sweeps'."""
+    if hinge is not None:
+        ex.trace_all(start, *_seeds_and_isolated(ex, hinge.seeds, hinge.candidates, every=True),
+                     sweeps=False)
+    else:
+        ex.trace_all(start, *_seeds_and_isolated(
+            ex, None if proof is None else proof.seeds,
+            None if proof is None else proof.critical_starts))
+
+
+def _hinge_agrees(ex: Explorer, why: tuple[Argument | None, str | None] | None,
+                  traced: list[Curve], components: list[Component]
+                  ) -> tuple[tuple[Argument | None, str | None] | None, bool]:
+    """A hinged chain's argument and whether the assembled components hold every traced
+    curve (False: a second method disagrees, never a confident count)."""
+    if why is None or why[0] is None or not (off := off_components(ex, traced, components)):
+        return why, True
+    why = (None, f"3D hinged chain: {off} traced curves leave the assembled components")
+    ex.report["components_disagree"] = why[1]
+    return why, False
+
+
 def _seeds_and_isolated(ex: Explorer, seeds: np.ndarray | None,
                         critical_starts: np.ndarray | None, every: bool = False
                         ) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -238,14 +269,10 @@ def explore(
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
     hinge = hinge_gather(ex) if count is None and opt.closed_form else None
+    if hinge is not None and not hinge.derivation.seeds_done:
+        hinge = None  # (degenerate or cut short: the homotopy's turn, as for any linkage)
     proof = gather(ex) if count is None and hinge is None else None
-    if hinge is not None:
-        ex.trace_all(start, *_seeds_and_isolated(ex, hinge.seeds, hinge.candidates, every=True),
-                     sweeps=not hinge.derivation.seeds_done)
-    else:
-        ex.trace_all(start, *_seeds_and_isolated(
-            ex, None if proof is None else proof.seeds,
-            None if proof is None else proof.critical_starts))
+    _trace(ex, start, hinge, proof)
     if count is not None and not near_misses:
         # The chain rules prove that there is no critical point (engine.space.chain_count): the
         # search would only find near misses, which the caller does not want. On long chains
@@ -269,12 +296,7 @@ def explore(
     segs, seg_complete = trace_segments(ex, crit) if not degenerate else ([], False)
     components = assemble_components(ex, crit, segs, degenerate)
     mark_through_start(components, start, ex.h_max)
-    agreed = True
-    if hinge is not None and why is not None and why[0] is not None and (
-            off := off_components(ex, traced, components)):
-        agreed = False  # (a second method disagrees: never a confident count)
-        why = (None, f"3D hinged chain: {off} traced curves leave the assembled components")
-        ex.report["components_disagree"] = why[1]
+    why, agreed = _hinge_agrees(ex, why, traced, components)
     if count is not None:
         # the true total for rotor chains (four-bar decomposition), also when the budget of
         # traced components is far below it (a 100-rotor spinner chain has 2^99)

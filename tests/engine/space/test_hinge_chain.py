@@ -15,13 +15,8 @@ from engine.catalogue.presets import build_preset
 from engine.model.budget import Deadline
 from engine.model.errors import EngineError
 from engine.space.configuration_space import explore, find_critical_points
-from engine.space.hinge_chain import (
-    cell_matrix,
-    derive,
-    folds,
-    hinge_chain,
-    hinge_count,
-)
+from engine.space.hinge_chain import cell_matrix, derive, folds, hinge_chain
+from engine.space.hinge_sheets import hinge_count
 from tests.engine.space.test_witnesses import (
     circle_sphere,
     circles_of,
