@@ -30,8 +30,8 @@ every critical point from the runs of cell folds and a seed on every component (
 Modules: :mod:`.results` (options and answers), :mod:`.explorer` (seeds and curves),
 :mod:`.critical_search` (critical points along the curves), :mod:`.segments` (segments and
 components), :mod:`.closed_form` (the dyad-chain path), :mod:`.hinge` (the hinged-chain
-path), :mod:`.search` (the entry points :func:`explore` and :func:`find_critical_points`); kinematics along the walks (rotor angles,
-windings) in :mod:`engine.space.kinematics`.
+path), :mod:`.search` (the entry points :func:`explore` and :func:`find_critical_points`);
+kinematics along the walks (rotor angles, windings) in :mod:`engine.space.kinematics`.
 """
 
 from engine.space.configuration_space.closed_form import NO_CANDIDATE, closed_form_critical
