@@ -189,8 +189,9 @@ def _trace(ex: Explorer, start: np.ndarray | None, hinge: HingeProof | None,
     """Trace from the start and the seeds: a hinged chain's alone (they meet every
     component; every critical point skipped as a seed), else a proof's and the sweeps'."""
     if hinge is not None:
+        done = hinge.derivation.seeds_done
         ex.trace_all(start, *_seeds_and_isolated(ex, hinge.seeds, hinge.candidates, every=True),
-                     sweeps=False)
+                     sweeps=not done)
     else:
         ex.trace_all(start, *_seeds_and_isolated(
             ex, None if proof is None else proof.seeds,
@@ -269,8 +270,10 @@ def explore(
     ex.report.setdefault("method", "tracer")
     ex.report.setdefault("closed_form", "off")
     hinge = hinge_gather(ex) if count is None and opt.closed_form else None
-    if hinge is not None and not hinge.derivation.seeds_done:
+    if hinge is not None and not hinge.derivation.critical_done:
         hinge = None  # (degenerate or cut short: the homotopy's turn, as for any linkage)
+    # (critical points derived, seeds cut short: the sweeps seed the tracer, and the answer
+    # says the critical points are exact, the components at least what was traced)
     proof = gather(ex) if count is None and hinge is None else None
     _trace(ex, start, hinge, proof)
     if count is not None and not near_misses:

@@ -381,3 +381,14 @@ def test_long_chains_are_counted_whatever_is_shown(n):
     assert res.search["proved"] == {"critical_points": {"count": 0, "exact": True},
                                     "components": {"count": 2 ** (n - 1), "exact": True}}
     assert len(res.components) == 32  # (the default budget of components shown)
+
+
+def test_a_long_chain_whose_cells_turn_keeps_its_critical_points_proved():
+    """Eighteen rotors whose cells turn: the runs are walked (no critical point), the seeds
+    would pass the walk's bound: critical points exact, components at least what was traced."""
+    lk = build_preset("rotor-chain-3d", {"n": 18, "tilt": 1.4, "h": 0.3})
+    res = explore(lk, near_misses=False, deadline=Deadline.after(4.0))
+    assert not res.search["complete"]
+    assert "seeds" in res.search["hinge_chain"]["stopped"]
+    assert res.search["proved"]["critical_points"] == {"count": 0, "exact": True}
+    assert res.search["proved"]["components"]["exact"] is False
