@@ -1,7 +1,8 @@
 """The space floor: whole configuration spaces. The tracer and its compiled kernel
 (:mod:`.trace`, :mod:`.trace_kernel`), seeds (:mod:`.assembly`), walks (:mod:`.kinematics`),
-rotor-chain counts (:mod:`.chain_count`), planar dyad chains in closed form (:mod:`.dyads`) and
-the search of every component and critical point (:mod:`.configuration_space`).
+rotor-chain counts (:mod:`.chain_count`), planar dyad chains in closed form (:mod:`.dyads`), 3D
+hinged rotor chains from their cells (:mod:`.hinge_chain`, :mod:`.hinge_sheets`) and the
+search of every component and critical point (:mod:`.configuration_space`).
 """
 
 from engine.space.chain_count import chain_components

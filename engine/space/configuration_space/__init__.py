@@ -22,11 +22,16 @@ refines closed-form candidates instead of tracing (:func:`engine.space.dyads.cri
 wherever that certificate is in doubt) and answers only when every candidate refines to a
 critical point and none is degenerate; otherwise the steps above run.
 
+3D hinged rotor chains (:mod:`engine.space.hinge_chain`) are derived from their cells
+(:mod:`.hinge`): where no cell turns, ``2^(n-1)`` components sampled in closed form; otherwise
+every critical point from the runs of cell folds and a seed on every component (the fibre over
+``theta_0`` and the folds), traced from those seeds alone.
+
 Modules: :mod:`.results` (options and answers), :mod:`.explorer` (seeds and curves),
 :mod:`.critical_search` (critical points along the curves), :mod:`.segments` (segments and
-components), :mod:`.closed_form` (the dyad-chain path), :mod:`.search` (the entry points
-:func:`explore` and :func:`find_critical_points`); kinematics along the walks (rotor angles,
-windings) in :mod:`engine.space.kinematics`.
+components), :mod:`.closed_form` (the dyad-chain path), :mod:`.hinge` (the hinged-chain
+path), :mod:`.search` (the entry points :func:`explore` and :func:`find_critical_points`);
+kinematics along the walks (rotor angles, windings) in :mod:`engine.space.kinematics`.
 """
 
 from engine.space.configuration_space.closed_form import NO_CANDIDATE, closed_form_critical

@@ -410,21 +410,22 @@ class Explorer:
         return on
 
     def trace_all(self, start: np.ndarray | None, extra: np.ndarray | None = None,
-                  isolated: np.ndarray | None = None) -> None:
+                  isolated: np.ndarray | None = None, sweeps: bool = True) -> None:
         """Trace a curve from every seed not on a curve already traced: ``start``, then
         ``extra`` (K, M) (e.g. the witness points of a proof), then the rotor sweeps and the
         random projections of :mod:`engine.space.assembly`. Seeds within ``ISOLATED_REL`` of
         a point of ``isolated`` (L, M) (rigid critical points: isolated points of the space,
-        where no curve passes) are skipped: the tracer would crawl around rounding there."""
+        where no curve passes) are skipped: the tracer would crawl around rounding there.
+        ``sweeps`` False: ``start`` and ``extra`` alone (a proof's seeds meet every component)."""
         # Seeds are generated on demand: once the component budget is reached the rest (on long
         # chains the costly random projections) is never computed; the report then counts the
         # seeds generated up to that point.
         batch = self.batched is not None
-        found = iter_seeds(
+        found: Iterator[np.ndarray] = iter_seeds(
             self.linkage, self.tol, self.report, self.opt.angles, self.opt.assembly_budget,
             self.opt.random_starts, self.opt.seed, self.opt.max_swept_rotors,
             with_random=not batch, deadline=self.deadline,
-        )
+        ) if sweeps else iter(())
         truncated = False
         first = [start] if start is not None else []
         first += [] if extra is None else list(extra)
@@ -438,7 +439,7 @@ class Explorer:
         stack = np.array(list(itertools.chain(first, found)) if batch else [],
                          dtype=float).reshape(-1, m)
         tail = iter_random_seeds(self.linkage, self.tol, self.report, self.opt.random_starts,
-                                 self.opt.seed, self.deadline) if batch else None
+                                 self.opt.seed, self.deadline) if batch and sweeps else None
         covered = np.zeros(len(stack), dtype=bool)
         tested = np.zeros(len(stack), dtype=int)
 

@@ -33,7 +33,9 @@ class SpaceOptions:
     max_components: int = 32
     seed: int = 0
     #: Try the closed form of :mod:`engine.space.dyads` first (planar dyad chains away from critical
-    #: lengths); False always runs the general tracer (the tests cross-check the two).
+    #: lengths), and derive 3D hinged rotor chains from their cells (:mod:`engine.space.
+    #: hinge_chain`); False always runs the general tracer and the homotopy (the tests
+    #: cross-check them).
     closed_form: bool = True
     #: :func:`find_critical_points` of planar dyad chains from the closed-form candidates of
     #: :func:`engine.space.dyads.critical_candidates` (no tracing), where they are beyond doubt

@@ -59,7 +59,7 @@ def trace_segments(ex: Explorer, crit: list[CriticalPoint]) -> tuple[list[Segmen
                 continue
             j = int(curve.stop.split(":")[1])
             end_ray = _arrival_ray(crit[j], curve.points[-2] if len(curve.points) > 1
-                                   else curve.points[-1])
+                                   else curve.points[-1], curve.tangents[-1])
             key = frozenset({(i, r), (j, end_ray)})
             if key in seen:
                 continue
@@ -81,10 +81,14 @@ def captured(a: np.ndarray, b: np.ndarray, centres: np.ndarray, capture: float, 
     return int(hits[0]) if len(hits) else None
 
 
-def _arrival_ray(cp: CriticalPoint, near: np.ndarray) -> int:
+def _arrival_ray(cp: CriticalPoint, near: np.ndarray, heading: np.ndarray | None = None) -> int:
+    """The ray of branch point ``cp`` a segment arrives on: the one pointing back towards its
+    last point ``near`` before capture or, with the segment's unit ``heading`` there, back
+    along it (the curve's own tangent: the point may lie a step away, where a branch that
+    crosses the other at a small angle has already curved towards the wrong ray)."""
     if cp.kind != "branch":
         return -1
-    d = near - cp.u
+    d = near - cp.u if heading is None else -np.asarray(heading, dtype=float)
     return int(np.argmax(rays(cp) @ (d / max(np.linalg.norm(d), NORM_FLOOR))))
 
 

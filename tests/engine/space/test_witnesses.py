@@ -66,10 +66,13 @@ def reference_sheets(circles: list, lengths: list[float], samples: int) -> np.nd
     return out
 
 
-def reference_components(sheets: np.ndarray) -> int:
+def reference_components(sheets: np.ndarray, touch: float = 0.0) -> int:
     """Components of the union of the sheets: a sheet runs on between consecutive samples where
     it exists; where it ends (a fold of coupler j: both circle-sphere points merge and vanish)
-    it joins, at its last sample, the sheet that differs only in coupler j's sign."""
+    it joins, at its last sample, the sheet that differs only in coupler j's sign. With
+    ``touch`` > 0 (at critical lengths) two sheets that differ only in coupler j's sign also
+    join at a sample where their tips j + 1 are within ``touch`` (they cross at a branch
+    point)."""
     s_count, k_count, n = sheets.shape[:3]
     valid = np.isfinite(sheets).all(axis=(2, 3))  # (S, K)
     # the first coupler whose point is missing (n where none is)
@@ -89,6 +92,12 @@ def reference_components(sheets: np.ndarray) -> int:
         ok = valid[flipped, k_kept]
         rows.append(node[sheet[ok], k_kept[ok]])
         cols.append(node[flipped[ok], k_kept[ok]])
+    for j in range(1, n) if touch > 0 else ():
+        other = np.arange(s_count) ^ (1 << (j - 1))
+        gap = np.linalg.norm(sheets[:, :, j] - sheets[other, :, j], axis=2)  # (S, K)
+        sheet, k = np.nonzero(valid & valid[other] & (gap <= touch))
+        rows.append(node[sheet, k])
+        cols.append(node[other[sheet], k])
     r, c = np.concatenate(rows), np.concatenate(cols)
     from scipy.sparse import coo_matrix
 
@@ -135,8 +144,10 @@ def check_against_reference(lk, samples: int = 20000, paths_max: int | None = No
     sheets = reference_sheets(circles, lengths, samples)
     expected = reference_components(sheets)
     cloud = sheets[np.isfinite(sheets).all(axis=(2, 3))]
-    res = explore(lk, options=None if paths_max is None
-                  else SpaceOptions(homotopy_paths_max=paths_max))
+    # (closed_form off: hinged chains are otherwise derived from their cells, without the
+    # homotopy this file tests; tests/engine/space/test_hinge_chain.py checks that path)
+    res = explore(lk, options=SpaceOptions(closed_form=False) if paths_max is None
+                  else SpaceOptions(closed_form=False, homotopy_paths_max=paths_max))
     assert res.search["complete"], res.search
     assert res.search["argument"] == "proved"
     assert len(res.components) == expected
@@ -211,11 +222,11 @@ def test_the_largest_coupler_of_a_skew_four_bar_is_one_rigid_point():
                                for k, v in enumerate(lk.vertex_ids)],
                            [BarSpec(b, tuple(lk.vertex_ids[e] for e in lk.ends[k]))
                             for k, b in enumerate(lk.bar_ids)])
-    res = find_critical_points(at_max)
+    res = find_critical_points(at_max, options=SpaceOptions(closed_form=False))
     assert res.search["complete"] and res.search["argument"] == "proved"
     assert [c.kind for c in res.critical_points] == ["rigid"]
     assert np.allclose(res.critical_points[0].u, at_max.coordinates(), atol=1e-6)
-    space = explore(at_max)
+    space = explore(at_max, options=SpaceOptions(closed_form=False))
     assert space.search["complete"]
     assert len(space.components) == 1 and len(space.components[0].points) == 1
 
