@@ -132,21 +132,38 @@ def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
             continue
         found.append(CriticalPoint(ref.u, classify(linkage, ref.u, tol), ref.length_residual,
                                    ref.stress_residual))
-    return found, res.success
+    # in the order of their coordinates (rounded well above the refinement's error), not of
+    # the homotopy's paths: the cones' numbers, which a design names, do not depend on the seed
+    key = np.round(np.array([cp.u for cp in found]).reshape(len(found), m) / same, 0)
+    order = np.lexsort(key.T[::-1]) if len(found) else np.zeros(0, dtype=np.int64)
+    return [found[int(k)] for k in order], res.success
+
+
+def is_cone(cp: CriticalPoint) -> bool:
+    """One self-stress and ``Q`` indefinite on three zero modes: a cone of the surface."""
+    q = cp.analysis.q_eigenvalues
+    return (cp.analysis.self_stress is not None and q is not None and len(q) == 3
+            and bool(q.max() > 0 > q.min()))
+
+
+def cone_sign(cp: CriticalPoint, sheets: int) -> int:
+    """The sign of ``Delta`` that resolves the cone ``cp`` into ``sheets`` (1 or 2) sheets:
+    the sign two of ``Q``'s eigenvalues share for one sheet, the other for two."""
+    q = cp.analysis.q_eigenvalues
+    assert q is not None
+    pair = 1 if int((q > 0).sum()) == 2 else -1
+    return pair if sheets == 1 else -pair
 
 
 def resolve_cone(linkage: Linkage, cp: CriticalPoint, d_l: np.ndarray) -> ConeResolution:
     """Sheets and Euler change of one critical point under ``dL`` (module docstring)."""
-    res = cp.analysis
-    q = res.q_eigenvalues
-    if (res.self_stress is None or q is None or len(q) != 3 or not (q.max() > 0 > q.min())):
+    if not is_cone(cp):
         return ConeResolution(cp, 0.0, 0.0, 0, 0, 0)
     delta, _, _, error = conic_delta(linkage, cp, d_l)
     sign = int(np.sign(delta)) if abs(delta) > error else 0
     if sign == 0:
         return ConeResolution(cp, delta, error, 0, 0, 0)
-    pair = 1 if int((q > 0).sum()) == 2 else -1  # the sign two eigenvalues share
-    sheets = 1 if sign == pair else 2
+    sheets = 1 if sign == cone_sign(cp, 1) else 2
     return ConeResolution(cp, delta, error, sign, sheets, 2 * sheets - 3)
 
 
@@ -159,10 +176,18 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
     tol = tol or Tolerances()
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
-    rng = np.random.default_rng(seed)
-    cps, ended = find_cones(linkage, tol, rng, deadline.fraction(0.3))
+    cps, ended = find_cones(linkage, tol, np.random.default_rng(seed), deadline.fraction(0.3))
+    return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol, options,
+                        deadline)
+
+
+def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
+                 tol: Tolerances, options: SurfaceOptions | None = None,
+                 deadline: Deadline = NEVER) -> SurfaceSplit:
+    """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
+    homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and its check
+    by meshing the linkage at ``L + dL`` and ``L - dL`` (:func:`split_surface`)."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
-    cones = [c for c in cones if c.euler_change or c.delta_error]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
     eulers: list[int | None] = []

@@ -402,6 +402,23 @@ class Conflict(Model):
 
 
 @dataclass(frozen=True)
+class SurfaceDesign(Model):
+    """``design`` for two degrees of freedom: every cone at ``L + dL``, the sign each target
+    asked for, the predicted change of the Euler characteristic and the re-meshed topology
+    (``euler``, ``betti_q`` at ``L + dL``, ``L - dL``)."""
+
+    cones: list[ConeSplit]
+    asked: list[int]
+    targets_met: bool | None
+    euler_change: int | None
+    predicted_euler_difference: int | None
+    euler: list[int | None]
+    betti_q: list[list[int] | None]
+    remeshed_complete: bool
+    message: str
+
+
+@dataclass(frozen=True)
 class DesignResult(Model):
     """``POST /v1/design/splitting``."""
 
@@ -413,6 +430,7 @@ class DesignResult(Model):
     verified: bool | None
     search: SearchReport
     tolerances: TolerancesUsed
+    surface: SurfaceDesign | None = None
     raw: JSON = _raw()
 
 
