@@ -23,13 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.design import DesignResult, Target, check_request, design
-from engine.design.surface_splitting import (
-    SurfaceSplit,
-    cone_sign,
-    find_cones,
-    is_cone,
-    remesh_split,
-)
+from engine.design.surface_splitting import SurfaceSplit, cone_sign, remesh_split
 from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
@@ -37,6 +31,7 @@ from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
+from engine.space.surfaces.cones import find_cones, is_cone
 from engine.space.surfaces.explore import SurfaceOptions, require_two_dof
 
 #: Share of the deadline the cone search may use (the rest meshes the two perturbed spaces).
@@ -50,7 +45,7 @@ MARGIN_REL = 0.05
 
 @dataclass(frozen=True)
 class ConeTarget:
-    """Cone number ``cone`` (in the order of :func:`.surface_splitting.find_cones`, as the
+    """Cone number ``cone`` (in the order of :func:`engine.space.surfaces.cones.find_cones`, as the
     splitting answer lists them) asked for ``sheets`` (1 or 2) or, where ``sheets`` is 0, for
     the sign ``sign`` (+-1) of its ``Delta``."""
 

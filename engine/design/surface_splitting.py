@@ -19,12 +19,7 @@ resolved cone has the other number of sheets) differ by::
 which the answer predicts and then checks by meshing both perturbed linkages
 (:func:`engine.space.surfaces.explore.explore_surfaces`).
 
-**Every cone.** The cones are found by homotopy, not only near a mesh: a critical point solves
-``f(u) = 0, J(u)^T lambda = 0`` for a nonzero ``lambda``; with a random ``r`` and one more
-unknown ``t`` the square system ``f = 0, J^T lambda = t r, a . lambda = 1`` has the critical
-points as its solutions with ``t = 0`` (the others are critical points of the height
-``r . u``). It is bihomogeneous in ``(u, (lambda, t))`` with the Lagrange system's structure,
-so its linear product has ``2^E C(M, E)`` paths (240 for a pentagon).
+**Every cone** is found by the homotopy of :func:`engine.space.surfaces.cones.find_cones`.
 """
 
 from __future__ import annotations
@@ -34,21 +29,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.splitting import conic_delta
-from engine.local.critical import CriticalPoint, classify, refine_critical
+from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
-from engine.space.homotopy import REGULAR, SINGULAR, track
-from engine.space.linear_product import LinearProduct, Structure, bezout
+from engine.space.surfaces.cones import find_cones, is_cone
 from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces, require_two_dof
-from engine.space.witnesses import FAR_REACH, SINGULAR_IMAG_TOL, _reach, bar_quadrics
-
-#: ``|t|`` (``|r| = 1``) below which an end is a critical-point candidate (a singular end is
-#: only within about ``sqrt(T_END)`` of its point: 4e-4 on a pentagon's cone; refinement by
-#: Newton then decides).
-T_TOL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -81,69 +69,6 @@ class SurfaceSplit:
     complete: bool
     message: str
     search: SearchReport
-
-
-def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
-               deadline: Deadline = NEVER) -> tuple[list[CriticalPoint], bool]:
-    """Every critical point (module docstring), refined and classified; and whether every path
-    of the homotopy ended."""
-    cons = Constraints(linkage)
-    quad, scale, centre = bar_quadrics(linkage, cons)
-    e, m = cons.n_constraints, cons.n_free
-    r = rng.normal(size=m)
-    r /= np.linalg.norm(r)
-    a = rng.normal(size=e)
-
-    def system(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        xu, mu, t = x[:, :m + 1], x[:, m + 1:m + 1 + e], x[:, -1]
-        g = np.einsum("amn,pn->pam", quad, xu)  # (N, E, M + 1)
-        x0 = x[:, 0]
-        f = np.concatenate([np.einsum("pam,pm->pa", g, xu),
-                            2 * np.einsum("pa,pam->pm", mu, g[:, :, 1:]) - (t * x0)[:, None] * r,
-                            (mu @ a - x0)[:, None]], axis=1)
-        jac = np.zeros((len(x), e + m + 1, m + e + 2), dtype=complex)
-        jac[:, :e, :m + 1] = 2 * g
-        jac[:, e:e + m, :m + 1] = 2 * np.einsum("pa,amn->pmn", mu, quad[:, 1:, :])
-        jac[:, e:e + m, 0] -= t[:, None] * r
-        jac[:, e:e + m, m + 1:m + 1 + e] = 2 * g[:, :, 1:].transpose(0, 2, 1)
-        jac[:, e:e + m, -1] = -x0[:, None] * r
-        jac[:, -1, m + 1:m + 1 + e] = a
-        jac[:, -1, 0] = -1
-        return f, jac
-
-    structure = Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 2)),
-                          np.array([[2, 0]] * e + [[1, 1]] * m + [[0, 1]]))
-    total = np.array([2] * (e + m) + [1])
-    assert bezout(structure) > 0
-    res = track(system, total, rng, deadline, far=FAR_REACH * _reach(linkage, cons, scale),
-                start=LinearProduct(structure, total, rng))
-    x0 = res.ends[:, 0]
-    y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
-    t = res.ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
-    ok = np.isin(res.state, (REGULAR, SINGULAR)) & np.isfinite(y).all(axis=1)
-    near_real = np.linalg.norm(y.imag, axis=1) <= SINGULAR_IMAG_TOL * np.maximum(
-        np.linalg.norm(y, axis=1), 1.0)
-    cand = ok & near_real & (np.abs(t) <= T_TOL)
-    found: list[CriticalPoint] = []
-    same = 1e-6 * float(np.median(linkage.lengths[cons.bars]))
-    for u0 in centre + scale * y[cand].real:
-        ref = refine_critical(cons, u0, tol)
-        if not ref.critical or any(np.linalg.norm(cp.u - ref.u) <= same for cp in found):
-            continue
-        found.append(CriticalPoint(ref.u, classify(linkage, ref.u, tol), ref.length_residual,
-                                   ref.stress_residual))
-    # in the order of their coordinates (rounded well above the refinement's error), not of
-    # the homotopy's paths: the cones' numbers, which a design names, do not depend on the seed
-    key = np.round(np.array([cp.u for cp in found]).reshape(len(found), m) / same, 0)
-    order = np.lexsort(key.T[::-1]) if len(found) else np.zeros(0, dtype=np.int64)
-    return [found[int(k)] for k in order], res.success
-
-
-def is_cone(cp: CriticalPoint) -> bool:
-    """One self-stress and ``Q`` indefinite on three zero modes: a cone of the surface."""
-    q = cp.analysis.q_eigenvalues
-    return (cp.analysis.self_stress is not None and q is not None and len(q) == 3
-            and bool(q.max() > 0 > q.min()))
 
 
 def cone_sign(cp: CriticalPoint, sheets: int) -> int:

@@ -209,6 +209,7 @@ class Surface(Model):
     morse_sum: int | None
     morse_agrees: bool
     critical_points: list[int]
+    apexes: list[int] = field(default_factory=list)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Self:
@@ -224,7 +225,8 @@ class Surface(Model):
                    defects=dict(data["defects"]), inverted_triangles=data["inverted_triangles"],
                    tangent_angle_max=data["tangent_angle_max"], morse_sum=data.get("morse_sum"),
                    morse_agrees=data["morse_agrees"],
-                   critical_points=list(data["critical_points"]))
+                   critical_points=list(data["critical_points"]),
+                   apexes=list(data.get("apexes", [])))
 
 
 @dataclass(frozen=True)

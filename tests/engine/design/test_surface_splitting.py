@@ -9,8 +9,9 @@ from itertools import product
 import numpy as np
 import pytest
 
-from engine.design.surface_splitting import find_cones, resolve_cone, split_surface
+from engine.design.surface_splitting import resolve_cone, split_surface
 from engine.model.tolerances import Tolerances
+from engine.space.surfaces.cones import find_cones
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
 CRITICAL = (2.0, 1.0, 1.0, 1.0, 1.0)
