@@ -19,6 +19,14 @@ resolved cone has the other number of sheets) differ by::
 which the answer predicts and then checks by meshing both perturbed linkages
 (:func:`engine.space.surfaces.explore.explore_surfaces`).
 
+**Betti numbers.** The Euler characteristic follows from the cones alone; the Betti numbers
+need the whole space. The critical space is meshed through its cones (each apex a vertex whose
+link is two cycles) and each apex is resolved in the complex as its cone resolves: split in two
+(two sheets) or its star replaced by a tube between the two cycles (one sheet,
+:func:`engine.space.surfaces.cones.resolve_apexes`); the complex's homology is the prediction
+at ``L + dL`` (and, with the other number of sheets everywhere, at ``L - dL``), checked by the
+re-meshing too.
+
 **Every cone** is found by the homotopy of :func:`engine.space.surfaces.cones.find_cones`.
 """
 
@@ -35,8 +43,9 @@ from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
-from engine.space.surfaces.cones import find_cones, is_cone
+from engine.space.surfaces.cones import find_cones, is_cone, resolve_apexes
 from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces, require_two_dof
+from engine.space.surfaces.homology import Homology, surface_homology
 
 
 @dataclass(frozen=True)
@@ -59,7 +68,8 @@ class SurfaceSplit:
     the re-meshed Euler characteristics and Betti numbers (over Q, summed over components) at
     ``+dL`` and ``-dL`` with whether the prediction holds; ``complete`` when the cone search's
     homotopy ended and both re-meshings were complete; ``search`` the report (``proved`` when
-    complete and verified)."""
+    complete and verified); the critical space's Betti numbers and those predicted at ``+dL``
+    and ``-dL`` from its mesh (:func:`predict_betti`; None where it is incomplete)."""
 
     cones: list[ConeResolution]
     predicted_euler_difference: int | None
@@ -69,6 +79,9 @@ class SurfaceSplit:
     complete: bool
     message: str
     search: SearchReport
+    critical_betti: tuple[int, int, int] | None = None
+    predicted_betti: tuple[tuple[int, int, int] | None, tuple[int, int, int] | None] = (None,
+                                                                                          None)
 
 
 def cone_sign(cp: CriticalPoint, sheets: int) -> int:
@@ -106,17 +119,58 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
                         deadline)
 
 
+Betti = tuple[int, int, int]
+
+
+def _summed(homs: list[Homology | None]) -> tuple[int | None, Betti | None]:
+    """Euler characteristic and Betti numbers over Q summed over components (None without
+    them)."""
+    if not homs or any(h is None for h in homs):
+        return None, None
+    b = np.sum([h.betti_q for h in homs if h is not None], axis=0)
+    return int(sum(h.euler for h in homs if h is not None)), (int(b[0]), int(b[1]), int(b[2]))
+
+
+def predict_betti(linkage: Linkage, cones: list[ConeResolution], tol: Tolerances,
+                  options: SurfaceOptions | None, deadline: Deadline
+                  ) -> tuple[Betti | None, tuple[Betti | None, Betti | None]]:
+    """The critical space's Betti numbers over Q, and those predicted at ``L + dL`` and
+    ``L - dL``: its surfaces meshed through the cones (complete), each apex resolved as its
+    cone resolves (:func:`engine.space.surfaces.cones.resolve_apexes`; the other number of
+    sheets at ``L - dL``). None where the mesh is incomplete or a cone undecided."""
+    none: tuple[Betti | None, tuple[Betti | None, Betti | None]] = (None, (None, None))
+    if not cones or any(c.sign == 0 for c in cones):
+        return none
+    out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False)
+    if not out.search.complete:
+        return none
+    found = np.array([c.point.u for c in cones])
+    sides: list[list[Homology | None]] = [[], []]
+    for comp in out.components:
+        near = [int(np.argmin(np.linalg.norm(found - comp.vertices[a], axis=1)))
+                for a in comp.apexes]
+        sheets = np.array([cones[k].sheets for k in near], dtype=np.int64)
+        for side, n in enumerate((sheets, 3 - sheets)):
+            _, tri = resolve_apexes(comp.vertices, comp.triangles, comp.apexes, n)
+            sides[side].append(surface_homology(tri))
+    critical = _summed([c.homology for c in out.components])[1]
+    return critical, (_summed(sides[0])[1], _summed(sides[1])[1])
+
+
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
                  tol: Tolerances, options: SurfaceOptions | None = None,
                  deadline: Deadline = NEVER) -> SurfaceSplit:
     """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
-    homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and its check
-    by meshing the linkage at ``L + dL`` and ``L - dL`` (:func:`split_surface`)."""
+    homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
+    numbers (:func:`predict_betti`) and their check by meshing the linkage at ``L + dL`` and
+    ``L - dL`` (:func:`split_surface`)."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
+    critical, predicted_betti = predict_betti(linkage, cones, tol, options,
+                                              deadline.fraction(1 / 3))
     eulers: list[int | None] = []
-    bettis: list[tuple[int, int, int] | None] = []
+    bettis: list[Betti | None] = []
     complete = ended
     for k, sign in enumerate((1.0, -1.0)):
         if deadline.expired():
@@ -129,29 +183,31 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
                                                                             else 1.0),
                                start_on_space=False)
         complete &= bool(out.search.complete)
-        homs = [c.homology for c in out.components]
-        if not homs or any(h is None for h in homs):
-            eulers.append(None)
-            bettis.append(None)
-            continue
-        eulers.append(int(sum(h.euler for h in homs if h is not None)))
-        b = np.sum([h.betti_q for h in homs if h is not None], axis=0)
-        bettis.append((int(b[0]), int(b[1]), int(b[2])))
+        euler, betti = _summed([c.homology for c in out.components])
+        eulers.append(euler)
+        bettis.append(betti)
+    betti_agrees = None not in predicted_betti and list(predicted_betti) == bettis
     verified = (predicted is not None and eulers[0] is not None and eulers[1] is not None
-                and eulers[0] - eulers[1] == predicted)
-    message = ("the re-meshed Euler characteristics differ as predicted" if verified else
+                and eulers[0] - eulers[1] == predicted
+                and (betti_agrees or None in predicted_betti))
+    message = ("the re-meshed Euler characteristics differ as predicted" + (
+               " and the Betti numbers are those predicted" if betti_agrees else
+               " (no Betti numbers predicted: the critical space's mesh is incomplete)")
+               if verified else
                "a cone's Delta is within its error: no prediction" if predicted is None else
                "the re-meshing did not finish" if None in eulers else
-               "the re-meshed Euler characteristics differ from the prediction")
+               "the re-meshed topology differs from the prediction")
     report = SearchReport(
         {"method": "cone homotopy and re-meshing", "cones": len(cones),
-         "cone_homotopy_ended": ended, "verified": verified},
+         "cone_homotopy_ended": ended, "verified": verified, "betti_verified": betti_agrees},
         timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
         argument="proved" if complete and verified else None,
         argument_detail=(f"the {len(cones)} cones found by homotopy (every path ended) resolve "
                          "as predicted: the complete re-meshings at L + dL and L - dL differ in "
-                         "Euler characteristic by the predicted amount")
+                         "Euler characteristic by the predicted amount" + (
+                             ", and their Betti numbers are those of the critical space's mesh "
+                             "with each apex resolved" if betti_agrees else ""))
         if complete and verified else None)
     return SurfaceSplit(cones, predicted, (eulers[0], eulers[1]), (bettis[0], bettis[1]),
-                        verified, complete, message, report)
+                        verified, complete, message, report, critical, predicted_betti)

@@ -74,6 +74,8 @@ def surface_splitting_out(linkage: EngineLinkage, res: SurfaceSplit, tol: Engine
             cones=_cones_out(linkage, res.cones),
             predicted_euler_difference=res.predicted_euler_difference,
             euler=list(res.euler), betti_q=[list(b) if b else None for b in res.betti],
+            critical_betti_q=list(res.critical_betti) if res.critical_betti else None,
+            predicted_betti_q=[list(b) if b else None for b in res.predicted_betti],
             verified=res.verified, message=res.message),
         branch_points=[], critical_points_found=len(res.cones),
         search=c.SearchReport.model_validate(search_out(res.search)),
@@ -185,6 +187,8 @@ def surface_design_out(linkage: EngineLinkage, res: SurfaceDesign, adjustable: l
         targets_met=res.targets_met, euler_change=res.euler_change,
         predicted_euler_difference=split.predicted_euler_difference,
         euler=list(split.euler), betti_q=[list(b) if b else None for b in split.betti],
+        critical_betti_q=list(split.critical_betti) if split.critical_betti else None,
+        predicted_betti_q=[list(b) if b else None for b in split.predicted_betti],
         remeshed_complete=remeshed, message=split.message)
     return design_schemas.DesignResponse(
         feasible=r.feasible,

@@ -80,6 +80,13 @@ class SurfaceDesignOut(BaseModel):
                                             "L + dL and L - dL (summed over the surfaces)")
     remeshed_complete: bool = Field(description="both re-meshings complete (proved) and every "
                                     "path of the cone search ended")
+    critical_betti_q: list[int] | None = Field(
+        description="b0, b1, b2 over Q of the critical space at L, meshed through its "
+        "cones (null: its mesh incomplete)")
+    predicted_betti_q: list[list[int] | None] = Field(
+        description="b0, b1, b2 over Q predicted at "
+        "L + dL and L - dL: the critical space's mesh with each apex resolved as its cone "
+        "resolves (two sheets: the apex split; one: a tube between its link's two cycles)")
     message: str
 
 

@@ -497,6 +497,7 @@ def test_two_degrees_of_freedom_splitting_resolves_the_cones(client, change):
     chi = [b[0] - b[1] + b[2] for b in (plus, minus)]
     assert surf["predicted_euler_difference"] == chi[0] - chi[1]
     assert surf["euler"] == chi and surf["betti_q"] == [plus, minus]
+    assert surf["predicted_betti_q"] == [plus, minus]
     assert surf["verified"]
 
 
@@ -525,6 +526,8 @@ def test_two_degrees_of_freedom_design_resolves_the_cones_as_asked(client, sheet
     chi = [b[0] - b[1] + b[2] for b in (plus, minus)]
     assert surf["euler"] == chi
     assert surf["euler_change"] == 4 * (2 * sheets - 3)
+    assert surf["predicted_betti_q"] == [plus, minus]
+    assert surf["critical_betti_q"] == [1, 2 - (chi[0] + chi[1]) // 2, 1]
     assert surf["predicted_euler_difference"] == 2 * surf["euler_change"] == chi[0] - chi[1]
     assert body["search"]["complete"] and body["search"]["argument"] == "proved"
 

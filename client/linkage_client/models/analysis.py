@@ -287,6 +287,8 @@ class SurfaceSplit(Model):
     betti_q: list[list[int] | None]
     verified: bool
     message: str
+    critical_betti_q: list[int] | None = None
+    predicted_betti_q: list[list[int] | None] = field(default_factory=lambda: [None, None])
 
 
 @dataclass(frozen=True)
@@ -418,6 +420,8 @@ class SurfaceDesign(Model):
     betti_q: list[list[int] | None]
     remeshed_complete: bool
     message: str
+    critical_betti_q: list[int] | None = None
+    predicted_betti_q: list[list[int] | None] = field(default_factory=lambda: [None, None])
 
 
 @dataclass(frozen=True)

@@ -191,3 +191,78 @@ def cone_morse_term(cp: CriticalPoint, c: np.ndarray) -> int:
     h = lines @ (z @ c)  # (2, S): the height along each nappe's lines
     cut = int(sum(bool(row.min() < 0 < row.max()) for row in h))
     return 1 - cut
+
+
+def _link_cycles(triangles: np.ndarray, apex: int) -> list[list[int]]:
+    """The apex's link as cycles of vertices, each in the order its triangles
+    ``(apex, x, y)`` (counter-clockwise) run: ``x`` then ``y``."""
+    nxt: dict[int, int] = {}
+    for t in triangles[(triangles == apex).any(axis=1)]:
+        k = int(np.flatnonzero(t == apex)[0])
+        nxt[int(t[(k + 1) % 3])] = int(t[(k + 2) % 3])
+    cycles, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        cycle, v = [], start
+        while v not in seen:
+            seen.add(v)
+            cycle.append(v)
+            v = nxt[v]
+        cycles.append(cycle)
+    return cycles
+
+
+def _tube(vertices: np.ndarray, a: list[int], b: list[int]) -> list[tuple[int, int, int]]:
+    """Triangles of an annulus between the cycles ``a`` and ``b`` (each in its apex
+    triangles' order) that keeps their surface coherently oriented: ``a`` runs forwards and
+    ``b`` backwards along it, zipped from their nearest pair by the shorter next diagonal."""
+    br = b[::-1]
+    d = np.linalg.norm(vertices[a][:, None] - vertices[br][None], axis=2)
+    i0, k0 = np.unravel_index(int(np.argmin(d)), d.shape)
+    aa = [a[(i0 + i) % len(a)] for i in range(len(a) + 1)]
+    bb = [br[(k0 + k) % len(br)] for k in range(len(br) + 1)]
+    out: list[tuple[int, int, int]] = []
+    i = k = 0
+    while i < len(a) or k < len(br):
+        step_a = i < len(a) and (k == len(br) or np.linalg.norm(
+            vertices[aa[i + 1]] - vertices[bb[k]]) <= np.linalg.norm(
+            vertices[aa[i]] - vertices[bb[k + 1]]))
+        if step_a:
+            out.append((aa[i], aa[i + 1], bb[k]))
+            i += 1
+        else:
+            out.append((bb[k + 1], bb[k], aa[i]))
+            k += 1
+    return out
+
+
+def resolve_apexes(vertices: np.ndarray, triangles: np.ndarray, apexes: np.ndarray,
+                   sheets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh of a critical space with each apex resolved as a cone resolves under a length
+    change (:mod:`engine.design.surface_splitting`): into two sheets, the apex split in two
+    (one vertex per nappe, appended); into one, the apex's star replaced by a tube between its
+    two link cycles. Returns the vertices (N', M) and triangles (T', 3); only the complex's
+    topology is meant (the tube is no mesh of the perturbed space)."""
+    x = np.asarray(vertices, dtype=float)
+    tri: list[tuple[int, int, int]] = [(int(t[0]), int(t[1]), int(t[2]))
+                                       for t in np.asarray(triangles, dtype=np.int64)]
+    extra: list[np.ndarray] = []
+    for apex, n in zip(np.asarray(apexes).tolist(), np.asarray(sheets).tolist(), strict=True):
+        arr = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        cycles = _link_cycles(arr, apex)
+        if len(cycles) != 2 or n not in (1, 2):
+            continue
+        star = (arr == apex).any(axis=1)
+        if n == 2:  # the second nappe's triangles get a copy of the apex
+            twin = len(x) + len(extra)
+            extra.append(x[apex])
+            second = set(cycles[1])
+            tri = [t if not star[j] or not set(t) & second
+                   else (t[0] if t[0] != apex else twin, t[1] if t[1] != apex else twin,
+                         t[2] if t[2] != apex else twin)
+                   for j, t in enumerate(tri)]
+        else:
+            tri = [t for j, t in enumerate(tri) if not star[j]] + _tube(x, cycles[0], cycles[1])
+    out = np.vstack([x] + [e[None] for e in extra]) if extra else x
+    return out, np.asarray(tri, dtype=np.int64).reshape(-1, 3)

@@ -40,7 +40,12 @@ def test_every_cone_resolves_as_asked_and_the_re_meshing_matches_farber_schuetz(
     # the prediction: each cone changes chi by 2 sheets - 3 from the critical space
     assert out.euler_change == 4 * (2 * sheets - 3)
     assert split.predicted_euler_difference == 2 * out.euler_change == euler(plus) - euler(minus)
+    # and the Betti numbers predicted from the critical space's mesh, resolved at each apex
+    chi = (euler(plus) + euler(minus)) // 2
+    assert split.critical_betti == (1, 2 - chi, 1)
+    assert split.predicted_betti == (plus, minus)
     assert split.verified and split.complete and out.search.complete
+    assert out.search["betti_verified"]
 
 
 def test_tied_cones_asked_for_opposite_signs_conflict():

@@ -76,4 +76,6 @@ def test_the_predicted_topology_change_matches_farber_schuetz_and_the_re_meshing
     # and the re-meshing against it too
     assert res.euler == (euler(plus), euler(minus))
     assert res.betti == (plus, minus)
+    # the Betti numbers predicted from the critical space's mesh with its apexes resolved
+    assert res.predicted_betti == (plus, minus)
     assert res.verified and res.search["verified"]

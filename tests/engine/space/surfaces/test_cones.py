@@ -9,10 +9,18 @@ import numpy as np
 import pytest
 from scipy.linalg import null_space
 
+from engine.design.surface_splitting import resolve_cone
 from engine.model.tolerances import Tolerances
-from engine.space.surfaces.cones import cone_fans, cone_morse_term, find_cones, is_cone
+from engine.space.surfaces.cones import (
+    cone_fans,
+    cone_morse_term,
+    find_cones,
+    is_cone,
+    resolve_apexes,
+)
 from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces
 from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.homology import manifold_defects, surface_homology
 from tests.engine.design.test_surface_splitting import collinear_pentagons
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
@@ -146,3 +154,29 @@ def test_the_apex_term_of_the_morse_count():
     other = (lone + 1) % 3
     assert cone_morse_term(cp, z[lone]) == 1
     assert cone_morse_term(cp, z[other]) == -1
+
+
+@pytest.mark.slow
+def test_resolving_the_apexes_gives_the_perturbed_homology():
+    """The critical space's mesh with each apex split (two sheets) or tubed (one sheet) as its
+    cone resolves under dL has Farber and Schuetz's homology at L + dL, for changes that
+    resolve the cones alike and differently."""
+    lengths = (2.0, 1.0, 1.0, 1.0, 1.0)
+    lk = pentagon(lengths)
+    res = explore_surfaces(lk)
+    (comp,) = res.components
+    cps = [next(cp for cp in res.critical_points if np.linalg.norm(cp.u - comp.vertices[a])
+                < 1e-8) for a in comp.apexes]
+    seen = set()
+    for d_l in ([0, 0, 0.08, 0, 0], [0, 0, -0.08, 0, 0], [0, 0.05, 0.05, 0.05, 0.05],
+                [0, -0.05, -0.05, -0.05, -0.05], [0, -0.02, 0.05, 0.03, -0.04],
+                [0, 0, 0, 0.07, 0], [0, 0, 0, 0, 0.07]):
+        d_l = np.array(d_l)
+        sheets = np.array([resolve_cone(lk, cp, d_l).sheets for cp in cps])
+        assert set(sheets.tolist()) <= {1, 2}
+        seen.add(tuple(sheets))
+        _, tri = resolve_apexes(comp.vertices, comp.triangles, comp.apexes, sheets)
+        h = surface_homology(tri)
+        assert h.betti_q == pentagon_betti(tuple(np.array(lengths) + d_l)) == h.betti_z2
+        assert h.orientable and not any(manifold_defects(tri).values())
+    assert len(seen) >= 6
