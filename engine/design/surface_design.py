@@ -131,7 +131,8 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                                "cone_homotopy_ended": ended}, timed_out=deadline.expired(),
                               unresolved=not ended, time_budget_s=granted(deadline))
         return SurfaceDesign(result, cones, signs, None, None, None, ended, report)
-    split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline)
+    split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline,
+                         found=found)
     decided = all(c.sign != 0 for c in split.cones)
     change = sum(c.euler_change for c in split.cones) if decided else None
     met = all(split.cones[t.cone].sign == s for t, s in zip(targets, signs, strict=True))

@@ -116,7 +116,7 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
     require_two_dof(linkage, cons)
     cps, ended = find_cones(linkage, tol, np.random.default_rng(seed), deadline.fraction(0.3))
     return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol, options,
-                        deadline)
+                        deadline, found=cps)
 
 
 Betti = tuple[int, int, int]
@@ -131,23 +131,27 @@ def _summed(homs: list[Homology | None]) -> tuple[int | None, Betti | None]:
     return int(sum(h.euler for h in homs if h is not None)), (int(b[0]), int(b[1]), int(b[2]))
 
 
-def predict_betti(linkage: Linkage, cones: list[ConeResolution], tol: Tolerances,
+def predict_betti(linkage: Linkage, cones: list[ConeResolution],
+                  found: tuple[list[CriticalPoint], bool] | None, tol: Tolerances,
                   options: SurfaceOptions | None, deadline: Deadline
                   ) -> tuple[Betti | None, tuple[Betti | None, Betti | None]]:
     """The critical space's Betti numbers over Q, and those predicted at ``L + dL`` and
     ``L - dL``: its surfaces meshed through the cones (complete), each apex resolved as its
     cone resolves (:func:`engine.space.surfaces.cones.resolve_apexes`; the other number of
-    sheets at ``L - dL``). None where the mesh is incomplete or a cone undecided."""
+    sheets at ``L - dL``; ``found``: every critical point the cone search found, cones or not,
+    and whether its every path ended, where it ran already). None where the mesh is incomplete
+    or a cone undecided."""
     none: tuple[Betti | None, tuple[Betti | None, Betti | None]] = (None, (None, None))
     if not cones or any(c.sign == 0 for c in cones):
         return none
-    out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False)
+    out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False,
+                           cones=found)
     if not out.search.complete:
         return none
-    found = np.array([c.point.u for c in cones])
+    apex_at = np.array([c.point.u for c in cones])
     sides: list[list[Homology | None]] = [[], []]
     for comp in out.components:
-        near = [int(np.argmin(np.linalg.norm(found - comp.vertices[a], axis=1)))
+        near = [int(np.argmin(np.linalg.norm(apex_at - comp.vertices[a], axis=1)))
                 for a in comp.apexes]
         sheets = np.array([cones[k].sheets for k in near], dtype=np.int64)
         for side, n in enumerate((sheets, 3 - sheets)):
@@ -159,16 +163,19 @@ def predict_betti(linkage: Linkage, cones: list[ConeResolution], tol: Tolerances
 
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
                  tol: Tolerances, options: SurfaceOptions | None = None,
-                 deadline: Deadline = NEVER) -> SurfaceSplit:
+                 deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None
+                 ) -> SurfaceSplit:
     """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
     homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
     numbers (:func:`predict_betti`) and their check by meshing the linkage at ``L + dL`` and
-    ``L - dL`` (:func:`split_surface`)."""
+    ``L - dL`` (:func:`split_surface`); ``found``: every critical point the search found
+    (the cones among them), which the critical space's meshing then need not search again."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
-    critical, predicted_betti = predict_betti(linkage, cones, tol, options,
-                                              deadline.fraction(1 / 3))
+    critical, predicted_betti = predict_betti(
+        linkage, cones, None if found is None else (found, ended), tol, options,
+        deadline.fraction(1 / 3))
     eulers: list[int | None] = []
     bettis: list[Betti | None] = []
     complete = ended

@@ -285,9 +285,11 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
 
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      options: SurfaceOptions | None = None, start_on_space: bool = True,
-                     deadline: Deadline | None = None) -> SurfaceResult:
+                     deadline: Deadline | None = None,
+                     cones: tuple[list[CriticalPoint], bool] | None = None) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
-    with its topology (module docstring).
+    with its topology (module docstring); ``cones``: the critical points and whether every
+    path ended, where :func:`.cones.find_cones` has run already for this linkage.
 
     Examples
     --------
@@ -318,7 +320,7 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     cone_pass = None
     if critical or any(len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
-                                   dl)
+                                   dl, cones)
     if cone_pass is not None:
         meshes, checks, critical, where = (cone_pass.meshes, cone_pass.checks,
                                            cone_pass.critical, cone_pass.where)
@@ -383,12 +385,14 @@ def _mesh_seeds(surface: Surface, seeds: list[np.ndarray], step: float, max_tria
 
 def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
                    checks: list[tuple[int, float]], step: float, max_triangles: int,
-                   rng: np.random.Generator, dl: Deadline) -> _ConePass | None:
+                   rng: np.random.Generator, dl: Deadline,
+                   known: tuple[list[CriticalPoint], bool] | None = None) -> _ConePass | None:
     """Mesh the components through the linkage's cones (:mod:`.cones`): find every critical
     point by homotopy, march from fans around every cone's apex at once, part the result into
     components and keep the first meshes of the other components (most of whose vertices are
-    over a step from the new ones). None where there is no cone or a fan does not project."""
-    found, ended = find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
+    over a step from the new ones); ``known``: the critical points found already. None where
+    there is no cone or a fan does not project."""
+    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
     cones = [cp for cp in found if is_cone(cp)]
     fans = [(cp.u, cone_fans(surface, cp, step)) for cp in cones]
     if not cones or any(rings is None for _, rings in fans) or dl.expired():
