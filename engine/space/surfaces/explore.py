@@ -315,15 +315,22 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     start = linkage.coordinates() if start_on_space else None
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
                    rng, opt.random_starts, dl)
-    meshes, checks, budget_hit = _mesh_seeds(surface, seeds, step, opt.max_triangles, dl)
+    # cones known already: mesh through them first, then from the seeds no mesh covers
+    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
+        if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
+    first = [] if cone_pass is None else cone_pass.meshes
+    meshes, checks, budget_hit = _mesh_seeds(
+        surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
+        [m.vertices for m in first])
     critical, where = _linkage_critical(surface, meshes, tol)
-    cone_pass = None
-    if critical or any(len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes):
+    if cone_pass is None and (critical or any(
+            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
                                    dl, cones)
+        meshes, checks = [], []  # the cone pass keeps what it does not replace
     if cone_pass is not None:
-        meshes, checks, critical, where = (cone_pass.meshes, cone_pass.checks,
-                                           cone_pass.critical, cone_pass.where)
+        meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
+        critical, where = cone_pass.critical, cone_pass.where
         budget_hit |= cone_pass.budget
     proved = wit is not None and wit.success
     # without the homotopy: the PL critical vertices of the closed meshes and their
@@ -359,12 +366,13 @@ class _ConePass:
 
 
 def _mesh_seeds(surface: Surface, seeds: list[np.ndarray], step: float, max_triangles: int,
-                dl: Deadline) -> tuple[list[Mesh], list[tuple[int, float]], bool]:
-    """A mesh from every seed that no mesh covers yet (within the budget and the deadline):
-    the meshes, their checks and whether the budget stopped one."""
+                dl: Deadline, covered: list[np.ndarray] | None = None
+                ) -> tuple[list[Mesh], list[tuple[int, float]], bool]:
+    """A mesh from every seed that no mesh (nor the vertices ``covered``) covers yet, within
+    the budget and the deadline: the meshes, their checks and whether the budget stopped one."""
     meshes: list[Mesh] = []
     checks: list[tuple[int, float]] = []
-    trees: list[cKDTree] = []
+    trees: list[cKDTree] = [cKDTree(v) for v in covered or [] if len(v)]
     budget_hit = False
     for seed in seeds:
         if dl.expired():

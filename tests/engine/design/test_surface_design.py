@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.design.surface_design import ConeTarget, check_targets, design_surface
+from engine.design.surface_design import MARGIN_REL, ConeTarget, check_targets, design_surface
 from engine.model.errors import InvalidRequest
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
@@ -26,7 +26,8 @@ def test_every_cone_resolves_as_asked_and_the_re_meshing_matches_farber_schuetz(
     designed change resolves each as asked, and the re-meshed topology at L + dL and L - dL
     is the published one for those lengths, as the predicted Euler change says."""
     lk = pentagon(CRITICAL)
-    out = design_surface(lk, [ConeTarget(k, sheets=sheets) for k in range(4)], FREE, 0.05)
+    out = design_surface(lk, [ConeTarget(k, sheets=sheets) for k in range(4)], FREE,
+                         MARGIN_REL)
     assert out.result.feasible and out.cones_ended and len(out.cones) == 4
     d_l = out.result.perturbation
     assert d_l[0] == 0.0 and out.result.largest_change > 0
@@ -53,7 +54,7 @@ def test_tied_cones_asked_for_opposite_signs_conflict():
     opposite signs of dL_2 cannot both take two sheets when that needs the same sign of
     Delta for one and the opposite for the other; the answer says so without re-meshing."""
     lk = pentagon(CRITICAL)
-    probe = design_surface(lk, [ConeTarget(0, sheets=2)], ["b2"], 0.05)
+    probe = design_surface(lk, [ConeTarget(0, sheets=2)], ["b2"], MARGIN_REL)
     assert probe.result.feasible and probe.split is not None
     # a cone that resolved into one sheet while cone 0 got two is tied to it the other way
     other = next(k for k, c in enumerate(probe.split.cones) if c.sheets == 1)
