@@ -3,17 +3,20 @@ the tests).
 
     .venv/bin/python bench/bench_surfaces.py [--repeat 3] [--proof] [--http]
 
-Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon
-(genus 2), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best of
+Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon (genus
+2), the pentagon at critical lengths (four cones: the cone homotopy and the meshing through the
+apexes; genus null), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best of
 ``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
-options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the
-linear-product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU
-time: on a loaded machine the wall time is that CPU time stretched by the other processes);
+options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the linear-
+product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU time:
+on a loaded machine the wall time is that CPU time stretched by the other processes);
 ``--proof`` adds each row with ``homotopy_paths_max = 4096``; ``--http`` posts the pentagon and
 the five-bar to ``/v1/analysis/configuration-space`` of a real uvicorn process on loopback
-(client-side wall time of the whole request, with ``time_budget_s: 20`` so that a loaded
-machine measures the whole answer rather than the default 4 s budget's cut). BLAS on one
-thread, as in the service's workers.
+(client-side wall time of the whole request, with ``time_budget_s: 20`` so that a loaded machine
+measures the whole answer rather than the default 4 s budget's cut), and a design at the
+critical pentagon (every cone asked for two sheets: the cone homotopy, the critical space's mesh
+and the two re-meshings) to ``/v1/design/splitting``. BLAS on one thread, as in the service's
+workers.
 """
 
 from __future__ import annotations
@@ -71,6 +74,7 @@ def sphere() -> Linkage:
 ROWS = {
     "pentagon (1,1,1,1,1)": lambda: pentagon((1, 1, 1, 1, 1)),
     "pentagon (1,1,2,2,3)": lambda: pentagon((1, 1, 2, 2, 3)),
+    "pentagon (2,1,1,1,1) critical": lambda: pentagon((2, 1, 1, 1, 1)),
     "five-bar (2,1,1.4,1.6,1)": lambda: pentagon((2, 1, 1.4, 1.6, 1)),
     "3D sliding torus": torus,
     "3D sphere": sphere,
@@ -120,6 +124,20 @@ def http_rows(repeat: int) -> None:
                   f"{[x['genus'] for x in answer['surfaces']]}  {s['homotopy_paths']} paths "
                   f"({s['homotopy_start']})  complete {s['complete']} {s['reason']} "
                   f"budget {s.get('time_budget_s')} s")
+        req = {"linkage": body(ROWS["pentagon (2,1,1,1,1) critical"]()),
+               "targets": [{"branch_point": k, "sheets": 2} for k in range(4)],
+               "adjustable": ["b1", "b2", "b3", "b4"], "options": {"time_budget_s": 60}}
+        times = []
+        for _ in range(repeat):
+            t = time.perf_counter()
+            r = client.post("/v1/design/splitting", json=req)
+            times.append(time.perf_counter() - t)
+            r.raise_for_status()
+            answer = r.json()
+        surf = answer["surface"]
+        print(f"HTTP design, critical pentagon {min(times):8.2f} s  verified "
+              f"{answer['verified']}  predicted b {surf['predicted_betti_q']}  re-meshed b "
+              f"{surf['betti_q']}  complete {answer['search']['complete']}")
 
 
 def main() -> None:
@@ -138,7 +156,7 @@ def main() -> None:
         for paths in ((512, 4096) if args.proof else (512,)):
             t_e, c_e, r = best(lambda lk=lk, paths=paths: explore_surfaces(
                 lk, options=SurfaceOptions(homotopy_paths_max=paths)), args.repeat)
-            genus = [c.homology.genus for c in r.components]
+            genus = [None if len(c.apexes) else c.homology.genus for c in r.components]
             print(f"{name + ('' if paths == 512 else ' proof'):28} {t_m:8.2f} "
                   f"{len(m.triangles):6d} {t_e:9.2f} {c_e:6.2f} {r.search['triangles']:6d} "
                   f"{str(genus):>5} {str(r.search['morse_agrees']):>5} "

@@ -11,9 +11,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 from engine.design.critical_values import critical_value_slice
-from engine.design.design import check_request, design, verify
+from engine.design.design import Target, check_request, design, verify
 from engine.design.robustness import robustness
 from engine.design.splitting import length_change, split
+from engine.design.surface_design import MARGIN_REL, check_targets, design_surface
 from engine.design.surface_splitting import split_surface
 from engine.local.rigidity import first_order, plan_first_order
 from engine.local.second_order import second_order
@@ -241,6 +242,13 @@ def design_splitting(
     body: DesignRequest, settings: Settings, deadline: Deadline | None = None
 ) -> DesignResponse:
     linkage, tol = mappers.problem_in(body.linkage, body.tolerances, settings.limits)
+    cons = Constraints(linkage)
+    if cons.n_free - cons.n_constraints == 2:
+        return _design_surface(body, settings, linkage, tol, deadline)
+    for k, t in enumerate(body.targets):
+        if t.sheets is not None:
+            raise InvalidRequest("sheets are for two degrees of freedom (M - E = 2); give "
+                                 "sign", loc=("targets", k, "sheets"))
     targets, adjustable = mappers.design_in(body)
     check_request(linkage, targets, adjustable)  # before the costly exploration
     dl = search_deadline(body.options, settings, deadline)
@@ -252,3 +260,16 @@ def design_splitting(
     checks = verify(at, crit, targets, result.perturbation, tol, deadline=dl) \
         if result.feasible else []
     return mappers.design_out(at, result, adjustable, checks, tol, found.search)
+
+
+def _design_surface(body: DesignRequest, settings: Settings, linkage: EngineLinkage,
+                    tol: Tolerances, deadline: Deadline | None) -> DesignResponse:
+    """Two degrees of freedom: resolve the target cones as asked, checked by re-meshing."""
+    targets, adjustable = mappers.cone_targets_in(body), list(body.adjustable)
+    check_targets(targets)
+    check_request(linkage, [Target(t.cone, 1) for t in targets], adjustable)
+    dl = search_deadline(body.options, settings, deadline)
+    at, _ = on_constraints(linkage, tol)
+    res = design_surface(at, targets, adjustable, mappers.design_margin(body, at, MARGIN_REL),
+                         body.max_change, tol, mappers.surface_options_in(body.options), dl)
+    return mappers.surface_design_out(at, res, adjustable, tol)

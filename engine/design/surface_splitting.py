@@ -19,12 +19,15 @@ resolved cone has the other number of sheets) differ by::
 which the answer predicts and then checks by meshing both perturbed linkages
 (:func:`engine.space.surfaces.explore.explore_surfaces`).
 
-**Every cone.** The cones are found by homotopy, not only near a mesh: a critical point solves
-``f(u) = 0, J(u)^T lambda = 0`` for a nonzero ``lambda``; with a random ``r`` and one more
-unknown ``t`` the square system ``f = 0, J^T lambda = t r, a . lambda = 1`` has the critical
-points as its solutions with ``t = 0`` (the others are critical points of the height
-``r . u``). It is bihomogeneous in ``(u, (lambda, t))`` with the Lagrange system's structure,
-so its linear product has ``2^E C(M, E)`` paths (240 for a pentagon).
+**Betti numbers.** The Euler characteristic follows from the cones alone; the Betti numbers
+need the whole space. The critical space is meshed through its cones (each apex a vertex whose
+link is two cycles) and each apex is resolved in the complex as its cone resolves: split in two
+(two sheets) or its star replaced by a tube between the two cycles (one sheet,
+:func:`engine.space.surfaces.cones.resolve_apexes`); the complex's homology is the prediction
+at ``L + dL`` (and, with the other number of sheets everywhere, at ``L - dL``), checked by the
+re-meshing too.
+
+**Every cone** is found by the homotopy of :func:`engine.space.surfaces.cones.find_cones`.
 """
 
 from __future__ import annotations
@@ -34,21 +37,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.splitting import conic_delta
-from engine.local.critical import CriticalPoint, classify, refine_critical
+from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
-from engine.space.homotopy import REGULAR, SINGULAR, track
-from engine.space.linear_product import LinearProduct, Structure, bezout
+from engine.space.surfaces.cones import find_cones, is_cone, resolve_apexes
 from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces, require_two_dof
-from engine.space.witnesses import FAR_REACH, SINGULAR_IMAG_TOL, _reach, bar_quadrics
-
-#: ``|t|`` (``|r| = 1``) below which an end is a critical-point candidate (a singular end is
-#: only within about ``sqrt(T_END)`` of its point: 4e-4 on a pentagon's cone; refinement by
-#: Newton then decides).
-T_TOL = 1e-2
+from engine.space.surfaces.homology import Homology, surface_homology
 
 
 @dataclass(frozen=True)
@@ -71,7 +68,8 @@ class SurfaceSplit:
     the re-meshed Euler characteristics and Betti numbers (over Q, summed over components) at
     ``+dL`` and ``-dL`` with whether the prediction holds; ``complete`` when the cone search's
     homotopy ended and both re-meshings were complete; ``search`` the report (``proved`` when
-    complete and verified)."""
+    complete and verified); the critical space's Betti numbers and those predicted at ``+dL``
+    and ``-dL`` from its mesh (:func:`predict_betti`; None where it is incomplete)."""
 
     cones: list[ConeResolution]
     predicted_euler_difference: int | None
@@ -81,72 +79,29 @@ class SurfaceSplit:
     complete: bool
     message: str
     search: SearchReport
+    critical_betti: tuple[int, int, int] | None = None
+    predicted_betti: tuple[tuple[int, int, int] | None, tuple[int, int, int] | None] = (None,
+                                                                                          None)
 
 
-def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
-               deadline: Deadline = NEVER) -> tuple[list[CriticalPoint], bool]:
-    """Every critical point (module docstring), refined and classified; and whether every path
-    of the homotopy ended."""
-    cons = Constraints(linkage)
-    quad, scale, centre = bar_quadrics(linkage, cons)
-    e, m = cons.n_constraints, cons.n_free
-    r = rng.normal(size=m)
-    r /= np.linalg.norm(r)
-    a = rng.normal(size=e)
-
-    def system(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        xu, mu, t = x[:, :m + 1], x[:, m + 1:m + 1 + e], x[:, -1]
-        g = np.einsum("amn,pn->pam", quad, xu)  # (N, E, M + 1)
-        x0 = x[:, 0]
-        f = np.concatenate([np.einsum("pam,pm->pa", g, xu),
-                            2 * np.einsum("pa,pam->pm", mu, g[:, :, 1:]) - (t * x0)[:, None] * r,
-                            (mu @ a - x0)[:, None]], axis=1)
-        jac = np.zeros((len(x), e + m + 1, m + e + 2), dtype=complex)
-        jac[:, :e, :m + 1] = 2 * g
-        jac[:, e:e + m, :m + 1] = 2 * np.einsum("pa,amn->pmn", mu, quad[:, 1:, :])
-        jac[:, e:e + m, 0] -= t[:, None] * r
-        jac[:, e:e + m, m + 1:m + 1 + e] = 2 * g[:, :, 1:].transpose(0, 2, 1)
-        jac[:, e:e + m, -1] = -x0[:, None] * r
-        jac[:, -1, m + 1:m + 1 + e] = a
-        jac[:, -1, 0] = -1
-        return f, jac
-
-    structure = Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 2)),
-                          np.array([[2, 0]] * e + [[1, 1]] * m + [[0, 1]]))
-    total = np.array([2] * (e + m) + [1])
-    assert bezout(structure) > 0
-    res = track(system, total, rng, deadline, far=FAR_REACH * _reach(linkage, cons, scale),
-                start=LinearProduct(structure, total, rng))
-    x0 = res.ends[:, 0]
-    y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
-    t = res.ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
-    ok = np.isin(res.state, (REGULAR, SINGULAR)) & np.isfinite(y).all(axis=1)
-    near_real = np.linalg.norm(y.imag, axis=1) <= SINGULAR_IMAG_TOL * np.maximum(
-        np.linalg.norm(y, axis=1), 1.0)
-    cand = ok & near_real & (np.abs(t) <= T_TOL)
-    found: list[CriticalPoint] = []
-    same = 1e-6 * float(np.median(linkage.lengths[cons.bars]))
-    for u0 in centre + scale * y[cand].real:
-        ref = refine_critical(cons, u0, tol)
-        if not ref.critical or any(np.linalg.norm(cp.u - ref.u) <= same for cp in found):
-            continue
-        found.append(CriticalPoint(ref.u, classify(linkage, ref.u, tol), ref.length_residual,
-                                   ref.stress_residual))
-    return found, res.success
+def cone_sign(cp: CriticalPoint, sheets: int) -> int:
+    """The sign of ``Delta`` that resolves the cone ``cp`` into ``sheets`` (1 or 2) sheets:
+    the sign two of ``Q``'s eigenvalues share for one sheet, the other for two."""
+    q = cp.analysis.q_eigenvalues
+    assert q is not None
+    pair = 1 if int((q > 0).sum()) == 2 else -1
+    return pair if sheets == 1 else -pair
 
 
 def resolve_cone(linkage: Linkage, cp: CriticalPoint, d_l: np.ndarray) -> ConeResolution:
     """Sheets and Euler change of one critical point under ``dL`` (module docstring)."""
-    res = cp.analysis
-    q = res.q_eigenvalues
-    if (res.self_stress is None or q is None or len(q) != 3 or not (q.max() > 0 > q.min())):
+    if not is_cone(cp):
         return ConeResolution(cp, 0.0, 0.0, 0, 0, 0)
     delta, _, _, error = conic_delta(linkage, cp, d_l)
     sign = int(np.sign(delta)) if abs(delta) > error else 0
     if sign == 0:
         return ConeResolution(cp, delta, error, 0, 0, 0)
-    pair = 1 if int((q > 0).sum()) == 2 else -1  # the sign two eigenvalues share
-    sheets = 1 if sign == pair else 2
+    sheets = 1 if sign == cone_sign(cp, 1) else 2
     return ConeResolution(cp, delta, error, sign, sheets, 2 * sheets - 3)
 
 
@@ -159,14 +114,70 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
     tol = tol or Tolerances()
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
-    rng = np.random.default_rng(seed)
-    cps, ended = find_cones(linkage, tol, rng, deadline.fraction(0.3))
+    cps, ended = find_cones(linkage, tol, np.random.default_rng(seed), deadline.fraction(0.3))
+    return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol, options,
+                        deadline, found=cps)
+
+
+Betti = tuple[int, int, int]
+
+
+def _summed(homs: list[Homology | None]) -> tuple[int | None, Betti | None]:
+    """Euler characteristic and Betti numbers over Q summed over components (None without
+    them)."""
+    if not homs or any(h is None for h in homs):
+        return None, None
+    b = np.sum([h.betti_q for h in homs if h is not None], axis=0)
+    return int(sum(h.euler for h in homs if h is not None)), (int(b[0]), int(b[1]), int(b[2]))
+
+
+def predict_betti(linkage: Linkage, cones: list[ConeResolution],
+                  found: tuple[list[CriticalPoint], bool] | None, tol: Tolerances,
+                  options: SurfaceOptions | None, deadline: Deadline
+                  ) -> tuple[Betti | None, tuple[Betti | None, Betti | None]]:
+    """The critical space's Betti numbers over Q, and those predicted at ``L + dL`` and
+    ``L - dL``: its surfaces meshed through the cones (complete), each apex resolved as its
+    cone resolves (:func:`engine.space.surfaces.cones.resolve_apexes`; the other number of
+    sheets at ``L - dL``; ``found``: every critical point the cone search found, cones or not,
+    and whether its every path ended, where it ran already). None where the mesh is incomplete
+    or a cone undecided."""
+    none: tuple[Betti | None, tuple[Betti | None, Betti | None]] = (None, (None, None))
+    if not cones or any(c.sign == 0 for c in cones):
+        return none
+    out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False,
+                           cones=found)
+    if not out.search.complete:
+        return none
+    apex_at = np.array([c.point.u for c in cones])
+    sides: list[list[Homology | None]] = [[], []]
+    for comp in out.components:
+        near = [int(np.argmin(np.linalg.norm(apex_at - comp.vertices[a], axis=1)))
+                for a in comp.apexes]
+        sheets = np.array([cones[k].sheets for k in near], dtype=np.int64)
+        for side, n in enumerate((sheets, 3 - sheets)):
+            _, tri = resolve_apexes(comp.vertices, comp.triangles, comp.apexes, n)
+            sides[side].append(surface_homology(tri))
+    critical = _summed([c.homology for c in out.components])[1]
+    return critical, (_summed(sides[0])[1], _summed(sides[1])[1])
+
+
+def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
+                 tol: Tolerances, options: SurfaceOptions | None = None,
+                 deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None
+                 ) -> SurfaceSplit:
+    """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
+    homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
+    numbers (:func:`predict_betti`) and their check by meshing the linkage at ``L + dL`` and
+    ``L - dL`` (:func:`split_surface`); ``found``: every critical point the search found
+    (the cones among them), which the critical space's meshing then need not search again."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
-    cones = [c for c in cones if c.euler_change or c.delta_error]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
+    critical, predicted_betti = predict_betti(
+        linkage, cones, None if found is None else (found, ended), tol, options,
+        deadline.fraction(1 / 3))
     eulers: list[int | None] = []
-    bettis: list[tuple[int, int, int] | None] = []
+    bettis: list[Betti | None] = []
     complete = ended
     for k, sign in enumerate((1.0, -1.0)):
         if deadline.expired():
@@ -179,29 +190,31 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
                                                                             else 1.0),
                                start_on_space=False)
         complete &= bool(out.search.complete)
-        homs = [c.homology for c in out.components]
-        if not homs or any(h is None for h in homs):
-            eulers.append(None)
-            bettis.append(None)
-            continue
-        eulers.append(int(sum(h.euler for h in homs if h is not None)))
-        b = np.sum([h.betti_q for h in homs if h is not None], axis=0)
-        bettis.append((int(b[0]), int(b[1]), int(b[2])))
+        euler, betti = _summed([c.homology for c in out.components])
+        eulers.append(euler)
+        bettis.append(betti)
+    betti_agrees = None not in predicted_betti and list(predicted_betti) == bettis
     verified = (predicted is not None and eulers[0] is not None and eulers[1] is not None
-                and eulers[0] - eulers[1] == predicted)
-    message = ("the re-meshed Euler characteristics differ as predicted" if verified else
+                and eulers[0] - eulers[1] == predicted
+                and (betti_agrees or None in predicted_betti))
+    message = ("the re-meshed Euler characteristics differ as predicted" + (
+               " and the Betti numbers are those predicted" if betti_agrees else
+               " (no Betti numbers predicted: the critical space's mesh is incomplete)")
+               if verified else
                "a cone's Delta is within its error: no prediction" if predicted is None else
                "the re-meshing did not finish" if None in eulers else
-               "the re-meshed Euler characteristics differ from the prediction")
+               "the re-meshed topology differs from the prediction")
     report = SearchReport(
         {"method": "cone homotopy and re-meshing", "cones": len(cones),
-         "cone_homotopy_ended": ended, "verified": verified},
+         "cone_homotopy_ended": ended, "verified": verified, "betti_verified": betti_agrees},
         timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
         argument="proved" if complete and verified else None,
         argument_detail=(f"the {len(cones)} cones found by homotopy (every path ended) resolve "
                          "as predicted: the complete re-meshings at L + dL and L - dL differ in "
-                         "Euler characteristic by the predicted amount")
+                         "Euler characteristic by the predicted amount" + (
+                             ", and their Betti numbers are those of the critical space's mesh "
+                             "with each apex resolved" if betti_agrees else ""))
         if complete and verified else None)
     return SurfaceSplit(cones, predicted, (eulers[0], eulers[1]), (bettis[0], bettis[1]),
-                        verified, complete, message, report)
+                        verified, complete, message, report, critical, predicted_betti)

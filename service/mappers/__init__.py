@@ -16,6 +16,7 @@ from service.mappers.common import (
 )
 from service.mappers.design import (
     SliceOptions,
+    cone_targets_in,
     critical_values_in,
     critical_values_out,
     design_in,
@@ -24,6 +25,7 @@ from service.mappers.design import (
     robustness_in,
     robustness_out,
     splitting_out,
+    surface_design_out,
     surface_splitting_out,
 )
 from service.mappers.jobs import (
@@ -59,6 +61,7 @@ __all__ = [
     "bar_values",
     "critical_list_out",
     "critical_points_out",
+    "cone_targets_in",
     "critical_values_in",
     "critical_values_out",
     "design_in",
@@ -83,6 +86,7 @@ __all__ = [
     "space_options_in",
     "space_out",
     "splitting_out",
+    "surface_design_out",
     "surface_splitting_out",
     "surface_options_in",
     "surfaces_out",

@@ -13,7 +13,8 @@ from engine.design.design import Check, DesignResult, Target
 from engine.design.robustness import Margin
 from engine.design.slice_regions import Region
 from engine.design.splitting import Split
-from engine.design.surface_splitting import SurfaceSplit
+from engine.design.surface_design import ConeTarget, SurfaceDesign
+from engine.design.surface_splitting import ConeResolution, SurfaceSplit
 from engine.local.critical import CriticalPoint
 from engine.model.linkage import Linkage as EngineLinkage
 from engine.model.tolerances import Tolerances as EngineTolerances
@@ -56,18 +57,25 @@ def splitting_out(
     )
 
 
+def _cones_out(linkage: EngineLinkage, cones: list[ConeResolution]
+               ) -> list[splitting_schemas.ConeSplitOut]:
+    return [splitting_schemas.ConeSplitOut(
+        configuration=positions_out(linkage, linkage.positions_of(c.point.u)),
+        q_eigenvalues=np.asarray(c.point.analysis.q_eigenvalues).tolist(),
+        delta=c.delta, delta_error=c.delta_error, sign=c.sign, sheets=c.sheets,
+        euler_change=c.euler_change) for c in cones]
+
+
 def surface_splitting_out(linkage: EngineLinkage, res: SurfaceSplit, tol: EngineTolerances
                           ) -> splitting_schemas.SplittingResponse:
     """A two-degree-of-freedom splitting answer (``surface``; no branch points)."""
     return splitting_schemas.SplittingResponse(
         surface=splitting_schemas.SurfaceSplitOut(
-            cones=[splitting_schemas.ConeSplitOut(
-                configuration=positions_out(linkage, linkage.positions_of(c.point.u)),
-                q_eigenvalues=np.asarray(c.point.analysis.q_eigenvalues).tolist(),
-                delta=c.delta, delta_error=c.delta_error, sign=c.sign, sheets=c.sheets,
-                euler_change=c.euler_change) for c in res.cones],
+            cones=_cones_out(linkage, res.cones),
             predicted_euler_difference=res.predicted_euler_difference,
             euler=list(res.euler), betti_q=[list(b) if b else None for b in res.betti],
+            critical_betti_q=list(res.critical_betti) if res.critical_betti else None,
+            predicted_betti_q=[list(b) if b else None for b in res.predicted_betti],
             verified=res.verified, message=res.message),
         branch_points=[], critical_points_found=len(res.cones),
         search=c.SearchReport.model_validate(search_out(res.search)),
@@ -112,15 +120,22 @@ def critical_values_in(
 
 def design_in(body: design_schemas.DesignRequest) -> tuple[list[Target], list[str]]:
     """The targets and the adjustable bars of a design request."""
-    return [Target(t.branch_point, t.sign) for t in body.targets], list(body.adjustable)
+    return ([Target(t.branch_point, t.sign or 0) for t in body.targets],  # 0: refused
+            list(body.adjustable))
 
 
-def design_margin(body: design_schemas.DesignRequest, linkage: EngineLinkage) -> float:
-    """The required margin: the request's, else ``DEFAULT_MARGIN`` of the median bar length
-    (of the bars with a free end)."""
+def cone_targets_in(body: design_schemas.DesignRequest) -> list[ConeTarget]:
+    """The targets of a two-degree-of-freedom design (cones asked for sheets or a sign)."""
+    return [ConeTarget(t.branch_point, t.sheets or 0, t.sign or 0) for t in body.targets]
+
+
+def design_margin(body: design_schemas.DesignRequest, linkage: EngineLinkage,
+                  default: float = DEFAULT_MARGIN) -> float:
+    """The required margin: the request's, else ``default`` of the median bar length (of the
+    bars with a free end)."""
     if body.margin is not None:
         return body.margin
-    return DEFAULT_MARGIN * float(np.median(linkage.lengths[linkage.active]))
+    return default * float(np.median(linkage.lengths[linkage.active]))
 
 
 def design_out(
@@ -154,7 +169,36 @@ def design_out(
         ],
         verified=all(c.agrees for c in checks) if checks and not any(c.skipped for c in checks)
         else None,
+        surface=None,
         search=c.SearchReport.model_validate(search_out(search)),
+        tolerances=tolerances_out(tol),
+    )
+
+
+def surface_design_out(linkage: EngineLinkage, res: SurfaceDesign, adjustable: list[str],
+                       tol: EngineTolerances) -> design_schemas.DesignResponse:
+    """A two-degree-of-freedom design answer (``surface``; no ``predicted``)."""
+    r, split = res.result, res.split
+    remeshed = split is not None and split.complete and res.cones_ended
+    verified = None if split is None or not remeshed else bool(
+        res.targets_met and split.verified)
+    surface = None if split is None else design_schemas.SurfaceDesignOut(
+        cones=_cones_out(linkage, split.cones), asked=[int(s) for s in res.signs],
+        targets_met=res.targets_met, euler_change=res.euler_change,
+        predicted_euler_difference=split.predicted_euler_difference,
+        euler=list(split.euler), betti_q=[list(b) if b else None for b in split.betti],
+        critical_betti_q=list(split.critical_betti) if split.critical_betti else None,
+        predicted_betti_q=[list(b) if b else None for b in split.predicted_betti],
+        remeshed_complete=remeshed, message=split.message)
+    return design_schemas.DesignResponse(
+        feasible=r.feasible,
+        perturbation={bar: float(r.perturbation[linkage.bar_ids.index(bar)])
+                      for bar in adjustable},
+        largest_change=r.largest_change, predicted=[],
+        conflicts=[design_schemas.ConflictOut(branch_points=c.branch_points, reason=c.reason)
+                   for c in r.conflicts],
+        verified=verified, surface=surface,
+        search=c.SearchReport.model_validate(search_out(res.search)),
         tolerances=tolerances_out(tol),
     )
 

@@ -198,11 +198,11 @@ def surfaces_out(
                 orientable=None if h is None else h.orientable,
                 betti_z2=None if h is None else list(h.betti_z2),
                 betti_q=None if h is None else list(h.betti_q),
-                genus=None if h is None or not comp.closed else h.genus,
+                genus=None if h is None or not comp.closed or len(comp.apexes) else h.genus,
                 defects=comp.defects, inverted_triangles=comp.inverted,
                 tangent_angle_max=float(np.degrees(comp.tangent_angle_max)),
                 morse_sum=comp.morse_sum, morse_agrees=comp.morse_agrees,
-                critical_points=comp.critical_points))
+                critical_points=comp.critical_points, apexes=comp.apexes.tolist()))
     heights = [space.HeightCriticalOut(
         configuration=positions_out(linkage, linkage.positions_of(u)), index=int(i),
         surface=int(k)) for u, i, k in zip(res.height_critical.points, res.height_critical.index,

@@ -213,6 +213,10 @@ class SurfaceOut(BaseModel):
                                   "points on it (null: one is degenerate)")
     morse_agrees: bool = Field(description="morse_sum equals euler (the Morse check)")
     critical_points: list[int] = Field(description="the linkage's critical points on it")
+    apexes: list[int] = Field(default_factory=list, description=(
+        "mesh vertices at the cones (critical points with Q indefinite on three zero modes) "
+        "the surface passes through: each apex's link is two cycles, one per nappe, so "
+        "defects.pinched_vertices counts them and genus is null"))
 
 
 class SpaceResponse(Projection):

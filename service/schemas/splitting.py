@@ -71,6 +71,13 @@ class SurfaceSplitOut(BaseModel):
     betti_q: list[list[int] | None] = Field(description="re-meshed b0, b1, b2 over Q at "
                                             "L + dL and L - dL (summed over the surfaces)")
     verified: bool = Field(description="the re-meshed difference equals the prediction")
+    critical_betti_q: list[int] | None = Field(
+        description="b0, b1, b2 over Q of the critical space at L, meshed through its "
+        "cones (null: its mesh incomplete)")
+    predicted_betti_q: list[list[int] | None] = Field(
+        description="b0, b1, b2 over Q predicted at "
+        "L + dL and L - dL: the critical space's mesh with each apex resolved as its cone "
+        "resolves (two sheets: the apex split; one: a tube between its link's two cycles)")
     message: str
 
 

@@ -34,7 +34,7 @@ MODELS = {
     "JobSummary": models.JobSummary, "Readiness": models.Readiness,
     "OperationOut": models.Operation, "CountClaim": models.CountClaim,
     "ProvedSoFar": models.ProvedSoFar, "ConeSplitOut": models.ConeSplit,
-    "SurfaceSplitOut": models.SurfaceSplit,
+    "SurfaceSplitOut": models.SurfaceSplit, "SurfaceDesignOut": models.SurfaceDesign,
 }
 
 

@@ -171,7 +171,7 @@ DESIGN = {"linkage": square(), "targets": [{"branch_point": 0, "sign": 1}], "adj
 DESIGN_CASES = [
     ("engine/design/design.py", "sign must be 1 or -1", "DesignRequest",
      {**DESIGN, "targets": [{"branch_point": 0, "sign": 0}]}, ("TargetIn", "properties", "sign",
-                                                                "enum")),
+                                                                "anyOf", 0, "enum")),
     ("engine/design/design.py", "adjustable bars repeat", "DesignRequest",
      {**DESIGN, "adjustable": ["b", "b"]}, ("DesignRequest", "properties", "adjustable",
                                            "uniqueItems")),

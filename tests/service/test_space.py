@@ -497,4 +497,64 @@ def test_two_degrees_of_freedom_splitting_resolves_the_cones(client, change):
     chi = [b[0] - b[1] + b[2] for b in (plus, minus)]
     assert surf["predicted_euler_difference"] == chi[0] - chi[1]
     assert surf["euler"] == chi and surf["betti_q"] == [plus, minus]
+    assert surf["predicted_betti_q"] == [plus, minus]
     assert surf["verified"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sheets", [1, 2])
+def test_two_degrees_of_freedom_design_resolves_the_cones_as_asked(client, sheets):
+    """Design at the pentagon's critical lengths (2, 1, 1, 1, 1): every cone asked for one
+    sheet (the designed change lengthens the free bars) or two (shortens them); the re-meshed
+    b0, b1 and Euler characteristics at L + dL and L - dL are Farber and Schuetz's for those
+    lengths, and their difference is the predicted one."""
+    from tests.engine.space.surfaces.conftest import pentagon_betti
+
+    base = (2.0, 1.0, 1.0, 1.0, 1.0)
+    body = post(client, "/v1/design/splitting", {
+        "linkage": pentagon_body(base), "adjustable": ["b1", "b2", "b3", "b4"],
+        "targets": [{"branch_point": k, "sheets": sheets} for k in range(4)],
+        "options": {"time_budget_s": 60}})
+    assert body["feasible"] and body["predicted"] == [] and body["verified"] is True
+    d_l = np.array([0.0] + [body["perturbation"][f"b{k}"] for k in range(1, 5)])
+    surf = body["surface"]
+    assert surf["targets_met"] and surf["remeshed_complete"]
+    assert [c["sheets"] for c in surf["cones"]] == [sheets] * 4
+    assert surf["asked"] == [c["sign"] for c in surf["cones"]]
+    plus, minus = (list(pentagon_betti(tuple(np.array(base) + s * d_l))) for s in (1, -1))
+    assert surf["betti_q"] == [plus, minus]
+    chi = [b[0] - b[1] + b[2] for b in (plus, minus)]
+    assert surf["euler"] == chi
+    assert surf["euler_change"] == 4 * (2 * sheets - 3)
+    assert surf["predicted_betti_q"] == [plus, minus]
+    assert surf["critical_betti_q"] == [1, 2 - (chi[0] + chi[1]) // 2, 1]
+    assert surf["predicted_euler_difference"] == 2 * surf["euler_change"] == chi[0] - chi[1]
+    assert body["search"]["complete"] and body["search"]["argument"] == "proved"
+
+
+def test_two_degrees_of_freedom_design_refusals(client):
+    """sheets on a one-degree-of-freedom linkage (or neither sheets nor sign), sheets and sign
+    together, no cone of that number: each a 422 problem naming the field."""
+    cases = [
+        ({"linkage": preset(client, "four-bar"),
+          "targets": [{"branch_point": 0, "sheets": 1}], "adjustable": ["L2"]},
+         ["body", "targets", 0, "sheets"]),
+        ({"linkage": preset(client, "four-bar"), "targets": [{"branch_point": 0}],
+          "adjustable": ["L2"]}, ["body", "targets", 0, "sign"]),
+        ({"linkage": pentagon_body((2.0, 1.0, 1.0, 1.0, 1.0)),
+          "targets": [{"branch_point": 0, "sheets": 1, "sign": 1}], "adjustable": ["b2"]},
+         ["body", "targets", 0, "sheets"]),
+        ({"linkage": pentagon_body((2.0, 1.0, 1.0, 1.0, 1.0)),
+          "targets": [{"branch_point": 9, "sheets": 2}], "adjustable": ["b2"],
+          "options": {"time_budget_s": 30}},
+         ["body", "targets", 0, "branch_point"]),
+        ({"linkage": pentagon_body((2.0, 1.0, 1.0, 1.0, 1.0)),
+          "targets": [{"branch_point": 0, "sheets": 3}], "adjustable": ["b2"]},
+         ["body", "targets", 0, "sheets"]),
+    ]
+    for request, loc in cases:
+        r = client.post("/v1/design/splitting", json=request)
+        assert r.status_code == 422, r.text
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["errors"][0]["loc"][:len(loc)] == loc
+    assert client.get("/health").status_code == 200

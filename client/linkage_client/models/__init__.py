@@ -36,6 +36,7 @@ from linkage_client.models.analysis import (
     SplittingResult,
     StressCertificate,
     Surface,
+    SurfaceDesign,
     SurfaceSplit,
 )
 from linkage_client.models.jobs import (
@@ -75,7 +76,8 @@ __all__ = [
     "ProvedSoFar",
     "Progress", "Readiness", "Region", "RigidityResult", "RobustnessResult", "RobustnessSearch",
     "SearchReport", "SecondOrderFlex", "SecondOrderResult", "Segment", "SliceSearch",
-    "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SurfaceSplit",
+    "SpaceResult", "SplittingResult", "StressCertificate", "Surface", "SurfaceDesign",
+    "SurfaceSplit",
     "SweepResult", "SweepRow",
     "SweepSummary", "TangentForm", "TolerancesUsed", "Vertex", "linkage_json", "result_of",
     "sequence",

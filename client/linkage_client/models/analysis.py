@@ -209,6 +209,7 @@ class Surface(Model):
     morse_sum: int | None
     morse_agrees: bool
     critical_points: list[int]
+    apexes: list[int] = field(default_factory=list)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Self:
@@ -224,7 +225,8 @@ class Surface(Model):
                    defects=dict(data["defects"]), inverted_triangles=data["inverted_triangles"],
                    tangent_angle_max=data["tangent_angle_max"], morse_sum=data.get("morse_sum"),
                    morse_agrees=data["morse_agrees"],
-                   critical_points=list(data["critical_points"]))
+                   critical_points=list(data["critical_points"]),
+                   apexes=list(data.get("apexes", [])))
 
 
 @dataclass(frozen=True)
@@ -285,6 +287,8 @@ class SurfaceSplit(Model):
     betti_q: list[list[int] | None]
     verified: bool
     message: str
+    critical_betti_q: list[int] | None = None
+    predicted_betti_q: list[list[int] | None] = field(default_factory=lambda: [None, None])
 
 
 @dataclass(frozen=True)
@@ -402,6 +406,25 @@ class Conflict(Model):
 
 
 @dataclass(frozen=True)
+class SurfaceDesign(Model):
+    """``design`` for two degrees of freedom: every cone at ``L + dL``, the sign each target
+    asked for, the predicted change of the Euler characteristic and the re-meshed topology
+    (``euler``, ``betti_q`` at ``L + dL``, ``L - dL``)."""
+
+    cones: list[ConeSplit]
+    asked: list[int]
+    targets_met: bool | None
+    euler_change: int | None
+    predicted_euler_difference: int | None
+    euler: list[int | None]
+    betti_q: list[list[int] | None]
+    remeshed_complete: bool
+    message: str
+    critical_betti_q: list[int] | None = None
+    predicted_betti_q: list[list[int] | None] = field(default_factory=lambda: [None, None])
+
+
+@dataclass(frozen=True)
 class DesignResult(Model):
     """``POST /v1/design/splitting``."""
 
@@ -413,6 +436,7 @@ class DesignResult(Model):
     verified: bool | None
     search: SearchReport
     tolerances: TolerancesUsed
+    surface: SurfaceDesign | None = None
     raw: JSON = _raw()
 
 

@@ -4,7 +4,9 @@ component as a triangulated surface with its topology (issue 25).
 Modules: :mod:`.geometry` (oriented tangent frames, projection), :mod:`.mesh` (the marching
 triangulation), :mod:`.homology` (Euler characteristic, orientability, Betti numbers over Z/2
 and Q), :mod:`.morse` (critical points of a generic height: seeds on every compact component
-and the Morse check), :mod:`.explore` (the entry point :func:`explore_surfaces`).
+and the Morse check), :mod:`.cones` (every critical point by homotopy, the fans the mesh grows
+from around each cone's apex, the apexes' Morse terms and their resolution in the complex),
+:mod:`.explore` (the entry point :func:`explore_surfaces`).
 """
 
 from engine.space.surfaces.explore import (

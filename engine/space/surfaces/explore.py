@@ -17,11 +17,17 @@ fixed): every compact component as a triangulated surface with its topology.
    alternating sum must equal the Euler characteristic.
 5. **Critical points of the linkage** (rank-deficient ``J``): refined from the mesh vertices
    where ``J`` is nearest to losing rank, classified to second order (``Q`` on the three zero
-   modes: its signature says cone or isolated point). A component through one is no smooth
-   surface: the answer is then incomplete (``degenerate``).
+   modes: its signature says cone or isolated point). Where the meshes come near one, every
+   critical point is found by the cone homotopy (:func:`.cones.find_cones`) and the components
+   through the cones are meshed again from fans around their apexes (:mod:`.cones`), which
+   become mesh vertices (``apexes``) whose links are two cycles; the Morse check adds each
+   apex's term (:func:`.cones.cone_morse_term`). A critical point that is no cone (an isolated
+   point, two self-stresses) or a cone not meshed through leaves the answer incomplete
+   (``degenerate``).
 
-The answer is complete only when every mesh closed as a 2-manifold, passed the geometric and
-Morse checks, no linkage critical point lies on it, and the homotopy proved the seeds
+The answer is complete only when every mesh closed as a 2-manifold (but at its apexes), passed
+the geometric and Morse checks, every critical point of the linkage is a cone it passes through
+(found by a cone homotopy whose every path ended), and the homotopy proved the seeds
 (``argument = "proved"``); otherwise ``search.reason`` says what is missing.
 """
 
@@ -39,6 +45,7 @@ from engine.model.errors import InvalidLinkage
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
+from engine.space.surfaces.cones import cone_fans, cone_morse_term, find_cones, is_cone
 from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.homology import (
     Homology,
@@ -46,7 +53,7 @@ from engine.space.surfaces.homology import (
     manifold_defects,
     surface_homology,
 )
-from engine.space.surfaces.mesh import Mesh, march
+from engine.space.surfaces.mesh import Mesh, components, march
 from engine.space.surfaces.morse import (
     HeightCritical,
     HeightWitnesses,
@@ -63,6 +70,13 @@ from engine.space.witnesses import PATHS_MAX, bounded
 #: ``step_rel = 0.25``); beyond it the mesh cuts across the surface (a thin part, a tight
 #: bend), and the component is meshed again with a shorter step.
 TANGENT_ANGLE_MAX = np.deg2rad(45.0)
+#: Edge ends within this many (median) edge lengths of a cone's apex's ring (:func:`.cones.
+#: ring_radius`) are left out of the
+#: tangent-angle check (an edge there leaves the tangent planes by about half its length over
+#: the distance to the apex: 60 degrees at 1.3 steps on the pentagon at (2, 1, 1, 1, 1)); the
+#: meshes there are vouched for by the fold check, the links (two cycles at each apex, one
+#: elsewhere) and the Morse count with the apexes' terms.
+APEX_ZONE = 3.0
 #: The step of a component meshed again (its geometric checks failed), relative to the last.
 REMESH_FACTOR = 0.6
 #: Times a component is meshed again at most.
@@ -99,7 +113,8 @@ class SurfaceComponent:
     ``tangent_angle_max`` (radians: the largest angle of an edge off its ends' tangent planes),
     the height's critical points on it (indices into :attr:`SurfaceResult.height_critical`),
     ``morse_sum`` (their alternating sum) and ``morse_agrees``, and the linkage's critical
-    points on it (indices into :attr:`SurfaceResult.critical_points`)."""
+    points on it (indices into :attr:`SurfaceResult.critical_points`) with ``apexes``, the mesh
+    vertices at its cones (their links are two cycles: ``defects`` counts them as pinched)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -113,6 +128,7 @@ class SurfaceComponent:
     morse_agrees: bool
     critical_points: list[int]
     message: str
+    apexes: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -167,14 +183,25 @@ def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
         z = frames[tri[:, k]]
         a = np.einsum("tm,tmj->tj", e1, z)
         b = np.einsum("tm,tmj->tj", e2, z)
-        negative += a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0
+        # an apex's frame means nothing: its triangles are judged in the other two frames
+        negative += (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0) & ~np.isin(tri[:, k],
+                                                                            mesh.apexes)
     edges, _ = edges_of(tri)
     d = x[edges[:, 1]] - x[edges[:, 0]]
     length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    # an apex has no tangent plane, and a cone's curvature grows as one over the distance to
+    # its apex: within APEX_ZONE edges of one the angle says nothing about cutting across
+    near_apex = np.zeros(len(x), dtype=bool)
+    for a in mesh.apexes:  # its ring's radius (the farthest neighbour) and APEX_ZONE edges
+        nbr = np.unique(tri[(tri == a).any(axis=1)])
+        reach = float(np.linalg.norm(x[nbr] - x[a], axis=1).max())
+        near_apex |= np.linalg.norm(x - x[a], axis=1) <= reach + APEX_ZONE * float(
+            np.median(length))
     worst = 0.0
     for end in (0, 1):
         inplane = np.linalg.norm(np.einsum("em,emj->ej", d, frames[edges[:, end]]), axis=1)
         off = np.sqrt(np.maximum(length ** 2 - inplane ** 2, 0.0)) / length
+        off[near_apex[edges[:, end]]] = 0.0
         worst = max(worst, float(np.arcsin(np.clip(off, 0.0, 1.0)).max()))
     # a fold shows in the frames of most of a triangle's vertices; a sliver left by a join
     # (its area near zero) may lean across one vertex's frame without any overlap
@@ -242,23 +269,27 @@ def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadli
 
 
 def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner: np.ndarray,
-               k: int, critical: list[int]) -> SurfaceComponent:
+               k: int, critical: list[int], cone_terms: int) -> SurfaceComponent:
+    """One component's topology and checks; ``cone_terms``: what its cones' apexes add to the
+    Morse count (:func:`.cones.cone_morse_term`)."""
     hom = surface_homology(mesh.triangles) if len(mesh.triangles) else None
     defects = manifold_defects(mesh.triangles)
     inverted, angle = check
     mine = [int(i) for i in np.flatnonzero(owner == k)]
     idx = crit.index[mine]
-    morse = None if (idx < 0).any() else int(sum((-1) ** int(i) for i in idx))
+    morse = None if (idx < 0).any() else int(sum((-1) ** int(i) for i in idx)) + cone_terms
     agrees = hom is not None and morse is not None and morse == hom.euler
     return SurfaceComponent(mesh.vertices, mesh.triangles, mesh.closed, hom, defects, inverted,
-                            angle, mine, morse, agrees, critical, mesh.message)
+                            angle, mine, morse, agrees, critical, mesh.message, mesh.apexes)
 
 
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      options: SurfaceOptions | None = None, start_on_space: bool = True,
-                     deadline: Deadline | None = None) -> SurfaceResult:
+                     deadline: Deadline | None = None,
+                     cones: tuple[list[CriticalPoint], bool] | None = None) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
-    with its topology (module docstring).
+    with its topology (module docstring); ``cones``: the critical points and whether every
+    path ended, where :func:`.cones.find_cones` has run already for this linkage.
 
     Examples
     --------
@@ -284,24 +315,23 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     start = linkage.coordinates() if start_on_space else None
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
                    rng, opt.random_starts, dl)
-    meshes: list[Mesh] = []
-    checks: list[tuple[int, float]] = []
-    trees: list[cKDTree] = []
-    budget_hit = False
-    for seed in seeds:
-        if dl.expired():
-            break
-        if any(t.query(seed)[0] <= step for t in trees):
-            continue
-        left = opt.max_triangles - sum(len(m.triangles) for m in meshes)
-        if left <= 0:
-            budget_hit = True
-            break
-        mesh, check, hit = _mesh(surface, seed, step, left, dl)
-        budget_hit |= hit
-        meshes.append(mesh)
-        checks.append(check)
-        trees.append(cKDTree(mesh.vertices))
+    # cones known already: mesh through them first, then from the seeds no mesh covers
+    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
+        if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
+    first = [] if cone_pass is None else cone_pass.meshes
+    meshes, checks, budget_hit = _mesh_seeds(
+        surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
+        [m.vertices for m in first])
+    critical, where = _linkage_critical(surface, meshes, tol)
+    if cone_pass is None and (critical or any(
+            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
+        cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
+                                   dl, cones)
+        meshes, checks = [], []  # the cone pass keeps what it does not replace
+    if cone_pass is not None:
+        meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
+        critical, where = cone_pass.critical, cone_pass.where
+        budget_hit |= cone_pass.budget
     proved = wit is not None and wit.success
     # without the homotopy: the PL critical vertices of the closed meshes and their
     # neighbours, refined by Newton within a trust region of half a step
@@ -311,23 +341,107 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                                                               m.vertices @ c)[0])]
             for m in meshes if m.closed]), 0.5 * step)
     owner = assign(crit.points, [m.vertices for m in meshes], 2.0 * step)
-    critical, where = _linkage_critical(surface, meshes, tol)
     comps = [_component(m, checks[k], crit, owner, k,
-                        [j for j, w in enumerate(where) if w == k])
+                        [j for j, w in enumerate(where) if w == k],
+                        sum(cone_morse_term(critical[j], c) for j, w in enumerate(where)
+                            if w == k and is_cone(critical[j])))
              for k, m in enumerate(meshes)]
     return SurfaceResult(comps, c, crit, owner, critical,
-                         _report(wit, comps, owner, critical, dl, budget_hit, step))
+                         _report(wit, comps, owner, critical, dl, budget_hit, step, cone_pass))
+
+
+@dataclass(frozen=True)
+class _ConePass:
+    """The meshes after meshing through the cones (those of the other components kept), their
+    checks, every critical point of the linkage (:func:`.cones.find_cones`), the mesh each
+    lies on (-1: none), whether every path of the cone search ended and whether the triangle
+    budget stopped the march."""
+
+    meshes: list[Mesh]
+    checks: list[tuple[int, float]]
+    critical: list[CriticalPoint]
+    where: list[int]
+    ended: bool
+    budget: bool
+
+
+def _mesh_seeds(surface: Surface, seeds: list[np.ndarray], step: float, max_triangles: int,
+                dl: Deadline, covered: list[np.ndarray] | None = None
+                ) -> tuple[list[Mesh], list[tuple[int, float]], bool]:
+    """A mesh from every seed that no mesh (nor the vertices ``covered``) covers yet, within
+    the budget and the deadline: the meshes, their checks and whether the budget stopped one."""
+    meshes: list[Mesh] = []
+    checks: list[tuple[int, float]] = []
+    trees: list[cKDTree] = [cKDTree(v) for v in covered or [] if len(v)]
+    budget_hit = False
+    for seed in seeds:
+        if dl.expired():
+            break
+        if any(t.query(seed)[0] <= step for t in trees):
+            continue
+        left = max_triangles - sum(len(m.triangles) for m in meshes)
+        if left <= 0:
+            budget_hit = True
+            break
+        mesh, check, hit = _mesh(surface, seed, step, left, dl)
+        budget_hit |= hit
+        meshes.append(mesh)
+        checks.append(check)
+        trees.append(cKDTree(mesh.vertices))
+    return meshes, checks, budget_hit
+
+
+def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
+                   checks: list[tuple[int, float]], step: float, max_triangles: int,
+                   rng: np.random.Generator, dl: Deadline,
+                   known: tuple[list[CriticalPoint], bool] | None = None) -> _ConePass | None:
+    """Mesh the components through the linkage's cones (:mod:`.cones`): find every critical
+    point by homotopy, march from fans around every cone's apex at once, part the result into
+    components and keep the first meshes of the other components (most of whose vertices are
+    over a step from the new ones); ``known``: the critical points found already. None where
+    there is no cone or a fan does not project."""
+    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
+    cones = [cp for cp in found if is_cone(cp)]
+    fans = [(cp.u, cone_fans(surface, cp, step)) for cp in cones]
+    if not cones or any(rings is None for _, rings in fans) or dl.expired():
+        return None
+    mesh = march(surface, None, step, max_triangles, dl,
+                 fans=[(u, rings) for u, rings in fans if rings is not None])
+    parts = components(mesh)
+    tree = cKDTree(mesh.vertices)
+    kept = [k for k, m in enumerate(meshes) if float(np.median(tree.query(m.vertices)[0])) > step]
+    out = [meshes[k] for k in kept] + parts
+    same = SAME_POINT_REL * float(np.median(surface.linkage.lengths[surface.cons.bars])) * 1e3
+    where = []
+    for cp in found:
+        d = [float(cKDTree(m.vertices).query(cp.u)[0]) if len(m.vertices) else np.inf
+             for m in out]
+        where.append(int(np.argmin(d)) if d and min(d) <= same else -1)
+    return _ConePass(out, [checks[k] for k in kept] + [_geometry_checks(p) for p in parts],
+                     found, where, ended, "budget" in mesh.message)
+
+
+def _sound(c: SurfaceComponent) -> bool:
+    """Closed, a 2-manifold but at its apexes (each pinched once), no fold, close to the
+    tangent planes, and the Morse check agrees."""
+    d = c.defects
+    return (c.closed and d["open_edges"] == d["branched_edges"] == d["repeated_triangles"] == 0
+            and d["pinched_vertices"] == len(c.apexes) and c.inverted == 0
+            and c.tangent_angle_max <= TANGENT_ANGLE_MAX and c.morse_agrees)
 
 
 def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
             owner: np.ndarray, critical: list[CriticalPoint], dl: Deadline, budget_hit: bool,
-            step: float) -> SearchReport:
+            step: float, cone_pass: _ConePass | None) -> SearchReport:
     """The search report: complete only with the homotopy's proof, every surface closed and
-    sound, every critical point of the height on one, no cone of the linkage."""
-    proved = wit is not None and wit.success
+    sound, every critical point of the height on one, and every critical point of the linkage
+    a cone found by the cone homotopy (every path ended) and meshed through."""
+    proved = (wit is not None and wit.success
+              and (cone_pass is None or cone_pass.ended))
     paths = wit.paths if wit is not None else 0
-    sound = all(c.closed and not any(c.defects.values()) and c.inverted == 0
-                and c.tangent_angle_max <= TANGENT_ANGLE_MAX and c.morse_agrees for c in comps)
+    sound = all(_sound(c) for c in comps)
+    meshed = cone_pass is not None and all(w >= 0 for w in cone_pass.where)
+    degenerate = bool(critical) and not (meshed and all(is_cone(cp) for cp in critical))
     missed = int((owner < 0).sum())
     details: dict[str, object] = {
         "method": "marching", "dof": 2, "step": step, "components_meshed": len(comps),
@@ -337,13 +451,19 @@ def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
         "homotopy_paths": paths,
         "homotopy_start": wit.start if wit is not None and wit.counts else None,
         "morse_agrees": all(c.morse_agrees for c in comps),
+        "cones": sum(len(c.apexes) for c in comps),
+        "cone_homotopy_ended": None if cone_pass is None else cone_pass.ended,
     }
     detail = ("every compact component holds a maximum of a generic height: the "
               f"{paths} paths of the Lagrange system's homotopy (from a "
               f"{wit.start if wit is not None else ''} start) found its {len(owner)} real "
               "critical points, each on a meshed closed surface whose Morse sum equals its "
-              "Euler characteristic") if proved else None
+              "Euler characteristic" + (
+                  f"; the {len(critical)} critical points of the linkage, all found by the "
+                  "cone homotopy (every path ended), are cones the meshes pass through, their "
+                  "apexes counted by stratified Morse theory" if cone_pass is not None
+                  else "")) if proved else None
     return SearchReport(details, timed_out=dl.expired(), budget=budget_hit,
-                        degenerate=bool(critical), unresolved=not sound or missed > 0,
+                        degenerate=degenerate, unresolved=not sound or missed > 0,
                         time_budget_s=granted(dl), argument="proved" if proved else None,
                         argument_detail=detail)

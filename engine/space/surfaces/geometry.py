@@ -75,12 +75,14 @@ class Surface:
         """Gauss-Newton (minimum-norm steps ``-J^+ f``) from ``u`` onto the surface: the point
         and whether every bar is within ``residual_atol`` of its length."""
         x = np.array(u, dtype=float)
+        target = self.cons.linkage.lengths[self.cons.bars]
         for _ in range(PROJECT_ITERATIONS):
-            if self.cons.max_residual(x) <= self.atol:
+            sq = self.cons.squared_lengths(x)  # one pass gives the residual and f
+            if not sq.size or float(np.abs(np.sqrt(sq) - target).max()) <= self.atol:
                 return x, True
             jac = self.jacobian(x)
             try:
-                step = jac.T @ np.linalg.solve(jac @ jac.T, self.values(x))
+                step = jac.T @ np.linalg.solve(jac @ jac.T, sq - self.cons.targets)
             except np.linalg.LinAlgError:
                 return x, False
             if not np.isfinite(step).all():

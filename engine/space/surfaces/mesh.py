@@ -26,9 +26,11 @@ by a triangle budget and the deadline: a mesh stopped early keeps its fronts (``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from engine.model.budget import NEVER, Deadline
 from engine.space.surfaces.geometry import Surface
@@ -64,6 +66,9 @@ class Mesh:
         What is still open (empty for a closed surface).
     closed : bool
     message : str
+    apexes : (K,) int
+        The vertices that are apexes of cones (their frames mean nothing; their links are two
+        cycles, one per nappe).
     """
 
     vertices: np.ndarray
@@ -73,6 +78,7 @@ class Mesh:
     fronts: list[np.ndarray]
     closed: bool
     message: str
+    apexes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 class _Builder:
@@ -84,6 +90,7 @@ class _Builder:
         self.gap = np.empty(64)
         self.tri: list[tuple[int, int, int]] = []
         self.fronts: list[list[int]] = []
+        self.apexes: list[int] = []
 
     def add(self, u: np.ndarray) -> int:
         if self.count == len(self.x):
@@ -126,6 +133,18 @@ class _Builder:
                 return True
             self.count = c + 1
         return False
+
+
+    def start_cones(self, fans: list[tuple[np.ndarray, list[np.ndarray]]]) -> None:
+        """Every cone's apex and a fan around it on each nappe (:func:`.cones.cone_fans`):
+        the rings are the first fronts."""
+        for apex, rings in fans:
+            a = self.add(apex)
+            self.apexes.append(a)
+            for ring in rings:
+                idx = [self.add(u) for u in ring]
+                self.tri += [(a, idx[k], idx[(k + 1) % len(idx)]) for k in range(len(idx))]
+                self.fronts.append(idx)
 
 
 def _front_entries(b: _Builder) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -226,9 +245,12 @@ def _grow(b: _Builder, k: int, i: int, omega: float) -> bool:
     return False
 
 
-def march(surface: Surface, seed: np.ndarray, step: float, max_triangles: int,
-          deadline: Deadline = NEVER) -> Mesh:
-    """Mesh the component through ``seed`` (on the surface) with edges about ``step``.
+def march(surface: Surface, seed: np.ndarray | None, step: float, max_triangles: int,
+          deadline: Deadline = NEVER,
+          fans: list[tuple[np.ndarray, list[np.ndarray]]] | None = None) -> Mesh:
+    """Mesh the component through ``seed`` (on the surface) with edges about ``step``; or,
+    with ``fans`` (apexes and their rings, :func:`.cones.cone_fans`) instead of a seed, every
+    component through those cones at once (:func:`components` parts them).
 
     Examples
     --------
@@ -245,7 +267,9 @@ def march(surface: Surface, seed: np.ndarray, step: float, max_triangles: int,
     True
     """
     b = _Builder(surface, step)
-    if not b.start(np.asarray(seed, dtype=float)):
+    if fans:
+        b.start_cones(fans)
+    elif seed is None or not b.start(np.asarray(seed, dtype=float)):
         return _result(b, "the first hexagon did not project onto the surface")
     stuck: set[int] = set()
     while b.fronts:
@@ -334,4 +358,30 @@ def _result(b: _Builder, message: str) -> Mesh:
         fronts=[np.asarray(fr, dtype=np.int64) for fr in b.fronts],
         closed=not b.fronts,
         message=message,
+        apexes=np.asarray(b.apexes, dtype=np.int64),
     )
+
+
+def components(mesh: Mesh) -> list[Mesh]:
+    """The connected pieces of a mesh (vertices joined by triangles), each re-indexed; the
+    open fronts go with the piece holding them."""
+    n = len(mesh.vertices)
+    tri = mesh.triangles
+    if not len(tri):
+        return [mesh]
+    rows = np.concatenate([tri[:, 0], tri[:, 1]])
+    cols = np.concatenate([tri[:, 1], tri[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    used = np.unique(tri)
+    out = []
+    for k in np.unique(label[used]):
+        keep = np.flatnonzero(label == k)
+        new = np.full(n, -1, dtype=np.int64)
+        new[keep] = np.arange(len(keep))
+        mine = label[tri[:, 0]] == k
+        fronts = [new[f] for f in mesh.fronts if len(f) and label[f[0]] == k]
+        out.append(Mesh(mesh.vertices[keep], new[tri[mine]], mesh.frames[keep], mesh.gaps[keep],
+                        fronts, not fronts, mesh.message if fronts else "closed",
+                        new[mesh.apexes[label[mesh.apexes] == k]]))
+    return out

@@ -9,8 +9,9 @@ from itertools import product
 import numpy as np
 import pytest
 
-from engine.design.surface_splitting import find_cones, resolve_cone, split_surface
+from engine.design.surface_splitting import resolve_cone, split_surface
 from engine.model.tolerances import Tolerances
+from engine.space.surfaces.cones import find_cones
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
 CRITICAL = (2.0, 1.0, 1.0, 1.0, 1.0)
@@ -75,4 +76,6 @@ def test_the_predicted_topology_change_matches_farber_schuetz_and_the_re_meshing
     # and the re-meshing against it too
     assert res.euler == (euler(plus), euler(minus))
     assert res.betti == (plus, minus)
+    # the Betti numbers predicted from the critical space's mesh with its apexes resolved
+    assert res.predicted_betti == (plus, minus)
     assert res.verified and res.search["verified"]

@@ -113,12 +113,26 @@ def test_critical_lengths_locate_the_cones():
     """At lengths (2, 1, 1, 1, 1) the pentagon has critical configurations: a planar polygon
     is critical exactly where all its bars are parallel (the ground bar and one other against
     the remaining three, 2 + 1 = 1 + 1 + 1). They are found, collinear, with Q indefinite on
-    their three zero modes (cones), and the answer is not complete."""
+    their three zero modes (cones); the surface is meshed through them (each an apex of the
+    mesh) and the answer is complete (tests/engine/space/surfaces/test_cones.py checks the
+    topology and the shape there)."""
     res = explore_surfaces(pentagon((2, 1, 1, 1, 1)))
-    assert res.critical_points
+    assert len(res.critical_points) == 4
     for cp in res.critical_points:
         ys = cp.u[1::2]  # the free coordinates are (x, y) of A, B, C
         assert np.abs(ys).max() < 1e-6  # collinear with the pinned bar on the x axis
         q = cp.analysis.q_eigenvalues
         assert len(q) == 3 and q.max() > 0 > q.min()
+    (comp,) = res.components
+    assert sorted(comp.critical_points) == [0, 1, 2, 3] and len(comp.apexes) == 4
+    assert res.search.complete and res.search["cones"] == 4
+
+
+def test_a_critical_point_that_is_no_cone_leaves_the_answer_degenerate():
+    """At lengths (4, 1, 1, 1, 1) the pentagon can only lie stretched out: its space is one
+    point, critical with Q definite (rigid), a component no surface holds: the answer is
+    degenerate, not complete."""
+    res = explore_surfaces(pentagon((4, 1, 1, 1, 1)))
+    assert [cp.kind for cp in res.critical_points] == ["rigid"]
+    assert not any(len(c.triangles) for c in res.components)
     assert res.search.reason == "degenerate" and not res.search.complete

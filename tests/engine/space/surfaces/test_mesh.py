@@ -11,7 +11,7 @@ import pytest
 from engine.model.budget import Deadline
 from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.homology import surface_homology
-from engine.space.surfaces.mesh import march
+from engine.space.surfaces.mesh import components, march
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 from tests.engine.space.surfaces.test_geometry import fd_jacobian, lengths
 
@@ -91,3 +91,20 @@ def test_budget_and_deadline_leave_open_fronts():
     assert 200 <= len(m.triangles) < 220
     m = march(Surface(lk), lk.coordinates(), 0.3, 10_000, Deadline.after(0.0))
     assert not m.closed and "deadline" in m.message and len(m.triangles) == 6
+
+
+def test_components_part_a_mesh_and_keep_each_closed():
+    """Two meshes side by side in one (the second's indices shifted) part into the two, each
+    re-indexed, with the same topology and vertices."""
+    a = march(Surface(pentagon((1, 1, 1, 1, 1))), pentagon((1, 1, 1, 1, 1)).coordinates(), 0.5,
+              60_000)
+    shifted = type(a)(np.vstack([a.vertices, a.vertices + 10.0]),
+                      np.vstack([a.triangles, a.triangles + len(a.vertices)]),
+                      np.concatenate([a.frames, a.frames]), np.concatenate([a.gaps, a.gaps]),
+                      [], True, "closed")
+    parts = components(shifted)
+    assert len(parts) == 2
+    for k, part in enumerate(parts):
+        assert part.closed and np.array_equal(part.triangles, a.triangles)
+        assert np.allclose(part.vertices, a.vertices + 10.0 * k)
+        assert surface_homology(part.triangles).betti_q == pentagon_betti((1, 1, 1, 1, 1))

@@ -1,0 +1,268 @@
+"""The cones of a two-degree-of-freedom configuration space: finding every one, laying out the
+mesh around each, and what each adds to the Morse count.
+
+A cone is a critical point with one self-stress ``sigma`` where ``Q`` (the stress's Hessian on
+the ``D + 1 = 3`` zero modes) is indefinite: to second order the space near it is the quadratic
+cone ``gamma^T Q gamma = 0`` in the zero-mode coordinates ``gamma`` (``u = u* + Z^T gamma`` plus
+higher order), two *nappes* (discs) meeting at the apex ``u*``; as a complex the critical space
+is a surface with its apexes pinched (each apex's link is two circles, one per nappe).
+
+**Every cone** is found by homotopy (:func:`find_cones`), not only near a mesh: a critical
+point solves ``f(u) = 0, J(u)^T lambda = 0`` for a nonzero ``lambda``; with a random ``r`` and
+one more unknown ``t`` the square system ``f = 0, J^T lambda = t r, a . lambda = 1`` has the
+critical points as its solutions with ``t = 0`` (the others are critical points of the height
+``r . u``). It is bihomogeneous in ``(u, (lambda, t))`` with the Lagrange system's structure,
+so its linear product has ``2^E C(M, E)`` paths (240 for a pentagon).
+
+**The mesh around a cone** (:func:`cone_fans`): with ``Q = diag(lam)`` in its eigenbasis, two
+eigenvalues ``lam_i, lam_j`` share a sign and ``lam_k`` has the other; the cone's lines are
+``gamma(theta) = (cos theta / sqrt|lam_i|, sin theta / sqrt|lam_j|, +-1 / sqrt|lam_k|)``
+(normalised), ``+`` on one nappe and ``-`` on the other. Each nappe gets a fan: the apex and a
+ring of points at distance ``step`` along lines spaced evenly in arc length, projected onto the
+lengths; the marching method (:mod:`.mesh`) grows the mesh outwards from the rings' fronts, so
+it passes through the apex as the curve tracer passes through a branch point, instead of
+cutting across the cone.
+
+**Morse count** (:func:`cone_morse_term`): on a surface with cones a generic height ``h``
+satisfies ``chi = sum_smooth (-1)^index + sum_apexes (1 - cut)`` (stratified Morse theory: the
+apex's Morse data is the cone on its lower link, of Euler characteristic ``1 - chi(lower
+link)``), where ``cut`` counts the nappes whose link circle the level ``h = h(u*)`` cuts (an
+arc below: ``chi`` 1; a nappe wholly above or below adds a circle or nothing, ``chi`` 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.local.critical import CriticalPoint, classify, refine_critical
+from engine.model.budget import NEVER, Deadline
+from engine.model.constraints import Constraints
+from engine.model.linkage import Linkage
+from engine.model.tolerances import Tolerances
+from engine.space.homotopy import REGULAR, SINGULAR, track
+from engine.space.linear_product import LinearProduct, Structure, bezout
+from engine.space.surfaces.geometry import Surface
+from engine.space.witnesses import FAR_REACH, SINGULAR_IMAG_TOL, _reach, bar_quadrics
+
+#: ``|t|`` (``|r| = 1``) below which an end is a critical-point candidate (a singular end is
+#: only within about ``sqrt(T_END)`` of its point: 4e-4 on a pentagon's cone; refinement by
+#: Newton then decides).
+T_TOL = 1e-2
+#: Samples of a cone's link circle (its lines, by angle) from which the rings are spaced and
+#: the level's cut is read.
+LINK_SAMPLES = 720
+#: Fewest points of a ring around an apex (the marching method closes a front of three at
+#: once: a ring of three would cap its nappe with one triangle).
+RING_MIN = 5
+#: The farthest a ring goes from its apex, in steps (the quadratic cone's error grows as the
+#: cube of the distance).
+RING_RADIUS_MAX = 3.0
+
+
+def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
+               deadline: Deadline = NEVER) -> tuple[list[CriticalPoint], bool]:
+    """Every critical point (module docstring), refined and classified; and whether every path
+    of the homotopy ended."""
+    cons = Constraints(linkage)
+    quad, scale, centre = bar_quadrics(linkage, cons)
+    e, m = cons.n_constraints, cons.n_free
+    r = rng.normal(size=m)
+    r /= np.linalg.norm(r)
+    a = rng.normal(size=e)
+
+    def system(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        xu, mu, t = x[:, :m + 1], x[:, m + 1:m + 1 + e], x[:, -1]
+        g = np.einsum("amn,pn->pam", quad, xu)  # (N, E, M + 1)
+        x0 = x[:, 0]
+        f = np.concatenate([np.einsum("pam,pm->pa", g, xu),
+                            2 * np.einsum("pa,pam->pm", mu, g[:, :, 1:]) - (t * x0)[:, None] * r,
+                            (mu @ a - x0)[:, None]], axis=1)
+        jac = np.zeros((len(x), e + m + 1, m + e + 2), dtype=complex)
+        jac[:, :e, :m + 1] = 2 * g
+        jac[:, e:e + m, :m + 1] = 2 * np.einsum("pa,amn->pmn", mu, quad[:, 1:, :])
+        jac[:, e:e + m, 0] -= t[:, None] * r
+        jac[:, e:e + m, m + 1:m + 1 + e] = 2 * g[:, :, 1:].transpose(0, 2, 1)
+        jac[:, e:e + m, -1] = -x0[:, None] * r
+        jac[:, -1, m + 1:m + 1 + e] = a
+        jac[:, -1, 0] = -1
+        return f, jac
+
+    structure = Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 2)),
+                          np.array([[2, 0]] * e + [[1, 1]] * m + [[0, 1]]))
+    total = np.array([2] * (e + m) + [1])
+    assert bezout(structure) > 0
+    res = track(system, total, rng, deadline, far=FAR_REACH * _reach(linkage, cons, scale),
+                start=LinearProduct(structure, total, rng))
+    x0 = res.ends[:, 0]
+    y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
+    t = res.ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
+    ok = np.isin(res.state, (REGULAR, SINGULAR)) & np.isfinite(y).all(axis=1)
+    near_real = np.linalg.norm(y.imag, axis=1) <= SINGULAR_IMAG_TOL * np.maximum(
+        np.linalg.norm(y, axis=1), 1.0)
+    cand = ok & near_real & (np.abs(t) <= T_TOL)
+    found: list[CriticalPoint] = []
+    same = 1e-6 * float(np.median(linkage.lengths[cons.bars]))
+    for u0 in centre + scale * y[cand].real:
+        ref = refine_critical(cons, u0, tol)
+        if not ref.critical or any(np.linalg.norm(cp.u - ref.u) <= same for cp in found):
+            continue
+        found.append(CriticalPoint(ref.u, classify(linkage, ref.u, tol), ref.length_residual,
+                                   ref.stress_residual))
+    # in the order of their coordinates (rounded well above the refinement's error), not of
+    # the homotopy's paths: the cones' numbers, which a design names, do not depend on the seed
+    key = np.round(np.array([cp.u for cp in found]).reshape(len(found), m) / same, 0)
+    order = np.lexsort(key.T[::-1]) if len(found) else np.zeros(0, dtype=np.int64)
+    return [found[int(k)] for k in order], res.success
+
+
+def is_cone(cp: CriticalPoint) -> bool:
+    """One self-stress and ``Q`` indefinite on three zero modes: a cone of the surface."""
+    q = cp.analysis.q_eigenvalues
+    return (cp.analysis.self_stress is not None and q is not None and len(q) == 3
+            and bool(q.max() > 0 > q.min()))
+
+
+def _lines(cp: CriticalPoint) -> tuple[np.ndarray, np.ndarray]:
+    """The cone's unit lines in the zero-mode coordinates, ``LINK_SAMPLES`` per nappe
+    ``(2, S, 3)`` (nappe ``+`` first), and its zero modes ``Z`` (3, M)."""
+    lam = np.asarray(cp.analysis.q_eigenvalues)
+    z = np.asarray(cp.analysis.zero_modes)
+    signs = np.sign(lam)
+    k = next(i for i in range(3) if (signs == signs[i]).sum() == 1)
+    i, j = (a for a in range(3) if a != k)
+    theta = np.linspace(0.0, 2 * np.pi, LINK_SAMPLES, endpoint=False)
+    out = np.zeros((2, LINK_SAMPLES, 3))
+    for n, side in enumerate((1.0, -1.0)):
+        out[n, :, i] = np.cos(theta) / np.sqrt(abs(lam[i]))
+        out[n, :, j] = np.sin(theta) / np.sqrt(abs(lam[j]))
+        out[n, :, k] = side / np.sqrt(abs(lam[k]))
+    return out / np.linalg.norm(out, axis=2, keepdims=True), z
+
+
+def ring_radius(cp: CriticalPoint, step: float) -> float:
+    """How far from the apex of the cone ``cp`` its rings go: ``step``, further where the cone
+    is narrow (a ring of radius ``R`` is a loop of radius about ``R sin alpha_min``: at least
+    half a step) or flat (its nappes ``2 R cos alpha_max`` apart: at least one and a half
+    steps, so that the fronts of the two nappes are not joined), at most
+    ``RING_RADIUS_MAX`` steps."""
+    lam = np.asarray(cp.analysis.q_eigenvalues)
+    k = next(i for i in range(3) if (np.sign(lam) == np.sign(lam[i])).sum() == 1)
+    pair = np.abs(np.delete(lam, k))
+    narrow = np.arctan(np.sqrt(abs(lam[k]) / pair.max()))
+    flat = np.arctan(np.sqrt(abs(lam[k]) / pair.min()))
+    r = max(1.0, 0.5 / np.sin(narrow), 0.75 / max(np.cos(flat), 1e-12))
+    return step * min(r, RING_RADIUS_MAX)
+
+
+def cone_fans(surface: Surface, cp: CriticalPoint, step: float) -> list[np.ndarray] | None:
+    """Two rings (n, M) of points on the space at :func:`ring_radius` from the apex of the cone
+    ``cp``, one per nappe, about ``step`` apart, counter-clockwise in their positive frames
+    (module docstring); None where a point does not project within half the radius of its
+    line."""
+    lines, z = _lines(cp)
+    radius = ring_radius(cp, step)
+    rings = []
+    for nappe in lines:
+        gaps = np.linalg.norm(np.roll(nappe, -1, axis=0) - nappe, axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(gaps)])
+        n = max(RING_MIN, int(round(radius * arc[-1] / step)))
+        pick = np.searchsorted(arc, np.arange(n) * arc[-1] / n)
+        pts = []
+        for g in nappe[np.minimum(pick, len(nappe) - 1)]:
+            guess = cp.u + radius * (g @ z)
+            u, ok = surface.project(guess)
+            if not ok or np.linalg.norm(u - guess) > 0.5 * radius:
+                return None
+            pts.append(u)
+        ring = np.array(pts)
+        # the fan (apex, ring[m], ring[m + 1]) positive in the first ring point's frame: the
+        # turn from ring[1] - ring[0] to apex - ring[0] counter-clockwise
+        fr = surface.frame(ring[0]).basis
+        a = (cp.u - ring[0]) @ fr
+        b = (ring[1] - ring[0]) @ fr
+        rings.append(ring if b[0] * a[1] - b[1] * a[0] > 0 else ring[::-1].copy())
+    return rings
+
+
+def cone_morse_term(cp: CriticalPoint, c: np.ndarray) -> int:
+    """What the apex of the cone ``cp`` adds to the Morse count of the height ``c . u``:
+    ``1 - cut`` (module docstring)."""
+    lines, z = _lines(cp)
+    h = lines @ (z @ c)  # (2, S): the height along each nappe's lines
+    cut = int(sum(bool(row.min() < 0 < row.max()) for row in h))
+    return 1 - cut
+
+
+def _link_cycles(triangles: np.ndarray, apex: int) -> list[list[int]]:
+    """The apex's link as cycles of vertices, each in the order its triangles
+    ``(apex, x, y)`` (counter-clockwise) run: ``x`` then ``y``."""
+    nxt: dict[int, int] = {}
+    for t in triangles[(triangles == apex).any(axis=1)]:
+        k = int(np.flatnonzero(t == apex)[0])
+        nxt[int(t[(k + 1) % 3])] = int(t[(k + 2) % 3])
+    cycles, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        cycle, v = [], start
+        while v not in seen:
+            seen.add(v)
+            cycle.append(v)
+            v = nxt[v]
+        cycles.append(cycle)
+    return cycles
+
+
+def _tube(vertices: np.ndarray, a: list[int], b: list[int]) -> list[tuple[int, int, int]]:
+    """Triangles of an annulus between the cycles ``a`` and ``b`` (each in its apex
+    triangles' order) that keeps their surface coherently oriented: ``a`` runs forwards and
+    ``b`` backwards along it, zipped from their nearest pair by the shorter next diagonal."""
+    br = b[::-1]
+    d = np.linalg.norm(vertices[a][:, None] - vertices[br][None], axis=2)
+    i0, k0 = np.unravel_index(int(np.argmin(d)), d.shape)
+    aa = [a[(i0 + i) % len(a)] for i in range(len(a) + 1)]
+    bb = [br[(k0 + k) % len(br)] for k in range(len(br) + 1)]
+    out: list[tuple[int, int, int]] = []
+    i = k = 0
+    while i < len(a) or k < len(br):
+        step_a = i < len(a) and (k == len(br) or np.linalg.norm(
+            vertices[aa[i + 1]] - vertices[bb[k]]) <= np.linalg.norm(
+            vertices[aa[i]] - vertices[bb[k + 1]]))
+        if step_a:
+            out.append((aa[i], aa[i + 1], bb[k]))
+            i += 1
+        else:
+            out.append((bb[k + 1], bb[k], aa[i]))
+            k += 1
+    return out
+
+
+def resolve_apexes(vertices: np.ndarray, triangles: np.ndarray, apexes: np.ndarray,
+                   sheets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh of a critical space with each apex resolved as a cone resolves under a length
+    change (:mod:`engine.design.surface_splitting`): into two sheets, the apex split in two
+    (one vertex per nappe, appended); into one, the apex's star replaced by a tube between its
+    two link cycles. Returns the vertices (N', M) and triangles (T', 3); only the complex's
+    topology is meant (the tube is no mesh of the perturbed space)."""
+    x = np.asarray(vertices, dtype=float)
+    tri: list[tuple[int, int, int]] = [(int(t[0]), int(t[1]), int(t[2]))
+                                       for t in np.asarray(triangles, dtype=np.int64)]
+    extra: list[np.ndarray] = []
+    for apex, n in zip(np.asarray(apexes).tolist(), np.asarray(sheets).tolist(), strict=True):
+        arr = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        cycles = _link_cycles(arr, apex)
+        if len(cycles) != 2 or n not in (1, 2):
+            continue
+        star = (arr == apex).any(axis=1)
+        if n == 2:  # the second nappe's triangles get a copy of the apex
+            twin = len(x) + len(extra)
+            extra.append(x[apex])
+            second = set(cycles[1])
+            tri = [t if not star[j] or not set(t) & second
+                   else (t[0] if t[0] != apex else twin, t[1] if t[1] != apex else twin,
+                         t[2] if t[2] != apex else twin)
+                   for j, t in enumerate(tri)]
+        else:
+            tri = [t for j, t in enumerate(tri) if not star[j]] + _tube(x, cycles[0], cycles[1])
+    out = np.vstack([x] + [e[None] for e in extra]) if extra else x
+    return out, np.asarray(tri, dtype=np.int64).reshape(-1, 3)
