@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from engine.design.chain_curves import two_cell_curves
 from engine.design.chain_planes import chain_planes
 from engine.design.dyad_margin import CriticalPlanes, critical_planes, gate_planes
 from engine.design.slice_argument import _scan_details, _slice_argument
@@ -273,36 +274,48 @@ def _turning(tracing: _CurveTracing, paths_max: int, seed: int) -> TurningFound:
 def _closed_form_curves(
     linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, step: float, tol: Tolerances,
 ) -> tuple[list[np.ndarray], str] | None:
-    """The slice's curves where the critical value set is known in closed form, and whose
-    planes they are: every critical hyperplane ``n . (x_1, x_2, x_3) = D`` (of a one-dyad
-    planar chain, :func:`engine.design.dyad_margin.critical_planes`; of the gate four-bar,
-    :func:`~engine.design.dyad_margin.gate_planes`; of the flat cells of a rotor chain,
-    :func:`engine.design.chain_planes.chain_planes`) met with the plane of the two axes (the
-    other lengths as given) is a line; its piece inside the box (lengths at least the shortest
-    critical bar) sampled at most ``step`` apart. None when no closed form applies (or a plane
-    holds the whole box: every length there critical)."""
+    """The slice's curves where the critical value set is known in closed form, and what they
+    are (a phrase: "every critical curve in the box is ..."): every critical hyperplane
+    ``n . (x_1, x_2, x_3) = D`` (of a one-dyad planar chain, :func:`engine.design.dyad_margin.
+    critical_planes`; of the gate four-bar, :func:`~engine.design.dyad_margin.gate_planes`; of
+    the flat cells of a rotor chain, :func:`engine.design.chain_planes.chain_planes`) met with
+    the plane of the two axes (the other lengths as given) is a line; its piece inside the box
+    (lengths at least the shortest critical bar) sampled at most ``step`` apart. A three-rotor
+    whose cells' alignments combine in the box: the flat cells' lines where the other cell
+    assembles and the curves where both dyads are straight (:func:`engine.design.chain_curves.
+    two_cell_curves`). None when no closed form applies (or a plane holds the whole box: every
+    length there critical)."""
     found = critical_planes(linkage)
     gate = gate_planes(linkage) if found is None else None
     # (those planes are the whole critical value set in their own three lengths only)
     mine = [pl for pl in ([found[1]] if found is not None else []) + ([gate] if gate else [])
             if all(a.bar in pl.bars for a in ax)]
     planes: list[CriticalPlanes] | None
+    bars = (ax[0].bar, ax[1].bar)
     if found is not None or gate is not None:
         planes = mine or None
         what = "the one-dyad chain" if found is not None else "the gate four-bar"
     else:
-        planes = chain_planes(linkage, (ax[0].bar, ax[1].bar), box)
+        planes = chain_planes(linkage, bars, box)
         what = ("a four-bar cell of the rotor chain flat (no two cells' alignments combine in "
                 "the box)")
     if planes is None:
-        return None
+        if found is not None or gate is not None:
+            return None
+        shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
+        two = two_cell_curves(linkage, bars, box, step, shortest)
+        if two is None:
+            return None
+        return two, ("a line of a flat four-bar cell of the three-rotor where the other cell "
+                     "assembles, or a curve where both of its dyads are straight (closed form: "
+                     "three circles through the middle tip)")
     curves: list[np.ndarray] = []
     for pl in planes:
         lines = _plane_lines(linkage, pl, ax, box, step, tol)
         if lines is None:
             return None
         curves += lines
-    return curves, what
+    return curves, f"a critical hyperplane of {what} (closed form) met with the plane"
 
 
 def _plane_lines(linkage: Linkage, pl: CriticalPlanes, ax: tuple[Axis, Axis], box: np.ndarray,
