@@ -37,6 +37,7 @@ True
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 
 import numpy as np
 
@@ -50,6 +51,8 @@ MAX_SAMPLES = 200_000
 #: Relative size below which a fixed radius, a pin spacing or a determinant is zero (a
 #: degenerate chain: the closed form declines or the piece is a point).
 DEGENERATE_RTOL = 1e-12
+#: Halvings of a curve's parameter between the samples around its crossing of the box's edge.
+EDGE_BISECTIONS = 52
 
 Curves = list[np.ndarray]
 
@@ -222,11 +225,13 @@ def _loop(pins: np.ndarray, radii: np.ndarray, f: int, others: list[int], rho: f
     n = int(np.ceil(2.0 * np.pi * speed / step)) + 1
     if n > MAX_SAMPLES:
         return None
-    t = np.linspace(0.0, 2.0 * np.pi, max(n, 8))
-    tip = pins[f] + rho * np.column_stack([np.cos(t), np.sin(t)])  # (n, 2) T_1
-    dist = np.linalg.norm(tip[:, None, :] - pins[others][None], axis=2)  # (n, 2)
-    xy = (dist - radii[others, 0][None, :]) @ inv.T  # (n, 2)
-    return _inside_pieces(xy, box)
+
+    def at(t: np.ndarray) -> np.ndarray:
+        tip = pins[f] + rho * np.column_stack([np.cos(t), np.sin(t)])  # (n, 2) T_1
+        dist = np.linalg.norm(tip[:, None, :] - pins[others][None], axis=2)  # (n, 2)
+        return np.asarray((dist - radii[others, 0][None, :]) @ inv.T)  # (n, 2)
+
+    return _inside_pieces(at, np.linspace(0.0, 2.0 * np.pi, max(n, 8)), box)
 
 
 def _fixed_point_lines(pins: np.ndarray, radii: np.ndarray, f: int, others: list[int],
@@ -260,41 +265,53 @@ def _fixed_point_lines(pins: np.ndarray, radii: np.ndarray, f: int, others: list
     return out
 
 
-def _inside_pieces(xy: np.ndarray, box: np.ndarray) -> Curves:
-    """The runs of a closed polyline (n, 2; first point = last) inside the box, each cut
-    exactly where it crosses the box's edge (the crossing interpolated on its segment)."""
+def _inside_pieces(at: Callable[[np.ndarray], np.ndarray], t: np.ndarray, box: np.ndarray
+                   ) -> Curves:
+    """The runs inside the box of the closed curve ``at(t)`` sampled at ``t`` (n,; ``at`` of the
+    first and last the same point), each ended where the curve crosses the box's edge (the
+    crossing's parameter bisected between the samples around it)."""
     lo, hi = box[:, 0], box[:, 1]
-    inside = np.all((xy >= lo) & (xy <= hi), axis=1)
-    if inside.all():
+    xy = at(t)
+
+    def inside(q: np.ndarray) -> np.ndarray:
+        return np.asarray(np.all((q >= lo) & (q <= hi), axis=-1))
+
+    flags = inside(xy)
+    if flags.all():
         return [xy]
-    if not inside.any():
+    if not flags.any():
         return []
-    start = int(np.flatnonzero(~inside)[0])
-    ring = np.concatenate([xy[start:-1], xy[:start + 1]])  # (starts and ends outside)
-    flags = np.all((ring >= lo) & (ring <= hi), axis=1)
+    start = int(np.flatnonzero(~flags)[0])  # the ring starts and ends outside
+    period = t[-1] - t[0]
+    ring_t = np.concatenate([t[start:-1], t[:start + 1] + period])
+    ring, ring_in = np.concatenate([xy[start:-1], xy[:start + 1]]), \
+        np.concatenate([flags[start:-1], flags[:start + 1]])
     out: Curves = []
     k = 0
     while k < len(ring):
-        if not flags[k]:
+        if not ring_in[k]:
             k += 1
             continue
         e = k
-        while e + 1 < len(ring) and flags[e + 1]:
+        while e + 1 < len(ring) and ring_in[e + 1]:
             e += 1
-        piece = [_crossing(ring[k], ring[k - 1], lo, hi)] + list(ring[k:e + 1])
-        if e + 1 < len(ring):
-            piece.append(_crossing(ring[e], ring[e + 1], lo, hi))
-        out.append(np.array(piece))
+        first = _edge(at, ring_t[k], ring_t[k - 1], inside)
+        last = _edge(at, ring_t[e], ring_t[e + 1], inside)
+        out.append(np.clip(np.vstack([first, ring[k:e + 1], last]), lo, hi))
         k = e + 1
     return out
 
 
-def _crossing(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """The last point of the segment from ``a`` (inside the box) towards ``b`` in the box."""
-    s, d = 1.0, b - a
-    for m in range(2):
-        if d[m] > 0:
-            s = min(s, (hi[m] - a[m]) / d[m])
-        elif d[m] < 0:
-            s = min(s, (lo[m] - a[m]) / d[m])
-    return a + max(s, 0.0) * d
+def _edge(at: Callable[[np.ndarray], np.ndarray], t_in: float, t_out: float,
+          inside: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """The point of ``at`` where it leaves the box between ``t_in`` (inside) and ``t_out``:
+    ``EDGE_BISECTIONS`` halvings of the parameter, the last inside point (on the edge to
+    rounding)."""
+    a, b = t_in, t_out
+    for _ in range(EDGE_BISECTIONS):
+        mid = 0.5 * (a + b)
+        if inside(at(np.array([mid]))[0]):
+            a = mid
+        else:
+            b = mid
+    return np.asarray(at(np.array([a]))[0])
