@@ -26,21 +26,6 @@ def three_rotor_lines() -> tuple[list[float], list[float]]:
     return vertical, horizontal
 
 
-def three_rotor_arcs(samples: int = 20001) -> list[np.ndarray]:
-    """Both dyads collinear (A on the line P1 B, C on the line P3 B, B on its circle): with
-    ``d1 = |P1 B|``, ``d3 = |P3 B|``, ``L1`` is ``d1 - r1``, ``r1 - d1`` or ``d1 + r1`` and ``L2``
-    likewise: nine curves ``(L1(t), L2(t))`` over the middle rotor's angle ``t`` (L > 0)."""
-    t = np.linspace(0.0, 2 * np.pi, samples)
-    b = P2 + R2 * np.column_stack([np.cos(t), np.sin(t)])
-    d1, d3 = np.linalg.norm(b - P1, axis=1), np.linalg.norm(b - P3, axis=1)
-    out = []
-    for l1 in (d1 - R1, R1 - d1, d1 + R1):
-        for l2 in (d3 - R3, R3 - d3, d3 + R3):
-            ok = (l1 > 0) & (l2 > 0)
-            out.append(np.column_stack([l1, l2])[ok])
-    return out
-
-
 def three_rotor_residual(l1: float, l2: float) -> float:
     """Distance (in length) of ``(L1, L2)`` from the closed-form critical set: the nearest line,
     or for the arcs ``| |P3 B| - (r3 +- L2) |`` over the points ``B`` of the middle rotor's circle
@@ -103,14 +88,6 @@ def components_by_sampling(discs: list[np.ndarray]) -> int:
     count, label = connected_components(graph, directed=False)
     used = np.unique(label[node[ok].ravel()])
     return len(used)
-
-
-def three_rotor_components(l1: float, l2: float, samples: int = 20000) -> int:
-    """Components of the default three-rotor at ``(L1, L2)``: the middle rotor sampled densely,
-    dyads A (from P1) and C (from P3)."""
-    t = np.linspace(0.0, 2 * np.pi, samples, endpoint=False)
-    b = P2 + R2 * np.column_stack([np.cos(t), np.sin(t)])
-    return components_by_sampling([_dyad(P1, R1, b, l1), _dyad(P3, R3, b, l2)])
 
 
 def gate_lines(r: float = 1.5, l1: float = 2.0) -> list[tuple[float, float]]:
