@@ -104,6 +104,34 @@ def two_cell_curves(linkage: Linkage, axes: tuple[int, int], box: np.ndarray, st
     return None if both is None else curves + both
 
 
+def flat_everywhere(linkage: Linkage, axes: tuple[int, int]) -> str | None:
+    """A cell of a three-rotor that is flat at every length of the map (neither axis one of
+    its bars, its lengths on a plane ``+-r_k +-l_k +-r_(k+1) = a_k``): every length where the
+    other cell assembles at the flat cell's middle tip is then critical, a piece of the plane
+    of the map rather than curves. The sentence that says so, or None."""
+    found = _chain_order(linkage)
+    if found is None or len(found[0]) != 3:
+        return None
+    tips, rotors, couplers = found
+    pos = np.asarray(linkage.positions, dtype=float)
+    pins = np.array([pos[int(linkage.ends[b, 0]) if int(linkage.ends[b, 1]) == t
+                         else int(linkage.ends[b, 1])] for b, t in zip(rotors, tips, strict=True)])
+    scale = float(max(np.max(linkage.lengths), np.max(np.abs(pins)), 1.0))
+    for k in range(2):
+        bars = [rotors[k], couplers[k], rotors[k + 1]]
+        if set(axes) & set(bars):
+            continue
+        lengths = linkage.lengths[bars]
+        gap = np.abs(SIGNS @ lengths - float(np.linalg.norm(pins[k + 1] - pins[k])))
+        if gap.min() <= DEGENERATE_RTOL * scale:
+            names = "-".join(linkage.bar_ids[b] for b in bars)
+            return (f"the four-bar cell {names} is flat at every length of the map (its lengths "
+                    "on a plane +-r +-l +-r = a, its pins a apart): wherever the other cell "
+                    "assembles at its flat configuration the lengths are critical, a piece of "
+                    "the plane rather than curves")
+    return None
+
+
 def _flat_cells(pins: np.ndarray, spacing: np.ndarray, rows: np.ndarray, box: np.ndarray,
                 step: float, scale: float) -> Curves | None:
     """The pieces of the flat-cell lines where the other cell assembles (None: a cell flat at

@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.design.chain_curves import two_cell_curves
+from engine.design.chain_curves import flat_everywhere, two_cell_curves
 from engine.design.chain_planes import chain_planes
 from engine.design.dyad_margin import CriticalPlanes, critical_planes, gate_planes
 from engine.design.slice_argument import _scan_details, _slice_argument
@@ -159,6 +159,11 @@ def critical_value_slice(
     h_max = float(min(span)) / resolution
     closed = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     lines, planes_of = closed if closed is not None else (None, "")
+    # (a three-rotor's cell flat whatever the axes: critical lengths fill part of the box)
+    everywhere = flat_everywhere(linkage, (ax[0].bar, ax[1].bar)) \
+        if method == "auto" and closed is None else None
+    if everywhere is not None:
+        lines = []
     scan: Scan | None = None
     turning: TurningFound | None = None
     open_curves = 0
@@ -207,9 +212,10 @@ def critical_value_slice(
         "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
         **(turning.details() if turning is not None else {}),
-    }, timed_out=timed_out, time_budget_s=granted(dl))
+    }, timed_out=timed_out, degenerate=everywhere is not None, time_budget_s=granted(dl))
     search = search.with_argument(*_slice_argument(
-        lines, regions, scan, thin_unresolved, turning, open_curves, planes_of))
+        lines, regions, scan, thin_unresolved, turning, open_curves, planes_of)) \
+        if everywhere is None else search.with_argument(None, everywhere)
     return Slice(curves, regions, search)
 
 

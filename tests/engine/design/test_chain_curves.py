@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from engine.catalogue.presets import build_preset
-from engine.design.chain_curves import two_cell_curves
+from engine.design.chain_curves import flat_everywhere, two_cell_curves
 from tests.engine.design.slice_references import ThreeRotor, distance_to_curves
 
 NAMES = ThreeRotor.NAMES
@@ -122,3 +122,9 @@ def test_a_cell_flat_at_every_length_of_the_box_is_declined():
     assert curves_of({}, ("r1", "L1"), np.array([[0.5, 1.5], [0.5, 1.5]]), 0.02) is None
     assert curves_of({"r3": 1.1}, ("r1", "L1"), np.array([[0.5, 1.5], [0.5, 1.5]]),
                      0.02) is not None
+    lk = build_preset("three-rotor")
+    r1, l1, r3 = (lk.bar_ids.index(b) for b in ("r1", "L1", "r3"))
+    assert "r2-L2-r3 is flat at every length" in flat_everywhere(lk, (r1, l1))
+    assert flat_everywhere(lk, (r1, r3)) is None  # (each cell has an axis)
+    assert flat_everywhere(build_preset("three-rotor", {"r3": 1.1}), (r1, l1)) is None
+    assert flat_everywhere(build_preset("four-bar"), (0, 1)) is None

@@ -229,6 +229,23 @@ def test_the_three_rotor_slice_has_its_closed_form_critical_set(axes, box):
         assert {3, 4} <= {r.components for r in res.regions}
 
 
+def test_a_three_rotor_map_critical_on_a_piece_of_the_plane_says_degenerate():
+    """The preset's lengths hold its cell r2-L2-r3 flat whatever r1 and L1 are: the map of
+    (r1, L1) has no curves to draw (the critical lengths fill the part of the box where the
+    first dyad reaches the flat cell's tip), and answers at once that it is degenerate (it was
+    traced to the end of its budget)."""
+    from engine.model.budget import Deadline
+
+    lk = build_preset("three-rotor")
+    res = critical_value_slice(lk, [("r1", 0.5, 1.5), ("L1", 0.5, 1.5)], resolution=8,
+                               deadline=Deadline.after(4.0))
+    s = res.search
+    assert not s["complete"] and s["reason"] == "degenerate" and not res.curves
+    assert "r2-L2-r3 is flat at every length" in s["argument_detail"]
+    # (B at (1, 1) with the cell flat: the first dyad reaches it where |r1 - L1| <= sqrt(2))
+    assert all(r.components is not None for r in res.regions)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("box", "empty"), [
     (((1.0, 3.0), (1.0, 3.5)), False),
