@@ -34,7 +34,7 @@ pytestmark = pytest.mark.slow
 
 REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 #: Cells complete by an argument that takes no search time (closed forms of the one- and
-#: two-dyad chains; the chain rules of engine/space/chain_count.py, which prove that a spinner
+#: two-dyad chains, and of the three-rotor's critical curves; the chain rules of engine/space/chain_count.py, which prove that a spinner
 #: chain has no critical point; the maps of rotor chains and the gate slice, whose curves are
 #: flat four-bar planes and whose regions the chain rules count): complete on any machine,
 #: however loaded.
@@ -45,7 +45,8 @@ MUST_COMPLETE = {
         DESIGN)
 } | {
     ("three-rotor", path) for path in (
-        "/v1/analysis/critical-points", "/v1/analysis/splitting", DESIGN)
+        "/v1/analysis/critical-points", "/v1/analysis/splitting", DESIGN,
+        "/v1/analysis/critical-values")
 } | {
     (chain, path) for chain in ("kl-chain", "kl-chain?n=100")
     for path in ("/v1/analysis/critical-points", "/v1/analysis/splitting",
