@@ -250,8 +250,10 @@ def _both_straight(pins: np.ndarray, rows: np.ndarray, box: np.ndarray, step: fl
 def _loop(pins: np.ndarray, radii: np.ndarray, f: int, others: list[int], rho: float,
           box: np.ndarray, step: float) -> Curves | None:
     """The closed curve ``(X(t), Y(t))`` (two radii moving), its pieces in the box."""
-    amat = radii[others, 1:]
-    inv = np.linalg.inv(amat)
+    try:
+        inv = np.linalg.inv(radii[others, 1:])
+    except np.linalg.LinAlgError:  # (its determinant was checked: a safety net)
+        return None
     speed = float(np.linalg.norm(inv, 2)) * np.sqrt(2.0) * rho
     n = int(np.ceil(2.0 * np.pi * speed / step)) + 1
     if n > MAX_SAMPLES:

@@ -160,10 +160,9 @@ def critical_value_slice(
     closed = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     lines, planes_of = closed if closed is not None else (None, "")
     # (a three-rotor's cell flat whatever the axes: critical lengths fill part of the box)
-    everywhere = flat_everywhere(linkage, (ax[0].bar, ax[1].bar)) \
-        if method == "auto" and closed is None else None
-    if everywhere is not None:
-        lines = []
+    everywhere = None if closed is not None or method != "auto" else \
+        flat_everywhere(linkage, (ax[0].bar, ax[1].bar))
+    lines = [] if everywhere is not None else lines
     scan: Scan | None = None
     turning: TurningFound | None = None
     open_curves = 0

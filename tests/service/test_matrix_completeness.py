@@ -34,10 +34,11 @@ pytestmark = pytest.mark.slow
 
 REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 #: Cells complete by an argument that takes no search time (closed forms of the one- and
-#: two-dyad chains, and of the three-rotor's critical curves; the chain rules of engine/space/chain_count.py, which prove that a spinner
+#: two-dyad chains; the chain rules of engine/space/chain_count.py, which prove that a spinner
 #: chain has no critical point; the maps of rotor chains and the gate slice, whose curves are
-#: flat four-bar planes and whose regions the chain rules count): complete on any machine,
-#: however loaded.
+#: flat four-bar planes and whose regions the chain rules count; the three-rotor's map, whose
+#: curves are closed form and whose regions the dyad closed form counts): complete on any
+#: machine, however loaded.
 MUST_COMPLETE = {
     ("four-bar", path) for path in (
         "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
