@@ -64,8 +64,9 @@ def two_cell_curves(linkage: Linkage, axes: tuple[int, int], box: np.ndarray, st
                     shortest: float) -> Curves | None:
     """Every critical curve of a three-rotor over the box of two of its bars' lengths (see the
     module docstring), each piece (n, 2) in the box sampled at most ``step`` apart; None when
-    the linkage is not a rotor chain of two cells, an axis is not one of its bars, or it is
-    degenerate (two pins on one point).
+    the linkage is not a rotor chain of two cells, an axis is not one of its bars, it is
+    degenerate (two pins on one point; a cell flat at every length of the box, see
+    :func:`flat_everywhere`) or a closed curve would need more than ``MAX_SAMPLES`` samples.
 
     Parameters
     ----------
@@ -85,9 +86,7 @@ def two_cell_curves(linkage: Linkage, axes: tuple[int, int], box: np.ndarray, st
     tips, rotors, couplers = found
     if not set(axes) <= set(rotors) | set(couplers):
         return None
-    pos = np.asarray(linkage.positions, dtype=float)
-    pins = np.array([pos[int(linkage.ends[b, 0]) if int(linkage.ends[b, 1]) == t
-                         else int(linkage.ends[b, 1])] for b, t in zip(rotors, tips, strict=True)])
+    pins = _pins(linkage, rotors, tips)
     spacing = np.linalg.norm(np.diff(pins, axis=0), axis=1)  # (2,)
     scale = float(max(np.max(linkage.lengths), np.max(np.abs(pins)), 1.0))
     if np.min(spacing) <= DEGENERATE_RTOL * scale or \
@@ -113,9 +112,7 @@ def flat_everywhere(linkage: Linkage, axes: tuple[int, int]) -> str | None:
     if found is None or len(found[0]) != 3:
         return None
     tips, rotors, couplers = found
-    pos = np.asarray(linkage.positions, dtype=float)
-    pins = np.array([pos[int(linkage.ends[b, 0]) if int(linkage.ends[b, 1]) == t
-                         else int(linkage.ends[b, 1])] for b, t in zip(rotors, tips, strict=True)])
+    pins = _pins(linkage, rotors, tips)
     scale = float(max(np.max(linkage.lengths), np.max(np.abs(pins)), 1.0))
     for k in range(2):
         bars = [rotors[k], couplers[k], rotors[k + 1]]
@@ -130,6 +127,13 @@ def flat_everywhere(linkage: Linkage, axes: tuple[int, int]) -> str | None:
                     "assembles at its flat configuration the lengths are critical, a piece of "
                     "the plane rather than curves")
     return None
+
+
+def _pins(linkage: Linkage, rotors: list[int], tips: list[int]) -> np.ndarray:
+    """The rotors' pins (3, 2), in chain order."""
+    pos = np.asarray(linkage.positions, dtype=float)
+    return np.array([pos[int(linkage.ends[b, 0]) if int(linkage.ends[b, 1]) == t
+                         else int(linkage.ends[b, 1])] for b, t in zip(rotors, tips, strict=True)])
 
 
 def _flat_cells(pins: np.ndarray, spacing: np.ndarray, rows: np.ndarray, box: np.ndarray,
