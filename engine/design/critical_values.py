@@ -85,9 +85,9 @@ SAME_WAY = 0.2
 SEED_MAX_POINTS = 2000
 
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
-#: chains (the four-bar family), of a gated chain in its gate's lengths and of rotor chains
-#: whose cells cannot combine (:mod:`.chain_planes`) from their closed-form critical lines and
-#: traces the rest;
+#: chains (the four-bar family), of a gated chain in its gate's lengths, of rotor chains
+#: whose cells cannot combine (:mod:`.chain_planes`) and of three-rotors (:mod:`.chain_curves`)
+#: from their closed forms and traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
 #: The explorations' options when a request gives none (fewer angles and random starts than a
@@ -134,9 +134,9 @@ def critical_value_slice(
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
     ``method="auto"`` takes the curves from closed-form critical lines where they are known
-    (a one-dyad planar chain, the four-bar family; a gated chain in its gate's lengths; a rotor
-    chain whose four-bar cells cannot combine in the box: :func:`_closed_form_curves`), sampled
-    at the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
+    (one-dyad planar chains; a gated chain in its gate's lengths; rotor chains whose four-bar
+    cells cannot combine in the box; three-rotors: :func:`_closed_form_curves`), sampled at
+    the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
