@@ -30,6 +30,11 @@ lk = build_preset("three-rotor")
 args = (lk, [("L1", 0.6, 1.4), ("L2", 0.6, 1.4)])
 kw = dict(resolution=48)
 """,
+    "three-rotor map, the preset matrix's: (r1, r2) in [0.8, 1.2]^2, resolution 48": """
+lk = build_preset("three-rotor")
+args = (lk, [("r1", 0.8, 1.2), ("r2", 0.8, 1.2)])
+kw = dict(resolution=48)
+""",
 }
 
 CHILD = """

@@ -58,6 +58,19 @@ from engine.space.gate_transfer import gate_cranks
 SIGNS = np.array(list(itertools.product((1.0, -1.0), repeat=3)))  # (8, 3)
 
 
+def _affine(bars: list[int], axes: tuple[int, int], lengths: np.ndarray) -> np.ndarray:
+    """Each bar's length as ``c + ex x + ey y`` over the map's axes: (len(bars), 3)."""
+    out = np.zeros((len(bars), 3))
+    for row, b in enumerate(bars):
+        if b == axes[0]:
+            out[row, 1] = 1.0
+        elif b == axes[1]:
+            out[row, 2] = 1.0
+        else:
+            out[row, 0] = float(lengths[b])
+    return out
+
+
 def _corners(lines: list[np.ndarray], box: np.ndarray) -> np.ndarray:
     """The box's corners, where each line ``c + ex x + ey y = 0`` (rows of ``lines``) crosses
     its edges, and where two lines cross, within the box: (m, 2)."""

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from engine.design.chain_curves import flat_everywhere, two_cell_curves
 from engine.design.chain_planes import chain_planes
 from engine.design.dyad_margin import CriticalPlanes, critical_planes, gate_planes
 from engine.design.slice_argument import _scan_details, _slice_argument
@@ -85,9 +86,9 @@ SAME_WAY = 0.2
 SEED_MAX_POINTS = 2000
 
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
-#: chains (the four-bar family), of a gated chain in its gate's lengths and of rotor chains
-#: whose cells cannot combine (:mod:`.chain_planes`) from their closed-form critical lines and
-#: traces the rest;
+#: chains (the four-bar family), of a gated chain in its gate's lengths, of rotor chains
+#: whose cells cannot combine (:mod:`.chain_planes`) and of three-rotors (:mod:`.chain_curves`)
+#: from their closed forms and traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
 #: The explorations' options when a request gives none (fewer angles and random starts than a
@@ -134,9 +135,9 @@ def critical_value_slice(
     have ``components = None``; ``search["complete"]`` is then False with ``reason "time"``.
 
     ``method="auto"`` takes the curves from closed-form critical lines where they are known
-    (a one-dyad planar chain, the four-bar family; a gated chain in its gate's lengths; a rotor
-    chain whose four-bar cells cannot combine in the box: :func:`_closed_form_curves`), sampled
-    at the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
+    (one-dyad planar chains; a gated chain in its gate's lengths; rotor chains whose four-bar
+    cells cannot combine in the box; three-rotors: :func:`_closed_form_curves`), sampled at
+    the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
     Examples
@@ -159,6 +160,10 @@ def critical_value_slice(
     h_max = float(min(span)) / resolution
     closed = _closed_form_curves(linkage, ax, box, h_max, tol) if method == "auto" else None
     lines, planes_of = closed if closed is not None else (None, "")
+    # (a three-rotor's cell flat whatever the axes: critical lengths fill part of the box)
+    everywhere = None if closed is not None or method != "auto" else \
+        flat_everywhere(linkage, (ax[0].bar, ax[1].bar))
+    lines = [] if everywhere is not None else lines
     scan: Scan | None = None
     turning: TurningFound | None = None
     open_curves = 0
@@ -207,9 +212,10 @@ def critical_value_slice(
         "thin_unresolved": thin_unresolved,
         **_scan_details(scan),
         **(turning.details() if turning is not None else {}),
-    }, timed_out=timed_out, time_budget_s=granted(dl))
+    }, timed_out=timed_out, degenerate=everywhere is not None, time_budget_s=granted(dl))
     search = search.with_argument(*_slice_argument(
-        lines, regions, scan, thin_unresolved, turning, open_curves, planes_of))
+        lines, regions, scan, thin_unresolved, turning, open_curves, planes_of)) \
+        if everywhere is None else search.with_argument(None, everywhere)
     return Slice(curves, regions, search)
 
 
@@ -274,39 +280,51 @@ def _turning(tracing: _CurveTracing, paths_max: int, seed: int) -> TurningFound:
 def _closed_form_curves(
     linkage: Linkage, ax: tuple[Axis, Axis], box: np.ndarray, step: float, tol: Tolerances,
 ) -> tuple[list[np.ndarray], str] | None:
-    """The slice's curves where the critical value set is known in closed form, and whose
-    planes they are: every critical hyperplane ``n . (x_1, x_2, x_3) = D`` (of a one-dyad
-    planar chain, :func:`engine.design.dyad_margin.critical_planes`; of the gate four-bar,
-    :func:`~engine.design.dyad_margin.gate_planes`; of the flat cells of a rotor chain,
-    :func:`engine.design.chain_planes.chain_planes`, a gated chain's whose gate rotor cranks
-    the gate four-bar too) met with the plane of the two axes (the
-    other lengths as given) is a line; its piece inside the box (lengths at least the shortest
-    critical bar) sampled at most ``step`` apart. None when no closed form applies (or a plane
-    holds the whole box: every length there critical)."""
+    """The slice's curves where the critical value set is known in closed form, and what they
+    are (a phrase: "every critical curve in the box is ..."): every critical hyperplane
+    ``n . (x_1, x_2, x_3) = D`` (of a one-dyad planar chain, :func:`engine.design.dyad_margin.
+    critical_planes`; of the gate four-bar, :func:`~engine.design.dyad_margin.gate_planes`; of
+    the flat cells of a rotor chain, :func:`engine.design.chain_planes.chain_planes`, a gated
+    chain's whose gate rotor cranks the gate four-bar too) met with the plane of the two axes
+    (the other lengths as given) is a line; its piece inside the box (lengths at least the
+    shortest critical bar) sampled at most ``step`` apart. A three-rotor
+    whose cells' alignments combine in the box: the flat cells' lines where the other cell
+    assembles and the curves where both dyads are straight (:func:`engine.design.chain_curves.
+    two_cell_curves`). None when no closed form applies (or a plane holds the whole box: every
+    length there critical)."""
     found = critical_planes(linkage)
     gate = gate_planes(linkage) if found is None else None
     # (those planes are the whole critical value set in their own three lengths only)
     mine = [pl for pl in ([found[1]] if found is not None else []) + ([gate] if gate else [])
             if all(a.bar in pl.bars for a in ax)]
     planes: list[CriticalPlanes] | None
+    bars = (ax[0].bar, ax[1].bar)
     if mine or found is not None:
         planes = mine or None
         what = "the one-dyad chain" if found is not None else "the gate four-bar"
     else:  # (a gated chain in its chain's lengths too: the gate cranking, never restricting)
-        planes = chain_planes(linkage, (ax[0].bar, ax[1].bar), box)
+        planes = chain_planes(linkage, bars, box)
         what = ("a four-bar cell of the rotor chain flat (no two cells' alignments combine in "
                 "the box" + ("; the gate rotor cranks the gate four-bar, whose rocker's two "
                              "places never meet: the gate neither restricts the chain nor "
                              "carries a self-stress)" if gated_chain(linkage) else ")"))
     if planes is None:
-        return None
+        if found is not None or gate is not None:
+            return None
+        shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
+        two = two_cell_curves(linkage, bars, box, step, shortest)
+        if two is None:
+            return None
+        return two, ("a line of a flat four-bar cell of the three-rotor where the other cell "
+                     "assembles, or a curve where both of its dyads are straight (closed form: "
+                     "three circles through the middle tip)")
     curves: list[np.ndarray] = []
     for pl in planes:
         lines = _plane_lines(linkage, pl, ax, box, step, tol)
         if lines is None:
             return None
         curves += lines
-    return curves, what
+    return curves, f"a critical hyperplane of {what} (closed form) met with the plane"
 
 
 def _plane_lines(linkage: Linkage, pl: CriticalPlanes, ax: tuple[Axis, Axis], box: np.ndarray,

@@ -29,11 +29,11 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
                     planes_of: str = "") -> tuple[Argument | None, str]:
     """A slice is complete when its curves are every critical curve in the box and every
     region's count is exact (its exploration complete, with an argument). The curves are
-    every one: from a closed form (``planes_of``: a one-dyad chain's or a rotor chain's
-    critical hyperplanes met with the plane), or traced from every critical configuration on
-    the box's edges (the sweeps) and from every turning point of a curve in the box (a closed
-    curve inside the box holds one), each traced to its end. A traced slice without all of
-    these says what is proved."""
+    every one: from a closed form (``planes_of`` says what each curve is: a one-dyad chain's
+    or a rotor chain's critical hyperplanes met with the plane, a three-rotor's curves), or
+    traced from every critical configuration on the box's edges (the sweeps) and from every
+    turning point of a curve in the box (a closed curve inside the box holds one), each traced
+    to its end. A traced slice without all of these says what is proved."""
     inexact = sum(r.argument is None for r in regions)
     if lines is None:
         labels = (f"{len(regions) - inexact} of {len(regions)} regions' component counts "
@@ -74,7 +74,6 @@ def _slice_argument(lines: list[np.ndarray] | None, regions: list[Region],
                       f"run closer than 1/{THIN_REFINE} of a raster cell: a region between them "
                       "may be missing (a finer resolution resolves it)")
     return ARGUMENT_DERIVED, (
-        f"every critical curve in the box is a critical hyperplane of {planes_of} (closed form) "
-        f"met with the plane; every one of the {len(regions)} "
+        f"every critical curve in the box is {planes_of}; every one of the {len(regions)} "
         "regions' component counts is exact ("
         + ", ".join(sorted({str(r.argument) for r in regions})) + ")")

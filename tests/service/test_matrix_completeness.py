@@ -36,8 +36,9 @@ REASONS = {"time", "budget", "degenerate", "unresolved", "searched"}
 #: Cells complete by an argument that takes no search time (closed forms of the one- and
 #: two-dyad chains; the chain rules of engine/space/chain_count.py, which prove that a spinner
 #: chain has no critical point; the maps of rotor chains and the gate slice, whose curves are
-#: flat four-bar planes and whose regions the chain rules count, gated chains' too): complete on
-#: any machine, however loaded.
+#: flat four-bar planes and whose regions the chain rules count, gated chains' too; the
+#: three-rotor's map, whose curves are closed form and whose regions the dyad closed form
+#: counts): complete on any machine, however loaded.
 MUST_COMPLETE = {
     ("four-bar", path) for path in (
         "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
@@ -45,7 +46,8 @@ MUST_COMPLETE = {
         DESIGN)
 } | {
     ("three-rotor", path) for path in (
-        "/v1/analysis/critical-points", "/v1/analysis/splitting", DESIGN)
+        "/v1/analysis/critical-points", "/v1/analysis/splitting", DESIGN,
+        "/v1/analysis/critical-values")
 } | {
     (chain, path) for chain in ("kl-chain", "kl-chain?n=100")
     for path in ("/v1/analysis/critical-points", "/v1/analysis/splitting",
@@ -55,6 +57,12 @@ MUST_COMPLETE = {
     # four-bar), regions counted by the chain rules (tests/service/test_gated_maps.py)
     (chain, "/v1/analysis/critical-values")
     for chain in ("gated-kl-chain", "gated-kl-chain?n=4&gate=2")
+} | {
+    # the 3D hinged chain: no cell turns in its outer angle at the defaults, so its 2^(n-1)
+    # sheets and no critical point are closed form (tests/service/test_hinge_chains.py)
+    ("rotor-chain-3d", path) for path in (
+        "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
+        "/v1/analysis/splitting")
 }
 
 

@@ -246,11 +246,11 @@ def test_critical_values_endpoint(client):
 
 
 def test_critical_values_without_the_homotopy_sweeps(client):
-    """options.homotopy_paths_max = 0 skips the sweeps of the box's edges (the three-rotor's
-    take 400 paths each): the curves come from the seed lengths, the answer is at best
-    searched; the four-bar's closed form needs no sweep and stays complete; out of bounds 422."""
-    lk = preset(client, "three-rotor")
-    axes = [{"bar": "r2", "min": 0.4, "max": 2.5}, {"bar": "r3", "min": 0.4, "max": 2.5}]
+    """options.homotopy_paths_max = 0 skips the sweeps of the box's edges (a 3D two-rotor
+    chain's take 400 paths each; it has no closed form): the curves come from the seed lengths,
+    the answer is at best searched; the four-bar's closed form needs no sweep; out of bounds 422."""
+    lk = preset(client, "rotor-chain-3d", n=2)
+    axes = [{"bar": "r0b", "min": 1.3, "max": 1.9}, {"bar": "l0", "min": 1.2, "max": 1.8}]
     body = post(client, "/v1/analysis/critical-values", {
         "linkage": lk, "axes": axes,
         "options": {"resolution": 16, "seeds_per_axis": 2, "homotopy_paths_max": 0}})

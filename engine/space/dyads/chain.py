@@ -7,7 +7,7 @@ See :mod:`engine.space.dyads` for the sheets, the folds and the certificate of n
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
 from types import ModuleType
@@ -92,21 +92,28 @@ class Chain:
 
 def chain_of(linkage: Linkage) -> Chain | None:
     """The first rotor whose dyad plan places every free vertex with exactly the active bars
-    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None.
+    (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads), or None
+    (:func:`chains_of`'s first)."""
+    return next(chains_of(linkage), None)
+
+
+def chains_of(linkage: Linkage) -> Iterator[Chain]:
+    """Every rotor's chain, in bar order, whose dyad plan places every free vertex with exactly
+    the active bars (circle-circle steps only, no sliders, at most :data:`MAX_DYADS` dyads).
 
     Such a plan places every free vertex but the rotor's tip, one dyad each, with two active
     bars each and the rotor: a linkage with more free vertices or another count of active bars
-    is none, decided in O(V + E) before any plan is made (a plan per rotor of a long chain
+    has none, decided in O(V + E) before any plan is made (a plan per rotor of a long chain
     cost seconds before the search's deadline was first looked at)."""
     if linkage.dimension != 2:
-        return None
+        return
     fixed = np.asarray(linkage.fixed)
     full: np.ndarray = np.asarray(fixed.all(axis=1), dtype=bool)
     if not np.all(full | ~fixed.any(axis=1)):
-        return None  # sliders: left to the general engine
+        return  # sliders: left to the general engine
     dyads = int((~full).sum()) - 1
     if not 0 <= dyads <= MAX_DYADS or int(np.count_nonzero(linkage.active)) != 2 * dyads + 1:
-        return None
+        return
     active = Counter(tuple(sorted((int(i), int(j)))) for i, j in linkage.ends[linkage.active])
     for rotor in rotors(linkage):
         plan = dyad_plan(linkage, rotor)
@@ -121,7 +128,7 @@ def chain_of(linkage: Linkage) -> Chain | None:
             used[tuple(sorted((s.vertex, s.b)))] += 1
         if used != active:
             continue  # an extra or missing bar: not a plain dyad chain
-        return Chain(
+        yield Chain(
             rotor=rotor, pin=pin, tip=tip, radius=float(linkage.lengths[rotor]),
             vertex=np.array([s.vertex for s in plan], dtype=int),
             a=np.array([s.a for s in plan], dtype=int),
@@ -131,7 +138,6 @@ def chain_of(linkage: Linkage) -> Chain | None:
             pins=np.setdiff1d(np.arange(linkage.n_vertices),
                               [tip, *(s.vertex for s in plan)]),
         )
-    return None
 
 
 #: Samples placed per block: every temporary of a block (64 KB per array) stays in the cache,

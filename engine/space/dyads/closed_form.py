@@ -19,7 +19,7 @@ from engine.space.dyads.chain import (
     Decline,
     Folds,
     Sampled,
-    chain_of,
+    chains_of,
     discrete_extrema,
     golden,
     locate_folds,
@@ -32,6 +32,12 @@ from engine.space.dyads.chain import (
 ARC_PILOT = 512
 #: Golden-section steps of the extrema check.
 GOLDEN_ITERS = 60
+#: Driving rotors tried, in bar order, before the closed form declines: the certificate needs
+#: the zeros of the dyads' ``nu`` apart, and two dyads may straighten together under one
+#: driver without a critical point (a three-rotor driven by its first rotor: the first coupler
+#: in line with the middle rotor while the second is in line with the last rotor) while under
+#: another (the middle rotor, both dyads on its tip) that is exactly a critical point.
+ROTORS_TRIED = 3
 
 FoldKey = tuple[int, int, int]  # (sheet, inside grid index, -1 at a run's start / +1 at its end)
 Arc = tuple[int, float, float, FoldKey | None, FoldKey | None]  # sheet, theta range, end folds
@@ -74,13 +80,20 @@ def closed_form_space(
         ``components`` None (with ``report["closed_form"]`` saying why) when the linkage is not a
         plain dyad chain or any check is within its margin.
     """
-    ch = chain_of(linkage)
-    if ch is None:
+    first: ClosedForm | None = None
+    for k, ch in enumerate(chains_of(linkage)):
+        if k >= ROTORS_TRIED:
+            break
+        # Overflow (coordinates up to 1e100 are accepted) shows up as non-finite values,
+        # which decline below; no warning is worth raising for it.
+        with np.errstate(all="ignore"):
+            found = _closed_form(linkage, ch, tol, step_max, max_points, samples)
+        if found.components is not None:
+            return found
+        first = first or found
+    if first is None:
         return ClosedForm(None, {"closed_form": "declined: not a planar dyad chain"})
-    # Overflow (coordinates up to 1e100 are accepted) shows up as non-finite values, which
-    # decline below; no warning is worth raising for it.
-    with np.errstate(all="ignore"):
-        return _closed_form(linkage, ch, tol, step_max, max_points, samples)
+    return first
 
 
 def _closed_form(

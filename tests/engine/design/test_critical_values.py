@@ -14,12 +14,11 @@ from engine.design.slice_curves import Axis, _System
 from engine.design.slice_regions import _blocked_cells, _polyline_distance
 from engine.space.configuration_space import SpaceOptions, explore
 from tests.engine.design.slice_references import (
+    ThreeRotor,
+    distance_to_curves,
     gate_lines,
     gate_rotor_turns,
-    three_rotor_arcs,
-    three_rotor_components,
-    three_rotor_lines,
-    three_rotor_residual,
+    points_inside,
 )
 
 SIGNS = list(itertools.product((1, -1), repeat=3))
@@ -135,7 +134,7 @@ def test_the_slice_system_reuses_the_jacobian_only_at_the_same_point():
 
 @pytest.mark.slow
 def test_a_traced_slice_has_one_topology_per_region():
-    """Three-rotor (no dyad chain: traced), (L1, L2) in [0.5, 2]^2: away from the curves every
+    """Three-rotor traced (``method="traced"``), (L1, L2) in [0.5, 2]^2: away from the curves every
     region has the component count of its sample point at three more of its cells. A curve
     missed inside a region (as a seeding that skipped the seeds of regions already explored
     did here: 8 of 11 curves) leaves a region with two counts."""
@@ -144,7 +143,7 @@ def test_a_traced_slice_has_one_topology_per_region():
     n = 16
     opt = SpaceOptions(angles=12, random_starts=2, max_components=4)
     res = critical_value_slice(lk, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], resolution=n,
-                               options=opt)
+                               options=opt, method="traced")
     # traced: nothing was cut short, but only a search (issue 23, item 3 is open)
     assert not res.search["complete"] and res.search["reason"] == "searched"
     free = ~_blocked_cells(res.curves, box, n)
@@ -196,36 +195,55 @@ def _covered(res, pieces: list[np.ndarray], box: np.ndarray, atol: float) -> Non
         assert dist.max() <= atol, pts[np.argmax(dist)]
 
 
-@pytest.mark.slow
-def test_the_three_rotor_slice_has_its_closed_form_critical_set():
-    """Issue 23: the default three-rotor over L1, L2 in [0.6, 1.4] has the lines where one dyad
-    straightens with the middle rotor (L1 = 1, L2 = 1) and the arcs where both dyads are
-    straight (a component is born at a rigid point on the arc from (0.98, 0.6) to (0.6, 0.98),
-    missed before: one region held 3 and 4 components). Every curve point is on the closed
-    form, every closed-form piece in the box is drawn, and every region's count is the dense
-    sampling's at its sample and at three more of its cells."""
+@pytest.mark.parametrize(("axes", "box"), [
+    (("L1", "L2"), ((0.6, 1.4), (0.6, 1.4))),  # issue 23's box
+    (("r1", "r2"), ((0.8, 1.2), (0.8, 1.2))),  # the preset matrix's: the first two free bars
+])
+def test_the_three_rotor_slice_has_its_closed_form_critical_set(axes, box):
+    """Issue 23: the default three-rotor's maps have the lines where one dyad straightens with
+    the middle rotor (a flat four-bar cell, where the other dyad assembles) and the curves
+    where both dyads are straight (over (L1, L2) the arc from (0.98, 0.6) to (0.6, 0.98), where
+    a component is born at a rigid point, was missed: one region held 3 and 4 components).
+    Every curve point is on the critical set written in the test, every critical point that
+    its scanlines find is drawn, every region's count is the dense sampling's at its sample and
+    at four more of its cells, and the map is complete: derived, from its closed form."""
     lk = build_preset("three-rotor")
-    n = 24
-    box = np.array([[0.6, 1.4], [0.6, 1.4]])
-    res = critical_value_slice(lk, [("L1", 0.6, 1.4), ("L2", 0.6, 1.4)], resolution=n)
+    n = 48
+    b = np.array(box)
+    res = critical_value_slice(lk, [(axes[0], *box[0]), (axes[1], *box[1])], resolution=n)
+    ref = ThreeRotor()
     for curve in res.curves:
-        inner = np.all((curve > box[:, 0] + 1e-9) & (curve < box[:, 1] - 1e-9), axis=1)
-        for l1, l2 in curve[inner]:
-            assert three_rotor_residual(l1, l2) <= 1e-6, (l1, l2)
-    vertical, horizontal = three_rotor_lines()
-    ys = np.linspace(0.6, 1.4, 200)
-    lines = [np.column_stack([np.full_like(ys, v), ys]) for v in vertical] + \
-        [np.column_stack([ys, np.full_like(ys, h)]) for h in horizontal]
-    _covered(res, lines + three_rotor_arcs(), box, 2e-3)
+        assert ref.residuals(axes, curve).max() <= 1e-9
+    expected = ref.scanned(axes, b)
+    assert distance_to_curves(expected, res.curves).max() <= 1e-3
     for region in res.regions:
-        for q in _inside_points(res, box, n, region):
-            assert region.components == three_rotor_components(*q), (region, q)
-    assert {3, 4} <= {r.components for r in res.regions}
+        points = [np.array(region.point)] + points_inside(res.curves, b, n,
+                                                          np.array(region.point))
+        for q in points:
+            assert region.components == ref.components(dict(zip(axes, q, strict=True))), \
+                (region, q)
     s = res.search
-    assert s["sweeps_complete"] == s["sweeps"] == 2  # per axis: two edges and between them
-    # every curve but one born and gone within a sweep step: still only searched
-    assert not s["complete"] and s["reason"] == "searched"
-    assert "sweep step" in s["argument_detail"]
+    assert s["complete"] and s["argument"] == "derived" and s["method"] == "closed form"
+    assert "both of its dyads are straight" in s["argument_detail"]
+    if axes == ("L1", "L2"):
+        assert {3, 4} <= {r.components for r in res.regions}
+
+
+def test_a_three_rotor_map_critical_on_a_piece_of_the_plane_says_degenerate():
+    """The preset's lengths hold its cell r2-L2-r3 flat whatever r1 and L1 are: the map of
+    (r1, L1) has no curves to draw (the critical lengths fill the part of the box where the
+    first dyad reaches the flat cell's tip), and answers at once that it is degenerate (it was
+    traced to the end of its budget)."""
+    from engine.model.budget import Deadline
+
+    lk = build_preset("three-rotor")
+    res = critical_value_slice(lk, [("r1", 0.5, 1.5), ("L1", 0.5, 1.5)], resolution=8,
+                               deadline=Deadline.after(4.0))
+    s = res.search
+    assert not s["complete"] and s["reason"] == "degenerate" and not res.curves
+    assert "r2-L2-r3 is flat at every length" in s["argument_detail"]
+    # (B at (1, 1) with the cell flat: the first dyad reaches it where |r1 - L1| <= sqrt(2))
+    assert all(r.components is not None for r in res.regions)
 
 
 @pytest.mark.slow

@@ -105,10 +105,12 @@ def test_closed_form_slice_is_the_traced_slice(params, axes):
 
 
 def test_other_linkages_are_traced():
-    lk = build_preset("three-rotor")
-    res = critical_value_slice(lk, [("L1", 0.9, 1.1), ("L2", 0.9, 1.1)], resolution=6,
+    """A linkage without a closed form (a 3D two-rotor chain; the three-rotor has one now)."""
+    lk = build_preset("rotor-chain-3d", {"n": 2})
+    res = critical_value_slice(lk, [("r0b", 1.4, 1.7), ("l0", 1.4, 1.6)], resolution=6,
                                seeds_per_axis=1,
-                               options=SpaceOptions(angles=12, random_starts=1, max_components=2))
+                               options=SpaceOptions(angles=12, random_starts=1, max_components=2,
+                                                    homotopy_paths_max=0))
     assert res.search["method"] == "traced"
 
 
@@ -250,7 +252,7 @@ def test_unknown_refine_method():
 
 SEEDED = [
     ("gated-kl-chain", {"n": 4, "gate": 2}, [("L2", 1.0, 3.0), ("D", 1.0, 3.5)], "traced"),
-    ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], "auto"),
+    ("three-rotor", {}, [("L1", 0.5, 2.0), ("L2", 0.5, 2.0)], "traced"),
     ("four-bar", {"L1": 0.5, "L2": 1.3, "L3": 0.9}, [("L2", 0.3, 2.2), ("L3", 0.3, 2.2)],
      "traced"),
 ]
