@@ -175,11 +175,12 @@ def svg_text(response: Any) -> str:
 
 
 def test_a_map_of_an_incomplete_analysis_says_so(client: Any) -> None:
-    """The three-rotor's map traced with a tenth of a second: the JSON answer is incomplete
-    (time), and the figure of the same body says so in its title; a complete map does not."""
-    linkage = preset(client, "three-rotor")
+    """A 3D two-rotor chain's map (no closed form: traced) with a tenth of a second: the JSON
+    answer is incomplete (time), and the figure of the same body says so in its title; a
+    complete map does not. (The three-rotor's map is closed form now, complete at once.)"""
+    linkage = preset(client, "rotor-chain-3d", n=2)
     body = {"linkage": linkage, "options": {"time_budget_s": 0.1},
-            "axes": [{"bar": "r1", "min": 0.8, "max": 1.2}, {"bar": "r2", "min": 0.8, "max": 1.2}]}
+            "axes": [{"bar": "r0b", "min": 1.3, "max": 1.9}, {"bar": "l0", "min": 1.2, "max": 1.8}]}
     answer = client.post("/v1/analysis/critical-values", json=body).json()
     assert answer["search"]["complete"] is False and answer["search"]["reason"] == "time"
     r = client.post("/v1/figures/critical-values", json=body)

@@ -117,9 +117,10 @@ def find_critical_points(
     proof = gather(ex) if count is None and hinge is None else None
     if sample:  # (the closed form above samples every sheet: it needs no such choice)
         ex.opt = replace(opt, max_components=1)
-    if count is not None and count.rule == HINGE_RULE:
+    if sample and count is not None and count.rule == HINGE_RULE:
         # (no multistart: the rule proves there is no critical point, and near misses come
-        # from the curve through the start; refinements on 3n unknowns are most of the cost)
+        # from the curve through the start; refinements on 3n unknowns are most of the cost;
+        # without a start, as for a map's seed lengths, the multistart finds the near misses)
         ex.opt = replace(ex.opt, random_starts=0)
     # (no seed traced from a rigid critical point: an isolated point of the space, where the
     # tracer crawled around rounding, 12 open curves and 1.3 s at a skew four-bar's)
