@@ -29,7 +29,7 @@ from collections.abc import Callable
 import numpy as np
 
 from engine.catalogue.catalogue import CatalogueEntry
-from engine.model.errors import InvalidParameter
+from engine.model.errors import InvalidLinkage, InvalidParameter
 from engine.model.linkage import BarSpec, VertexSpec
 
 Params = dict[str, float]
@@ -202,12 +202,12 @@ def _spherical_four_bar(p: Params) -> Specs:
 
 def _sphere_slider(p: Params) -> Specs:
     r, c, d, s = p["r"], p["c"], p["d"], p["s"]
-    if not abs(r - c) < d - s or not d + s < r + c:
-        which = "c" if not abs(r - c) < d - s else "d"
-        raise InvalidParameter(
-            f"{which} = {p[which]:g}: the sphere-slider is a torus only when "
-            f"|r - c| < d - s and d + s < r + c (got |r - c| = {abs(r - c):g}, "
-            f"d - s = {d - s:g}, d + s = {d + s:g}, r + c = {r + c:g})", loc=(which,))
+    if not (abs(r - c) < d - s and d + s < r + c):
+        # InvalidLinkage: build_preset names the parameters the request gave
+        raise InvalidLinkage(
+            "the sphere-slider is a torus only when |r - c| < d - s and d + s < r + c (got "
+            f"|r - c| = {abs(r - c):g}, d - s = {d - s:g}, d + s = {d + s:g}, "
+            f"r + c = {r + c:g})")
     b = np.array([d + s * math.cos(p["theta"]), s * math.sin(p["theta"]), 0.0])
     dist = float(np.hypot(b[0], b[1]))
     along = (r**2 - c**2 + dist**2) / (2 * dist)  # |r - c| < dist < r + c: a circle of A
