@@ -7,6 +7,10 @@ spherical four-bar, where the spheres about ``A`` and ``G2`` meet on the sphere 
 crank angles ``theta1``, ``theta2`` are tried first; where the linkage does not assemble there,
 the first pair of angles after them (steps of 2 degrees on both) where it does.
 
+Lengths that give no linkage raise :class:`InvalidLinkage`, which
+:func:`engine.catalogue.presets.build_preset` turns into a 422 naming the parameters the request
+gave (the one changed, not a default it offends).
+
 - ``pentagon`` (2D, D = 2): pins ``P0 = (0, 0)``, ``P1 = (L0, 0)`` joined by the pinned bar
   ``L0``; bars ``L1`` (``P1-A``), ``L2`` (``A-B``), ``L3`` (``B-C``), ``L4`` (``C-P0``); ``A`` at
   angle ``theta1`` about ``P1``, ``C`` at ``theta2`` about ``P0``.
@@ -29,7 +33,7 @@ from collections.abc import Callable
 import numpy as np
 
 from engine.catalogue.catalogue import CatalogueEntry
-from engine.model.errors import InvalidLinkage, InvalidParameter
+from engine.model.errors import InvalidLinkage
 from engine.model.linkage import BarSpec, VertexSpec
 
 Params = dict[str, float]
@@ -87,9 +91,9 @@ def _scan(p: Params, attempt: Callable[[float, float], Specs | None], what: str,
             specs = attempt(p["theta1"] + float(d1), p["theta2"] + float(d2))
             if specs is not None:
                 return specs
-    raise InvalidParameter(
+    raise InvalidLinkage(
         f"the lengths admit no configuration: {what} assembles at no pair of crank angles "
-        "(2 degree steps)", loc=())
+        "(2 degree steps)")
 
 
 def _closes(p: Params, keys: tuple[str, ...], what: str) -> None:
@@ -98,9 +102,9 @@ def _closes(p: Params, keys: tuple[str, ...], what: str) -> None:
     longest = max(keys, key=lambda k: p[k])
     rest = sum(p[k] for k in keys) - p[longest]
     if not p[longest] < rest:
-        raise InvalidParameter(
+        raise InvalidLinkage(
             f"{what} does not close: {longest} = {p[longest]:g} is not shorter than the sum "
-            f"of the other sides ({rest:g})", loc=(longest,))
+            f"of the other sides ({rest:g})")
 
 
 def _ring(pins: list[tuple[str, Point]], tips: tuple[Point, Point, Point],
@@ -151,9 +155,9 @@ def _chord_angle(p: Params, key: str) -> float:
     """The angle at the centre of a chord ``key`` of the sphere of radius ``R``; a 422 naming
     it when it is longer than the diameter (or as long: the three points would be collinear)."""
     if not p[key] < 2 * p["R"]:
-        raise InvalidParameter(
+        raise InvalidLinkage(
             f"the chord {key} = {p[key]:g} must be shorter than the sphere's diameter 2 R = "
-            f"{2 * p['R']:g}", loc=(key,))
+            f"{2 * p['R']:g}")
     return 2 * math.asin(p[key] / (2 * p["R"]))
 
 
@@ -203,7 +207,6 @@ def _spherical_four_bar(p: Params) -> Specs:
 def _sphere_slider(p: Params) -> Specs:
     r, c, d, s = p["r"], p["c"], p["d"], p["s"]
     if not (abs(r - c) < d - s and d + s < r + c):
-        # InvalidLinkage: build_preset names the parameters the request gave
         raise InvalidLinkage(
             "the sphere-slider is a torus only when |r - c| < d - s and d + s < r + c (got "
             f"|r - c| = {abs(r - c):g}, d - s = {d - s:g}, d + s = {d + s:g}, "
