@@ -242,8 +242,8 @@ MECHANISMS: tuple[CatalogueEntry, ...] = (
         "five-bar",
         "Planar five-bar (a two-crank robot): pins P1 = (0, 0), P2 = (a, 0); cranks L1 (P1-A) at "
         "angle theta1 and L4 (P2-C) at theta2, couplers L2 (A-B) and L3 (B-C). Two degrees of "
-        "freedom: a surface (the default lengths are generic: genus 3).",
-        {"a": 1.0, "L1": 1.0, "L2": 1.8, "L3": 1.6, "L4": 1.0,
+        "freedom: a surface (the default lengths are generic: genus 4).",
+        {"a": 1.0, "L1": 1.0, "L2": 1.3, "L3": 1.2, "L4": 1.0,
          "theta1": 2.0, "theta2": 1.0, "side": 1.0},
         frozenset(), _five_bar, 2,
     ),
