@@ -70,3 +70,19 @@ class PresetRoutes(Generic[R]):
     def get_preset_rotor_chain3d(self, **parameters: float) -> R:
         """``n, a, r, l, h, tilt, theta, side``: a rotor chain in 3D."""
         return self.get_preset("rotor-chain-3d", **parameters)
+
+    def get_preset_pentagon(self, **parameters: float) -> R:
+        """``L0, L1, L2, L3, L4, theta1, theta2, side``: a planar pentagon, L0 pinned (D = 2)."""
+        return self.get_preset("pentagon", **parameters)
+
+    def get_preset_five_bar(self, **parameters: float) -> R:
+        """``a, L1, L2, L3, L4, theta1, theta2, side``: a planar five-bar (D = 2)."""
+        return self.get_preset("five-bar", **parameters)
+
+    def get_preset_spherical_four_bar(self, **parameters: float) -> R:
+        """``R, g, L1, L2, L3, theta1, side``: a spherical four-bar of bars in 3D (D = 1)."""
+        return self.get_preset("spherical-four-bar", **parameters)
+
+    def get_preset_sphere_slider(self, **parameters: float) -> R:
+        """``d, r, s, c, theta, side``: a sphere and a slider in 3D, a torus (D = 2)."""
+        return self.get_preset("sphere-slider", **parameters)

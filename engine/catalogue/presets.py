@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.catalogue.catalogue import CATALOGUE
+from engine.catalogue.mechanisms import LENGTHS as MECHANISM_LENGTHS
+from engine.catalogue.mechanisms import MECHANISMS
 from engine.model.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
 from engine.model.linkage import BarSpec, Limits, Linkage, VertexSpec, build_linkage
 
@@ -196,7 +198,7 @@ class Preset:
     dimension: int = 2
 
 
-_LENGTHS = {"a", "L1", "L2", "L3", "r", "l", "r1", "r2", "r3", "D"}
+_LENGTHS = {"a", "L1", "L2", "L3", "r", "l", "r1", "r2", "r3", "D"} | MECHANISM_LENGTHS
 _SIDES = {"side", "side1", "side3"}
 
 PRESETS: dict[str, Preset] = {
@@ -267,7 +269,7 @@ PRESETS: dict[str, Preset] = {
 # 3D and rigidity-theory frameworks (engine/catalogue/catalogue.py)
 PRESETS.update(
     {e.name: Preset(e.name, e.description, e.parameters, e.integers, e.build, e.dimension)
-     for e in CATALOGUE}
+     for e in CATALOGUE + MECHANISMS}
 )
 
 

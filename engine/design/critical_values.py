@@ -68,6 +68,7 @@ from engine.model.report import SearchReport, count_text
 from engine.model.tolerances import MIN_CRITICAL_LENGTH_ATOL, Tolerances
 from engine.space.chain_count import gated_chain
 from engine.space.configuration_space import SpaceOptions, find_critical_points
+from engine.space.configuration_space.results import require_one_dof
 
 #: Where in its grid cell each seed length sits, per axis: irrational and different on the two
 #: axes, so that the seed grid avoids the symmetric lengths (``L_x = L_y``, ...) on which
@@ -155,6 +156,9 @@ def critical_value_slice(
     opt = options or SLICE_OPTIONS
     dl = deadline or NEVER
     ax = _validate(linkage, axes)
+    # before any time is spent: a deadline must never turn "needs one degree of freedom" (a
+    # 422) into a 200 with regions not explored
+    require_one_dof(linkage, Constraints(linkage))
     box = np.array([[ax[0].lo, ax[0].hi], [ax[1].lo, ax[1].hi]])
     span = box[:, 1] - box[:, 0]
     h_max = float(min(span)) / resolution

@@ -161,6 +161,15 @@ def predict_betti(linkage: Linkage, cones: list[ConeResolution],
     return critical, (_summed(sides[0])[1], _summed(sides[1])[1])
 
 
+def _why_not(ended: bool, complete: bool, verified: bool, message: str) -> str:
+    """The sentence of why a surface splitting has no argument (what it did establish)."""
+    why = [] if ended else ["the cones' homotopy did not end on every path, so a cone may be "
+                            "missing"]
+    if ended and not complete:
+        why.append("a re-meshing at L + dL or L - dL is incomplete")
+    return "no proof: " + "; ".join([*why, message])
+
+
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
                  tol: Tolerances, options: SurfaceOptions | None = None,
                  deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None
@@ -215,6 +224,6 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
                          "Euler characteristic by the predicted amount" + (
                              ", and their Betti numbers are those of the critical space's mesh "
                              "with each apex resolved" if betti_agrees else ""))
-        if complete and verified else None)
+        if complete and verified else _why_not(ended, complete, verified, message))
     return SurfaceSplit(cones, predicted, (eulers[0], eulers[1]), (bettis[0], bettis[1]),
                         verified, complete, message, report, critical, predicted_betti)

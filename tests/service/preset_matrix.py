@@ -13,6 +13,10 @@ linkage is meaningful for (issue 11): the cases, not tests; used by the tests an
   as axes (3D linkages get a 422 naming ``linkage.dimension``);
 * critical values: the first two bars with a free end as axes, box ``[0.8 L, 1.2 L]`` each;
 * splitting: the first bar with a free end changed by ``1e-3`` of its length;
+* two degrees of freedom (``M - E = 2`` with something fixed, issue 25): the configuration
+  space (its surfaces), splitting (as above), and in the plane the configuration-space figure;
+  the endpoints that need one degree of freedom (:data:`ONE_DOF_ONLY`) answer them a 422 naming
+  ``linkage``, asked by ``tests/service/test_every_preset.py``;
 * design: only where ``/v1/analysis/critical-points`` (asked through ``client``) reports a
   branch point: the first one as target with sign +1, every bar with a free end adjustable.
 """
@@ -39,6 +43,10 @@ TRACING = ("/v1/analysis/critical-points", "/v1/analysis/configuration-space",
            "/v1/analysis/splitting", "/v1/analysis/robustness", "/v1/analysis/critical-values",
            "/v1/figures/configuration-space", "/v1/figures/critical-values",
            "/v1/figures/splitting")
+SURFACES = ("/v1/analysis/configuration-space", "/v1/analysis/splitting",
+            "/v1/figures/configuration-space")
+ONE_DOF_ONLY = ("/v1/analysis/critical-points", "/v1/analysis/robustness",
+                "/v1/analysis/critical-values")
 DESIGN = "/v1/design/splitting"
 SPLIT_FRACTION = 1e-3
 BOX = (0.8, 1.2)
@@ -71,12 +79,22 @@ def rotors(linkage: Json) -> list[str]:
     return [b["id"] for b in linkage.get("bars", []) if len(set(b["ends"]) & pinned) == 1]
 
 
-def one_dof(linkage: Json) -> bool:
-    """``M - E = 1`` with something fixed: the linkage can be traced."""
+def dof(linkage: Json) -> int | None:
+    """``M - E`` with something fixed (None when nothing is)."""
     dim = int(linkage.get("dimension", 2))
     axes = [_fixed_axes(v, dim) for v in linkage["vertices"]]
     m = sum(not f for fixed in axes for f in fixed)
-    return m - len(free_bars(linkage)) == 1 and any(any(fixed) for fixed in axes)
+    return m - len(free_bars(linkage)) if any(any(fixed) for fixed in axes) else None
+
+
+def one_dof(linkage: Json) -> bool:
+    """``M - E = 1`` with something fixed: the linkage can be traced."""
+    return dof(linkage) == 1
+
+
+def two_dof(linkage: Json) -> bool:
+    """``M - E = 2`` with something fixed: its configuration space is made of surfaces."""
+    return dof(linkage) == 2
 
 
 def bar_length(linkage: Json, bar: Json) -> float:
@@ -91,11 +109,16 @@ def bodies(linkage: Json) -> Iterator[tuple[str, Json]]:
     for path in ALWAYS:
         yield path, {"linkage": linkage}
     bars = free_bars(linkage)
-    if not one_dof(linkage):
+    if not (one_dof(linkage) or two_dof(linkage)):
         return
     first = bars[0]
     split = {"linkage": linkage,
              "perturbation": {first["id"]: SPLIT_FRACTION * bar_length(linkage, first)}}
+    if two_dof(linkage):
+        planar = int(linkage.get("dimension", 2)) == 2 and len(rotors(linkage)) >= 2
+        for path in SURFACES[:2] + (SURFACES[2:] if planar else ()):
+            yield path, split if path.endswith("/splitting") else {"linkage": linkage}
+        return
     values = {"linkage": linkage, "axes": [
         {"bar": b["id"], "min": BOX[0] * bar_length(linkage, b),
          "max": BOX[1] * bar_length(linkage, b)} for b in bars[:2]]}

@@ -16,7 +16,15 @@ from engine.catalogue.presets import PRESETS
 from service.config import Settings
 from service.main import create_app
 from tests.conftest import ApiClient
-from tests.service.preset_matrix import ALWAYS, TRACING, one_dof, preset_cases
+from tests.service.preset_matrix import (
+    ALWAYS,
+    ONE_DOF_ONLY,
+    SURFACES,
+    TRACING,
+    one_dof,
+    preset_cases,
+    two_dof,
+)
 
 # Every preset through every endpoint: the longest single test of the service's.
 pytestmark = pytest.mark.slow
@@ -66,4 +74,23 @@ def test_every_preset_answers_every_endpoint(api, preset):
     # endpoint (the configuration-space figure only in the plane)
     linkage = api.get(f"/v1/presets/{preset}").json()
     planar = int(linkage.get("dimension", 2)) == 2
-    assert answered >= len(ALWAYS) + ((len(TRACING) - (not planar)) if one_dof(linkage) else 0)
+    assert answered >= len(ALWAYS) + ((len(TRACING) - (not planar)) if one_dof(linkage) else 0) \
+        + ((len(SURFACES) - (not planar)) if two_dof(linkage) else 0)
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_two_dof_presets_are_refused_where_one_is_needed(api, preset):
+    """Two degrees of freedom (issue 25): what needs one (tracing critical points, robustness,
+    critical values) is a 422 naming the linkage, never a 5xx nor a silent skip."""
+    linkage = api.get(f"/v1/presets/{preset}").json()
+    if not two_dof(linkage):
+        assert preset not in ("pentagon", "five-bar", "sphere-slider")
+        return
+    bars = [b["id"] for b in linkage["bars"]][-2:]
+    for path in ONE_DOF_ONLY:
+        body = {"linkage": linkage, "axes": [{"bar": b, "min": 0.5, "max": 1.5} for b in bars]}
+        r = api.post(path, json=body if path.endswith("critical-values") else
+                     {"linkage": linkage})
+        assert r.status_code == 422, (preset, path, r.status_code, r.text[:300])
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert r.json()["errors"][0]["loc"][:2] == ["body", "linkage"], (preset, path, r.text)

@@ -18,7 +18,7 @@ from tests.service.test_uvicorn_process import ROOT
 ALL_PARAMETERS = [(name, key) for name, p in PRESETS.items() for key in p.parameters]
 #: Parameters that are angles (radians); every other parameter is a length, a coordinate, a scale
 #: factor, a count or a side, none of which 1e308 can be.
-ANGLES = frozenset({"theta", "phi", "twist", "tilt"})
+ANGLES = frozenset({"theta", "theta1", "theta2", "phi", "twist", "tilt"})
 EXTREMES = ["1e308", "-1e308", "1e200", "1e-300", "5e-324", "1.7976931348623157e308"]
 
 

@@ -1,6 +1,9 @@
 """Preset endpoints."""
 
 import numpy as np
+import pytest
+
+from tests.engine.space.surfaces.conftest import pentagon_betti
 
 
 def test_list_presets(client):
@@ -11,7 +14,9 @@ def test_list_presets(client):
     catalogue = {"tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
                  "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
                  "rotor-chain-3d"}
-    assert set(body) == {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"} | catalogue
+    mechanisms = {"pentagon", "five-bar", "spherical-four-bar", "sphere-slider"}
+    planar = {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"}
+    assert set(body) == planar | catalogue | mechanisms
     assert body["tetrahedron"]["dimension"] == 3 and body["four-bar"]["dimension"] == 2
     assert {"a", "L1", "L2", "L3"} <= set(body["four-bar"]["parameters"])
     assert {"a", "r1", "r2", "r3", "L1", "L2", "phi"} <= set(body["three-rotor"]["parameters"])
@@ -40,3 +45,69 @@ def test_preset_with_parameters_is_a_linkage_on_its_configuration_space(client):
 def test_kl_chain_size(client):
     lk = client.get("/v1/presets/kl-chain?n=25").json()
     assert len(lk["vertices"]) == 50 and len(lk["bars"]) == 49
+
+
+def space_of(client, query: str) -> dict:
+    lk = client.get(f"/v1/presets/{query}")
+    assert lk.status_code == 200, lk.text
+    r = client.post("/v1/analysis/configuration-space", json={"linkage": lk.json()})
+    assert r.status_code == 200, (query, r.text[:500])
+    body = r.json()
+    assert body["search"]["complete"], (query, body["search"])
+    assert body["search"]["reason"] is None and body["search"]["argument"] == "proved"
+    return body
+
+
+#: (query, lengths (L0..L4) of the polygon): the five-bar is a pentagon too, its ground a as L0.
+POLYGONS = [
+    ("pentagon", (1.0, 1.0, 1.0, 1.0, 1.0)),
+    ("pentagon?L0=2&L1=1&L2=1.4&L3=1.6&L4=1", (2.0, 1.0, 1.4, 1.6, 1.0)),
+    ("five-bar", (1.0, 1.0, 1.3, 1.2, 1.0)),
+    ("five-bar?a=2&L2=1.4&L3=1.6", (2.0, 1.0, 1.4, 1.6, 1.0)),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("query", "lengths"), POLYGONS)
+def test_planar_polygon_presets_against_farber_schuetz(client, query, lengths):
+    """The configuration space of a pinned-bar pentagon is the planar polygon space (modulo
+    orientation-preserving isometries): its Betti numbers by Farber and Schuetz's closed form
+    (tests/engine/space/surfaces/conftest.py), over Z/2 and Q; connected, so one surface."""
+    body = space_of(client, query)
+    assert body["search"]["dof"] == 2
+    betti = list(pentagon_betti(lengths))
+    assert [s["betti_q"] for s in body["surfaces"]] == [betti]
+    assert [s["betti_z2"] for s in body["surfaces"]] == [betti]
+    surface = body["surfaces"][0]
+    assert surface["closed"] and surface["orientable"] and surface["morse_agrees"]
+    assert surface["euler"] == betti[0] - betti[1] + betti[2]
+
+
+@pytest.mark.slow
+def test_sphere_slider_is_a_torus(client):
+    """For every B on its circle, A runs on the circle where the spheres about P and B meet: an
+    orientable circle bundle over a circle, a torus (b = 1, 2, 1)."""
+    body = space_of(client, "sphere-slider")
+    assert body["search"]["dof"] == 2
+    assert [s["betti_q"] for s in body["surfaces"]] == [[1, 2, 1]]
+    assert body["surfaces"][0]["euler"] == 0
+
+
+def test_spherical_four_bar_is_a_curve(client):
+    """One degree of freedom: traced (closed form of the 3D hinged rotor chain), no surface."""
+    lk = client.get("/v1/presets/spherical-four-bar").json()
+    r = client.post("/v1/analysis/configuration-space", json={"linkage": lk})
+    assert r.status_code == 200, r.text[:500]
+    body = r.json()
+    assert body["search"]["complete"] and body["search"]["reason"] is None
+    assert body["search"]["argument"] in ("derived", "proved")
+    assert not body["surfaces"] and body["components"]
+
+
+@pytest.mark.parametrize(("query", "field"), [
+    ("pentagon?L0=5", "L0"), ("five-bar?L1=-1", "L1"), ("spherical-four-bar?L2=2.5", "L2"),
+    ("sphere-slider?c=0.5", "c")])
+def test_mechanism_parameters_that_give_no_assembly_are_named(client, query, field):
+    r = client.get(f"/v1/presets/{query}")
+    assert r.status_code == 422 and r.headers["content-type"].startswith("application/problem")
+    assert r.json()["errors"][0]["loc"] == ["query", field]

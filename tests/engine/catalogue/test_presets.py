@@ -40,6 +40,8 @@ def test_every_preset_is_listed_with_defaults():
         "tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
         "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
         "rotor-chain-3d",
+        # engine/catalogue/mechanisms.py
+        "pentagon", "five-bar", "spherical-four-bar", "sphere-slider",
     }
     for preset in PRESETS.values():
         assert preset.description and preset.parameters

@@ -355,3 +355,18 @@ def test_a_100_rotor_chain_s_map_answers_within_its_budget():
     assert s.search["complete"] and s.search["argument"] == "derived"
     assert s.search["method"] == "closed form" and len(s.curves) == 3
     assert sorted(r.components for r in s.regions) == [2**98] * 3 + [2**99]
+
+
+@pytest.mark.parametrize("seconds", [None, 0.0])
+def test_two_degrees_of_freedom_are_refused_before_any_time_is_spent(seconds):
+    """A map needs one degree of freedom: the pentagon (D = 2) is refused naming the linkage's
+    bars, also when the deadline has already passed (it answered 200 with regions 'not
+    explored (time)' then)."""
+    from engine.model.budget import Deadline
+    from engine.model.errors import InvalidLinkage
+
+    lk = build_preset("pentagon")
+    with pytest.raises(InvalidLinkage) as err:
+        critical_value_slice(lk, [("L1", 0.8, 1.2), ("L2", 0.8, 1.2)], resolution=8,
+                             deadline=Deadline.after(seconds))
+    assert err.value.loc == ("bars",) and "one degree of freedom" in err.value.message

@@ -9,7 +9,7 @@ from itertools import product
 import numpy as np
 import pytest
 
-from engine.design.surface_splitting import resolve_cone, split_surface
+from engine.design.surface_splitting import remesh_split, resolve_cone, split_surface
 from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import find_cones
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
@@ -79,3 +79,14 @@ def test_the_predicted_topology_change_matches_farber_schuetz_and_the_re_meshing
     # the Betti numbers predicted from the critical space's mesh with its apexes resolved
     assert res.predicted_betti == (plus, minus)
     assert res.verified and res.search["verified"]
+
+
+def test_an_unproved_splitting_says_why():
+    """When the cones' homotopy did not end on every path the answer is incomplete and its
+    ``argument_detail`` says so (what it did establish), never an empty reason."""
+    lk = pentagon((1.0, 1.0, 1.0, 1.0, 1.0))  # generic: no cone
+    res = remesh_split(lk, [], False, np.array([0.0, 1e-3, 0.0, 0.0, 0.0]), Tolerances())
+    assert not res.complete and res.search.reason == "searched"
+    detail = res.search.argument_detail
+    assert detail is not None and "did not end" in detail, detail
+    assert res.search.argument is None
