@@ -118,6 +118,25 @@ def _validate(linkage: Linkage, axes: list[tuple[str, float, float]]) -> tuple[A
     return out[0], out[1]
 
 
+def _trace_from_seeds(tracing: _CurveTracing, grid: list[np.ndarray], per_column: int,
+                      dl: Deadline) -> None:
+    """Trace the curves reached from the seed lengths ``grid``. One column of seed lengths at a
+    time: the explorations first, then all their starts onto G = 0 in one batch (a pure
+    function of each start), then taken in seed order (the same curves as seed by seed; a
+    deadline still leaves the earlier columns' curves)."""
+    for col in range(0, len(grid), per_column):
+        starts = []
+        for k in range(col, min(col + per_column, len(grid))):
+            if dl.expired():
+                tracing.timed_out = True
+                break
+            dl.report(0.3 + 0.3 * k / len(grid), "critical values: tracing the curves")
+            starts.append(tracing.starts_at(grid[k]))
+        tracing.take(starts)
+        if tracing.timed_out and dl.expired():
+            break
+
+
 def critical_value_slice(
     linkage: Linkage,
     axes: list[tuple[str, float, float]],
@@ -183,20 +202,7 @@ def critical_value_slice(
         grid = [] if scan.complete else [
             box[:, 0] + span * (np.array([i, j]) + GRID_OFFSET) / seeds_per_axis
             for i in range(seeds_per_axis) for j in range(seeds_per_axis)]
-        # One column of seed lengths at a time: the explorations first, then all their starts
-        # onto G = 0 in one batch (a pure function of each start), then taken in seed order
-        # (the same curves as seed by seed; a deadline still leaves the earlier columns' curves).
-        for col in range(0, len(grid), seeds_per_axis):
-            starts = []
-            for k in range(col, min(col + seeds_per_axis, len(grid))):
-                if dl.expired():
-                    tracing.timed_out = True
-                    break
-                dl.report(0.3 + 0.3 * k / len(grid), "critical values: tracing the curves")
-                starts.append(tracing.starts_at(grid[k]))
-            tracing.take(starts)
-            if tracing.timed_out and dl.expired():
-                break
+        _trace_from_seeds(tracing, grid, seeds_per_axis, dl)
         raw = [_clip(c[:, -2:], box) for c in tracing.curves]
         open_curves = tracing.open_curves
         seeds, timed_out = tracing.seeds_tried, tracing.timed_out

@@ -64,8 +64,8 @@ def test_presets_lists_and_shows() -> None:
     shown = json.loads(proc.stdout)
     assert shown["name"] == "four-bar"
     assert shown["parameters"] == dict(PRESETS["four-bar"].parameters)
-    proc = cli("presets", "five-bar")
-    assert proc.returncode == 2 and "no preset named 'five-bar'" in proc.stderr
+    proc = cli("presets", "no-such-bar")
+    assert proc.returncode == 2 and "no preset named 'no-such-bar'" in proc.stderr
 
 
 def test_run_is_in_process_without_dask(tmp_path: Path) -> None:

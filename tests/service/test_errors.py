@@ -387,7 +387,7 @@ def test_no_nearby_solution(client: Any, url: str) -> None:
 
 
 def test_unknown_preset(client: Any) -> None:
-    r = client.get("/v1/presets/five-bar")
+    r = client.get("/v1/presets/no-such-bar")
     expect(client, r, ["path", "name"], status=404)
 
 
