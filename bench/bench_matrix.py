@@ -212,9 +212,9 @@ WHY_INCOMPLETE = [
     "2^99 for 100 rotors), more than `max_components` (32) can trace; `components_total` says "
     "how many there are. The critical points of these chains are derived (none), so "
     "`critical-points`, `splitting` and `design` are complete.",
-    "- `searched` on a 3D chain: no rule applies and the homotopy that would prove the search "
-    "complete has more paths than `homotopy_paths_max` (512; the 6-rotor 3D chain needs "
-    "22,528): the answer says so in `argument_detail`.",
+    "- 3D hinged chains (`rotor-chain-3d`, `spherical-four-bar`) are derived from their cells "
+    "(`engine/space/hinge_chain.py`): their critical points, configuration spaces and splitting "
+    "are complete; their maps are not (below).",
     "- `searched` or `time` on `robustness` (not the four-bar family): the margin is a "
     "multistart's upper bound (`guarantee: upper-bound`); no argument bounds it from below.",
     "- `time` or `searched` on `critical-values` (maps) of linkages without a closed form: the "
@@ -229,7 +229,12 @@ WHY_INCOMPLETE = [
     "values are the chain's), their regions counted by the chain rules also where a four-bar "
     "drives the chain (four components per component of the chain, `sweep_rules`); a gate "
     "that restricts the chain (the gate rotor rocking) leaves such a map traced. The "
-    "three-rotor's map belongs to the slice proofs (`slice_scan.py`).",
+    "three-rotor's map is closed form too (`engine/design/chain_curves.py`). 3D chains' maps "
+    "are traced: the turning points of their slices need more homotopy paths than the bound "
+    "(2,400 for a 3D two-rotor chain), so their regions' counts are exact but the curves "
+    "are `searched`.",
+    "- `splitting` of the two-degree-of-freedom presets is complete but over the 2 s target: "
+    "it meshes the surface and finds the cones by homotopy (3.2-3.4 s on the quiet machine).",
     "- a figure is complete when the analysis it draws is (the JSON cell of the same preset: "
     "`draws` names its reason); the figure says so in its title.",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
