@@ -79,27 +79,7 @@ def sampled_gated_chain(n: int, a: float, r: float, coupler: float, gate: int, d
             fold &= exists[:, lab] & exists[:, lab | bit]
             rows.append(node[:, lab][fold])
             cols.append(node[:, lab | bit][fold])
-    r_idx, c_idx = np.concatenate(rows), np.concatenate(cols)
-    graph = coo_matrix((np.ones(len(r_idx)), (r_idx, c_idx)),
-                       shape=(samples * labels,) * 2).tocsr()
-    count, comp = connected_components(graph, directed=False)
-    live = exists.ravel()
-    components = len(np.unique(comp[live]))
-    flat = angles.reshape(n, -1)
-    pot = np.zeros_like(flat)
-    seen = np.zeros(samples * labels, dtype=bool)
-    for root in np.flatnonzero(live):
-        if seen[root]:
-            continue
-        order, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
-        seen[order] = True
-        pot[:, root] = flat[:, root]
-        for v in order[1:]:
-            u = pred[v]
-            pot[:, v] = pot[:, u] + np.angle(np.exp(1j * (flat[:, v] - flat[:, u])))
-    inc = np.angle(np.exp(1j * (flat[:, c_idx] - flat[:, r_idx])))
-    jump = np.round((pot[:, c_idx] - pot[:, r_idx] - inc) / (2 * np.pi))
-    return components, bool(np.any(jump != 0))
+    return _graph_components_and_turns(rows, cols, exists, angles, samples * labels)
 
 
 def sampled_general_chain(pins: np.ndarray, r: np.ndarray, couplers: np.ndarray, gate: int,
@@ -148,7 +128,6 @@ def _components_and_turns(exists: np.ndarray, step_ok: np.ndarray, angles: np.nd
     """The sampled nodes joined along the samples and at folds; their components and whether
     a rotor's unwound angle jumps by a full turn around a loop."""
     steps, samples, labels = step_ok.shape
-    n = len(angles)
     node = np.arange(samples * labels).reshape(samples, labels)
     rows, cols = [], []
     nxt = np.roll(np.arange(samples), -1)
@@ -164,15 +143,24 @@ def _components_and_turns(exists: np.ndarray, step_ok: np.ndarray, angles: np.nd
             fold &= exists[:, lab] & exists[:, lab | bit]
             rows.append(node[:, lab][fold])
             cols.append(node[:, lab | bit][fold])
+    return _graph_components_and_turns(rows, cols, exists, angles, samples * labels)
+
+
+def _graph_components_and_turns(rows: list[np.ndarray], cols: list[np.ndarray],
+                                exists: np.ndarray, angles: np.ndarray, nodes: int
+                                ) -> tuple[int, bool]:
+    """The components of the sampled fibres joined by the edges ``rows`` -> ``cols``, and whether
+    some rotor turns along a cycle (an edge whose angle increments disagree with the potential
+    of a spanning tree by a whole turn)."""
     r_idx, c_idx = np.concatenate(rows), np.concatenate(cols)
     graph = coo_matrix((np.ones(len(r_idx)), (r_idx, c_idx)),
-                       shape=(samples * labels,) * 2).tocsr()
+                       shape=(nodes,) * 2).tocsr()
     _, comp = connected_components(graph, directed=False)
     live = exists.ravel()
     components = len(np.unique(comp[live]))
-    flat = angles.reshape(n, -1)
+    flat = angles.reshape(len(angles), -1)
     pot = np.zeros_like(flat)
-    seen = np.zeros(samples * labels, dtype=bool)
+    seen = np.zeros(nodes, dtype=bool)
     for root in np.flatnonzero(live):
         if seen[root]:
             continue

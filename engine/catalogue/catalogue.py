@@ -60,6 +60,29 @@ class CatalogueEntry:
     dimension: int
 
 
+def circle_intersection(
+    c0: np.ndarray, r0: float, c1: np.ndarray, r1: float, side: float
+) -> np.ndarray | None:
+    """Intersection of circles ``|x - c0| = r0`` and ``|x - c1| = r1`` on the given side of
+    ``c0 -> c1``; None when they do not meet."""
+    delta = c1 - c0
+    dist = float(np.hypot(*delta))
+    if dist == 0.0:
+        return None
+    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
+    h2 = r0**2 - along**2
+    if h2 < -1e-12 * max(r0, r1) ** 2:
+        return None
+    e = delta / dist
+    normal = np.array([-e[1], e[0]])
+    return c0 + along * e + np.sign(side or 1.0) * np.sqrt(max(h2, 0.0)) * normal
+
+
+def polar(angle: float, radius: float) -> np.ndarray:
+    """The point at ``angle`` on the circle of ``radius`` about the origin."""
+    return radius * np.array([np.cos(angle), np.sin(angle)])
+
+
 def _framework(points: np.ndarray, edges: list[tuple[int, int]], prefix: str = "v") -> Specs:
     """Free vertices ``{prefix}{i}`` at ``points`` (V, d) and bars ``e{k}`` on ``edges``."""
     vertices = [VertexSpec(f"{prefix}{i}", p.tolist()) for i, p in enumerate(points)]

@@ -32,7 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from engine.catalogue.catalogue import CatalogueEntry
+from engine.catalogue.catalogue import CatalogueEntry, circle_intersection, polar
 from engine.model.errors import InvalidLinkage
 from engine.model.linkage import BarSpec, VertexSpec
 
@@ -42,21 +42,6 @@ Point = np.ndarray
 
 #: Steps of the search for an assembly over both crank angles (2 degrees each).
 _STEPS = 180
-
-
-def _meet_2d(c0: Point, r0: float, c1: Point, r1: float, side: float) -> Point | None:
-    """Where the circles ``|x - c0| = r0`` and ``|x - c1| = r1`` meet, on the left of
-    ``c0 -> c1`` for ``side = +1``; None when they do not."""
-    delta = c1 - c0
-    dist = float(np.hypot(*delta))
-    if dist == 0.0:
-        return None
-    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
-    h2 = r0**2 - along**2
-    if h2 < 0.0:
-        return None
-    e = delta / dist
-    return c0 + along * e + side * math.sqrt(h2) * np.array([-e[1], e[0]])
 
 
 def _meet_sphere(radius: float, p: Point, dp: float, q: Point, dq: float,
@@ -115,17 +100,13 @@ def _ring(pins: list[tuple[str, Point]], tips: tuple[Point, Point, Point],
     return vertices, [BarSpec(b, (u, v), length) for b, u, v, length in bars]
 
 
-def _polar(angle: float, radius: float) -> Point:
-    return radius * np.array([math.cos(angle), math.sin(angle)])
-
-
 def _pentagon(p: Params) -> Specs:
     _closes(p, ("L0", "L1", "L2", "L3", "L4"), "the pentagon")
     p0, p1 = np.zeros(2), np.array([p["L0"], 0.0])
 
     def attempt(t1: float, t2: float) -> Specs | None:
-        a, c = p1 + _polar(t1, p["L1"]), p0 + _polar(t2, p["L4"])
-        b = _meet_2d(a, p["L2"], c, p["L3"], p["side"])
+        a, c = p1 + polar(t1, p["L1"]), p0 + polar(t2, p["L4"])
+        b = circle_intersection(a, p["L2"], c, p["L3"], p["side"])
         if b is None:
             return None
         return _ring([("P0", p0), ("P1", p1)], (a, b, c), [
@@ -140,8 +121,8 @@ def _five_bar(p: Params) -> Specs:
     p1, p2 = np.zeros(2), np.array([p["a"], 0.0])
 
     def attempt(t1: float, t2: float) -> Specs | None:
-        a, c = p1 + _polar(t1, p["L1"]), p2 + _polar(t2, p["L4"])
-        b = _meet_2d(a, p["L2"], c, p["L3"], p["side"])
+        a, c = p1 + polar(t1, p["L1"]), p2 + polar(t2, p["L4"])
+        b = circle_intersection(a, p["L2"], c, p["L3"], p["side"])
         if b is None:
             return None
         return _ring([("P1", p1), ("P2", p2)], (a, b, c), [

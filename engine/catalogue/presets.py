@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.catalogue.catalogue import CATALOGUE
+from engine.catalogue.catalogue import CATALOGUE, circle_intersection, polar
 from engine.catalogue.mechanisms import LENGTHS as MECHANISM_LENGTHS
 from engine.catalogue.mechanisms import MECHANISMS
 from engine.model.errors import InvalidLinkage, InvalidParameter, LimitExceeded, UnknownPreset
@@ -35,28 +35,6 @@ from engine.model.linkage import BarSpec, Limits, Linkage, VertexSpec, build_lin
 
 Params = dict[str, float]
 Specs = tuple[list[VertexSpec], list[BarSpec]]
-
-
-def circle_intersection(
-    c0: np.ndarray, r0: float, c1: np.ndarray, r1: float, side: float
-) -> np.ndarray | None:
-    """Intersection of circles ``|x - c0| = r0`` and ``|x - c1| = r1`` on the given side of
-    ``c0 -> c1``; None when they do not meet."""
-    delta = c1 - c0
-    dist = float(np.hypot(*delta))
-    if dist == 0.0:
-        return None
-    along = (dist**2 + r0**2 - r1**2) / (2 * dist)
-    h2 = r0**2 - along**2
-    if h2 < -1e-12 * max(r0, r1) ** 2:
-        return None
-    e = delta / dist
-    normal = np.array([-e[1], e[0]])
-    return c0 + along * e + np.sign(side or 1.0) * np.sqrt(max(h2, 0.0)) * normal
-
-
-def _polar(angle: float, radius: float) -> np.ndarray:
-    return radius * np.array([np.cos(angle), np.sin(angle)])
 
 
 def _first_assembly(
@@ -77,7 +55,7 @@ def _four_bar(p: Params) -> Specs:
     pin1, pin2 = np.zeros(2), np.array([p["a"], 0.0])
 
     def attempt(theta: float) -> Specs | None:
-        tip_a = _polar(theta, p["L1"])
+        tip_a = polar(theta, p["L1"])
         tip_b = circle_intersection(tip_a, p["L2"], pin2, p["L3"], p["side"])
         if tip_b is None:
             return None
@@ -99,10 +77,10 @@ def _four_bar(p: Params) -> Specs:
 
 def _three_rotor(p: Params) -> Specs:
     pins = [np.zeros(2), np.array([p["a"], 0.0])]
-    pins.append(pins[1] + _polar(p["phi"], p["a"]))
+    pins.append(pins[1] + polar(p["phi"], p["a"]))
 
     def attempt(theta: float) -> Specs | None:
-        tip_b = pins[1] + _polar(theta, p["r2"])
+        tip_b = pins[1] + polar(theta, p["r2"])
         tip_a = circle_intersection(tip_b, p["L1"], pins[0], p["r1"], p["side1"])
         tip_c = circle_intersection(tip_b, p["L2"], pins[2], p["r3"], p["side3"])
         if tip_a is None or tip_c is None:
@@ -154,7 +132,7 @@ def _kl_chain(p: Params) -> Specs:
     n = int(p["n"])
 
     def attempt(theta: float) -> Specs | None:
-        tips = _chain_tips(p, n, 0, _polar(theta, p["r"]))
+        tips = _chain_tips(p, n, 0, polar(theta, p["r"]))
         return None if tips is None else _chain_specs(p, n, tips)
 
     return _first_assembly(p["theta"], attempt, "the chain")
@@ -166,7 +144,7 @@ def _gated_kl_chain(p: Params) -> Specs:
     slider = pin + np.array([0.0, -p["D"]])
 
     def attempt(theta: float) -> Specs | None:
-        tip = pin + _polar(theta, p["r"])
+        tip = pin + polar(theta, p["r"])
         rocker = circle_intersection(tip, p["L2"], slider, p["L1"], p["side"])
         tips = None if rocker is None else _chain_tips(p, n, gate, tip)
         if rocker is None or tips is None:
