@@ -24,6 +24,10 @@ MARGIN_S = 2.0
 @pytest.fixture(scope="module")
 def api() -> Iterator[ApiClient]:
     app = create_app(Settings.from_env().replace(time_limit_s=LIMIT_S, workers=1))
+    # a ready service, as an orchestrator routes to it (/health/ready): the ASGI transport runs
+    # no lifespan, so the pool would otherwise start inside the first request, and the worker's
+    # start-up would count as time waited for a worker (503 busy instead of 422 too-costly)
+    app.state.engine_pool.start()
     client = ApiClient(app)
     yield client
     client.close()
