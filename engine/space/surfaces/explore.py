@@ -214,11 +214,15 @@ def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
 
 
 def _seeds(surface: Surface, start: np.ndarray | None, witnesses: np.ndarray,
-           rng: np.random.Generator, count: int, deadline: Deadline) -> list[np.ndarray]:
-    """The height's critical points, the given configuration, projected random starts."""
+           rng: np.random.Generator, count: int, deadline: Deadline,
+           derived: np.ndarray | None = None) -> list[np.ndarray]:
+    """The height's critical points, the given configuration, the ``derived`` seeds (after
+    the configuration: where one component holds both, its mesh grows from the same point with
+    or without them), projected random starts."""
     seeds = list(witnesses)
     if start is not None:
         seeds.append(start)
+    seeds += list(derived if derived is not None else [])
     scale = float(np.median(surface.linkage.lengths[surface.cons.bars]))
     base = surface.linkage.coordinates()
     for _ in range(count):
@@ -317,15 +321,14 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
         if opt.homotopy_paths_max > 0 else None
     chain = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
     derived = chain_seeds(surface, chain, rng, dl.fraction(0.3)) if chain else None
-    if derived is not None and len(derived.critical) and cones is None:
+    if derived is not None and cones is None:  # every critical point: no cone homotopy
         refs = [refine_critical(cons, u, tol) for u in derived.critical]
         cones = ([CriticalPoint(r.u, classify(linkage, r.u, tol), r.length_residual,
                                 r.stress_residual) for r in refs], derived.success)
     step = opt.step_rel * float(np.median(linkage.lengths[cons.bars]))
     start = linkage.coordinates() if start_on_space else None
-    seeds = _seeds(surface, start, np.vstack(
-        [wit.critical.points if wit else np.zeros((0, cons.n_free))]
-        + ([derived.seeds] if derived else [])), rng, opt.random_starts, dl)
+    seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
+                   rng, opt.random_starts, dl, derived.seeds if derived else None)
     # cones known already: mesh through them first, then from the seeds no mesh covers
     cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
@@ -338,7 +341,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
             len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
                                    dl, cones)
-        meshes, checks = [], []  # the cone pass keeps what it does not replace
+        if cone_pass is not None:  # (which keeps the meshes it does not replace)
+            meshes, checks = [], []
     if cone_pass is not None:
         meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
         critical, where = cone_pass.critical, cone_pass.where

@@ -143,7 +143,7 @@ def five_bar_chain(linkage: Linkage, cons: Constraints) -> FiveBarChain | None:
     moving vertices, two on circles of pinned bars joined through the third, in 3D the third's
     pin on both cranks' axes, no slider."""
     d, fixed = linkage.dimension, np.asarray(linkage.fixed, dtype=bool)
-    pinned: np.ndarray = fixed.all(axis=1)
+    pinned = np.asarray(fixed.all(axis=1), dtype=bool)
     if (fixed.any(axis=1) & ~pinned).any() or int((~pinned).sum()) != 3:
         return None
     ends, lengths = linkage.ends[cons.bars], linkage.lengths[cons.bars]
