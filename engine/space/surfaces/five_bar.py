@@ -35,7 +35,9 @@ bihomogeneous of degrees ``(2, 0), (0, 2), (1, 1), (1, 1)``, whose linear-produc
 :func:`engine.space.homotopy.track`: every isolated solution is the end of a path. Three systems
 (1 and 2 at both levels): 24 paths, against 4,608. The answer is derived when every path ended
 and no real end is singular (a singular real end is a degenerate critical point of ``s`` or a
-tangency of a level curve: lengths at a transition).
+tangency of a level curve: lengths at a transition). A chain whose band reaches ``A = C``
+(2D: ``l2 = l3``; 3D: the triangle ``PAC`` in a line, ``q = +-r_A r_C``) is left to the other
+methods: there ``B`` runs on a whole circle over one point and the double cover breaks down.
 
 **The linkage's critical points** follow: off the boundary (``t != 0``) the bars at ``B`` have
 independent directions and ``J`` is block triangular with full-rank blocks (the cranks' circles
@@ -211,10 +213,11 @@ def _on_axis(pin: np.ndarray, pos: np.ndarray, bars: list[tuple[int, float]],
 
 def _band(ca: Crank, cc: Crank, l2: float, l3: float, pin: np.ndarray | None,
           r_pin: float) -> tuple[bool, tuple[float, float] | None]:
-    """Whether the band is generic (its ends touch no triangle ``PAC`` in a line) and
-    ``(s_lo, s_hi)``, where ``B`` is real (None: nowhere)."""
+    """Whether the band is generic (its ends touch no triangle ``PAC`` in a line: in 2D,
+    ``l2 != l3``, else over ``A = C`` a whole circle of ``B``) and ``(s_lo, s_hi)``, where ``B``
+    is real (None: nowhere)."""
     if pin is None:
-        return True, ((l2 - l3) ** 2, (l2 + l3) ** 2)
+        return abs(l2 - l3) > AXIS_RTOL * max(l2, l3), ((l2 - l3) ** 2, (l2 + l3) ** 2)
     ra2 = float(np.sum((ca.centre - pin) ** 2)) + ca.radius**2
     rc2 = float(np.sum((cc.centre - pin) ** 2)) + cc.radius**2
     h1, h2 = (r_pin**2 + ra2 - l2**2) / 2, (r_pin**2 + rc2 - l3**2) / 2
