@@ -65,7 +65,7 @@ from engine.model.linkage import Linkage
 from engine.space.homotopy import REGULAR, SINGULAR, track
 from engine.space.linear_product import LinearProduct, Structure, bezout
 from engine.space.surfaces.geometry import Surface
-from engine.space.witnesses import REAL_TOL
+from engine.space.witnesses import REAL_TOL, SINGULAR_IMAG_TOL
 
 #: A pin within this distance (relative to the longest bar) of a crank's axis is on it.
 AXIS_RTOL = 1e-9
@@ -75,6 +75,10 @@ LIFT_RTOL = 1e-9
 #: A critical value of ``s`` within this (relative to ``s_hi - s_lo``) of a boundary value is a
 #: critical point of the linkage.
 CRITICAL_RTOL = 1e-7
+#: A singular end of system 2 within this of a critical point of ``s`` on the band's edge
+#: (in ``(x, y, z, w)``; a singular end is within about ``sqrt(T_END) = 1e-5`` of its point)
+#: is that point.
+SAME_END_TOL = 1e-3
 #: Ends of the crank-angle systems beyond this (the real ones have ``|(x, y, z, w)| = sqrt 2``)
 #: stop as far away.
 FAR_BOUND = 1e3
@@ -257,9 +261,10 @@ def _quadrics(ch: FiveBarChain, level: float | None) -> np.ndarray:
 
 
 def _solve(ch: FiveBarChain, level: float | None, rng: np.random.Generator,
-           deadline: Deadline) -> tuple[np.ndarray, str]:
-    """The real solutions (N, 2, 2) of system 1 or 2 as unit vectors ``(p, q)``, and what
-    voids the argument ('' when every path ended and no real end is singular)."""
+           deadline: Deadline) -> tuple[np.ndarray, np.ndarray, str]:
+    """The real regular solutions (N, 2, 2) of system 1 or 2 as unit vectors ``(p, q)``, the
+    singular ends near real points (K, 2, 2) (within about ``sqrt(T_END)`` of a multiple
+    solution), and what voids the argument ('' when every path ended)."""
     quad = _quadrics(ch, level)
 
     def system(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -273,14 +278,12 @@ def _solve(ch: FiveBarChain, level: float | None, rng: np.random.Generator,
     y = res.ends[:, 1:] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
     size = np.linalg.norm(y, axis=1)
     near = np.isfinite(size) & (size <= FAR_BOUND)
-    real = near & (np.linalg.norm(y.imag, axis=1) <= REAL_TOL * np.maximum(size, 1.0))
-    bad = "" if res.success else res.message
-    if (real & (res.state == SINGULAR)).any():
-        bad = "a real end is singular (a degenerate critical point: lengths at a transition)"
-    keep = real & (res.state == REGULAR)
-    pq = y[keep].real.reshape(-1, 2, 2)
+    imag = np.linalg.norm(y.imag, axis=1) / np.maximum(size, 1.0)
+    keep = near & (imag <= REAL_TOL) & (res.state == REGULAR)
+    odd = near & (imag <= SINGULAR_IMAG_TOL) & (res.state == SINGULAR)
+    pq, sing = (y[k].real.reshape(-1, 2, 2) for k in (keep, odd))
     pq /= np.linalg.norm(pq, axis=2, keepdims=True)
-    return pq, bad
+    return pq, sing, "" if res.success else res.message
 
 
 def _fibre(ch: FiveBarChain, level: float) -> np.ndarray:
@@ -352,16 +355,22 @@ def chain_seeds(surface: Surface, ch: FiveBarChain, rng: np.random.Generator,
         return ChainSeeds(np.zeros((0, m)), np.zeros((0, m)), 0, True, "no configuration",
                           "the middle vertex is real nowhere: the space is empty")
     s_lo, s_hi = ch.s_range
-    crit, why = _solve(ch, None, rng, deadline)
+    crit, sing, why = _solve(ch, None, rng, deadline)
     values = ch.s(crit[:, 0], crit[:, 1])
     tol = CRITICAL_RTOL * (s_hi - s_lo)
     inside = crit[(values >= s_lo - tol) & (values <= s_hi + tol)]
     on_edge = crit[(np.abs(values - s_lo) <= tol) | (np.abs(values - s_hi) <= tol)]
-    parts, whys = [inside], [why]
+    parts, whys = [inside], [why, "a degenerate critical point of |A - C|^2" if len(sing) else ""]
     for level in (s_lo, s_hi):
-        folds, why = _solve(ch, level, rng, deadline)
+        folds, sing, why = _solve(ch, level, rng, deadline)
+        # a critical point of s on the edge solves system 2 twice over (a singular end): it is
+        # system 1's; any other singular end is a tangency of theta to the edge
+        dist = np.linalg.norm((sing[:, None] - on_edge[None]).reshape(len(sing), len(on_edge), 4),
+                              axis=2)
+        if len(sing) and not (len(on_edge) and (dist.min(axis=1) <= SAME_END_TOL).all()):
+            why += "; a degenerate extremum of theta on the band's edge"
         parts += [folds, _fibre(ch, level)]
-        whys.append(why)
+        whys.append(why.strip("; "))
     seeds = lift(ch, surface.linkage, np.concatenate(parts))
     projected = [surface.project(u) for u in seeds]
     if not all(ok for _, ok in projected):
