@@ -313,14 +313,15 @@ def lift(ch: FiveBarChain, linkage: Linkage, pq: np.ndarray) -> np.ndarray:
         t2 = (ch.l2**2 - along**2) / dist**2
     else:  # three spheres: B - P = x a' + y c' + t (a' x c')
         ap, cp = a - ch.pin, c - ch.pin
-        gram = np.stack([np.stack([np.sum(ap * ap, 1), np.sum(ap * cp, 1)], 1),
-                         np.stack([np.sum(ap * cp, 1), np.sum(cp * cp, 1)], 1)], 1)
-        h = np.stack([(ch.r_pin**2 + gram[:, 0, 0] - ch.l2**2) / 2,
-                      (ch.r_pin**2 + gram[:, 1, 1] - ch.l3**2) / 2], axis=1)
-        xy = np.linalg.solve(gram, h[:, :, None])[:, :, 0]
-        inplane = xy[:, :1] * ap + xy[:, 1:] * cp
-        base, normal = ch.pin + inplane, np.cross(ap, cp)
-        t2 = (ch.r_pin**2 - np.sum(inplane**2, 1)) / np.sum(normal**2, 1)
+        aa, cc, ac = np.sum(ap * ap, 1), np.sum(cp * cp, 1), np.sum(ap * cp, 1)
+        h1, h2 = (ch.r_pin**2 + aa - ch.l2**2) / 2, (ch.r_pin**2 + cc - ch.l3**2) / 2
+        normal = np.cross(ap, cp)
+        det = np.sum(normal**2, 1)  # the Gram determinant: > 0 in a generic band
+        with np.errstate(divide="ignore", invalid="ignore"):  # (P, A, C in a line: no lift)
+            inplane = ((cc * h1 - ac * h2) / det)[:, None] * ap \
+                + ((aa * h2 - ac * h1) / det)[:, None] * cp
+            t2 = (ch.r_pin**2 - np.sum(inplane**2, 1)) / det
+        base = ch.pin + inplane
     scale2 = max(ch.l2, ch.l3) ** 2
     ok = t2 * np.sum(normal**2, 1) >= -LIFT_RTOL * scale2
     t = np.sqrt(np.maximum(t2[ok], 0.0))[:, None]
