@@ -380,7 +380,7 @@ def linkage_body(lk) -> dict:
 
 def test_spherical_five_bar_is_derived_through_http(client):
     """A spherical five-bar (3D, D = 2: 4,608 paths of the Lagrange homotopy, past the default
-    512) is complete by the five-bar chain's argument: one genus-4 surface, as the dense grid of
+    512) is complete by the five-bar chain's argument: one genus-3 surface, as the dense grid of
     its crank angles (B where three spheres meet) says."""
     from tests.engine.space.surfaces.conftest import (
         spherical_five_bar,

@@ -25,8 +25,8 @@ from tests.engine.space.surfaces.conftest import (
     spherical_five_bar_reference,
 )
 
-#: (g, L1, L2, L3, L4): genus 4, two tori, the whole torus of crank angles (two tori: the two
-#: sides of the plane O A C never meet), genus 5, genus 2, genus 4 again (other lengths).
+#: (g, L1, L2, L3, L4): genus 3, two tori, the whole torus of crank angles (two tori: the two
+#: sides of the plane O A C never meet), genus 5, genus 2.
 CASES = [(1.2, 0.6, 1.0, 0.9, 0.7), (1.2, 0.6, 0.5, 1.5, 1.4), (0.5, 0.6, 1.6, 1.5, 1.4),
          (1.2, 1.2, 1.0, 1.5, 1.4), (1.2, 0.6, 1.0, 0.4, 1.4)]
 
