@@ -152,9 +152,10 @@ def test_recognition():
     for lk in chains:
         assert five_bar_chain(lk, Surface(lk).cons) is not None
     # a slider; B's third bar to G1 (off C's axis: |B - G1| does not make |C - G1| constant);
-    # equal couplers (over A = C, B on a circle)
+    # equal couplers where the cranks' circles meet (over A = C, B on a circle), planar and
+    # spherical
     others = [slider_torus(), spherical_five_bar(*CASES[0], pin_b="G1"),
-              pentagon((1, 1, 1, 1, 1))]
+              pentagon((1, 1, 1, 1, 1)), spherical_five_bar(1.2, 0.6, 1.0, 1.0, 0.7)]
     for lk in others:
         assert five_bar_chain(lk, Surface(lk).cons) is None
     res = explore_surfaces(others[1])
