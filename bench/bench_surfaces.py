@@ -5,7 +5,8 @@ the tests).
 
 Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon (genus
 2), the pentagon at critical lengths (four cones: the cone homotopy and the meshing through the
-apexes; genus null), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best of
+apexes; genus null), a five-bar (genus 3), a 3D sliding torus, a 3D sphere and three spherical
+five-bars (4,608 Lagrange paths: ``derived`` by their crank angles' 24). For each, best of
 ``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
 options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the linear-
 product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU time:
@@ -71,6 +72,35 @@ def sphere() -> Linkage:
     return build_linkage(3, vs, [BarSpec("r", ("P", "A"))])
 
 
+def spherical_five_bar(g: float, l1: float, l2: float, l3: float, l4: float) -> Linkage:
+    """Unit sphere about the pin O; G1 = (1, 0, 0) and G2 (chord g from it, z = 0) pinned; A,
+    B, C on the sphere (bars OA, OB, OC), chords L1 (G1 A), L2 (A B), L3 (B C), L4 (G2 C): a
+    five-bar chain (engine.space.surfaces.five_bar), 4,608 Lagrange paths. Started where the
+    three spheres of B meet, on a grid of crank angles."""
+    gam = 2 * np.arcsin(g / 2)
+    pins = {"O": np.zeros(3), "G1": np.array([1.0, 0, 0]),
+            "G2": np.array([np.cos(gam), np.sin(gam), 0.0])}
+
+    def circle(pole: np.ndarray, chord: float, t: float) -> np.ndarray:
+        u = np.cross(pole, [0, 0, 1.0])
+        u /= np.linalg.norm(u)
+        al = 2 * np.arcsin(chord / 2)
+        return np.cos(al) * pole + np.sin(al) * (np.cos(t) * u + np.sin(t) * np.cross(pole, u))
+
+    for t1, t2 in ((a, b) for a in np.linspace(0.1, 6.2, 48) for b in np.linspace(0.1, 6.2, 48)):
+        a, c = circle(pins["G1"], l1, t1), circle(pins["G2"], l4, t2)
+        ac, h1, h2 = a @ c, 1 - l2 ** 2 / 2, 1 - l3 ** 2 / 2
+        x, y = (h1 - ac * h2) / (1 - ac ** 2), (h2 - ac * h1) / (1 - ac ** 2)
+        t2sq = (1 - x * x - y * y - 2 * x * y * ac) / (1 - ac ** 2)
+        if t2sq > 1e-3:
+            pos = pins | {"A": a, "B": x * a + y * c + np.sqrt(t2sq) * np.cross(a, c), "C": c}
+            vs = [VertexSpec(k, tuple(p), k in pins) for k, p in pos.items()]
+            ends = [("O", "A"), ("O", "B"), ("O", "C"), ("G1", "A"), ("A", "B"), ("B", "C"),
+                    ("G2", "C")]
+            return build_linkage(3, vs, [BarSpec(f"b{k}", e) for k, e in enumerate(ends)])
+    raise ValueError("no assembly")
+
+
 ROWS = {
     "pentagon (1,1,1,1,1)": lambda: pentagon((1, 1, 1, 1, 1)),
     "pentagon (1,1,2,2,3)": lambda: pentagon((1, 1, 2, 2, 3)),
@@ -78,6 +108,9 @@ ROWS = {
     "five-bar (2,1,1.4,1.6,1)": lambda: pentagon((2, 1, 1.4, 1.6, 1)),
     "3D sliding torus": torus,
     "3D sphere": sphere,
+    "spherical five-bar genus 3": lambda: spherical_five_bar(1.2, 0.6, 1.0, 0.9, 0.7),
+    "spherical five-bar genus 4": lambda: spherical_five_bar(1.2, 0.6, 1.6, 1.5, 1.4),
+    "spherical five-bar two tori": lambda: spherical_five_bar(1.2, 0.6, 0.5, 1.5, 1.4),
 }
 
 

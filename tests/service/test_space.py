@@ -378,6 +378,31 @@ def linkage_body(lk) -> dict:
                      for b, (i, j), n in zip(lk.bar_ids, lk.ends, lk.lengths, strict=True)]}
 
 
+def test_spherical_five_bar_is_derived_through_http(client):
+    """A spherical five-bar (3D, D = 2: 4,608 paths of the Lagrange homotopy, past the default
+    512) is complete by the five-bar chain's argument: one genus-3 surface, as the dense grid of
+    its crank angles (B where three spheres meet) says."""
+    from tests.engine.space.surfaces.conftest import (
+        spherical_five_bar,
+        spherical_five_bar_reference,
+    )
+
+    lengths = (1.2, 0.6, 1.0, 0.9, 0.7)
+    body = post(client, "/v1/analysis/configuration-space",
+                {"linkage": linkage_body(spherical_five_bar(*lengths)) | {"dimension": 3}})
+    search = body["search"]
+    assert search["complete"] and search["argument"] == "derived", search
+    assert "24 paths" in search["argument_detail"] and search["homotopy_paths"] == 4608
+    assert [s["euler"] for s in body["surfaces"]] == spherical_five_bar_reference(*lengths)
+    (surf,) = body["surfaces"]
+    assert surf["closed"] and surf["orientable"] and surf["morse_agrees"]
+    assert surf["betti_q"] == [1, 2 - surf["euler"], 1]
+    a, b = np.array(surf["positions"]["A"]), np.array(surf["positions"]["B"])
+    assert np.allclose(np.linalg.norm(b, axis=1), 1.0, atol=1e-9)
+    assert np.allclose(np.linalg.norm(a - b, axis=1), 1.0, atol=1e-9)
+    assert body["critical_points"] == []
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("l1", [0.49, 1.4])
 def test_gated_chain_driven_from_another_rotor_through_http(client, l1):

@@ -6,7 +6,9 @@ triangulation), :mod:`.homology` (Euler characteristic, orientability, Betti num
 and Q), :mod:`.morse` (critical points of a generic height: seeds on every compact component
 and the Morse check), :mod:`.cones` (every critical point by homotopy, the fans the mesh grows
 from around each cone's apex, the apexes' Morse terms and their resolution in the complex),
-:mod:`.explore` (the entry point :func:`explore_surfaces`).
+:mod:`.five_bar` (seeds and critical points of five-bar chains, planar or spherical, derived
+from their crank angles where the height's homotopy is too big), :mod:`.explore` (the entry
+point :func:`explore_surfaces`).
 """
 
 from engine.space.surfaces.explore import (

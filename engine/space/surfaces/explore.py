@@ -5,7 +5,10 @@ fixed): every compact component as a triangulated surface with its topology.
    system's real solutions, all of them found by homotopy when its paths -- ``2^E C(M, E)``
    from the linear-product start, else ``2^(M + E)`` from the total degree's -- are within
    ``homotopy_paths_max``: then every compact component holds one), the given
-   configuration and projected random starts.
+   configuration and projected random starts. Where the homotopy exceeds its bound or fails,
+   a five-bar chain (planar, or spherical with ``4,608`` paths) is seeded by the derived
+   argument of :mod:`.five_bar` (24 paths over its crank angles), which also gives every
+   critical point of the linkage.
 2. **Meshes**: from every seed that no mesh covers yet, march a triangulation
    (:mod:`.mesh`), within the triangle budget and the deadline.
 3. **Topology** per component (:mod:`.homology`): Euler characteristic, orientability, Betti
@@ -28,7 +31,8 @@ fixed): every compact component as a triangulated surface with its topology.
 The answer is complete only when every mesh closed as a 2-manifold (but at its apexes), passed
 the geometric and Morse checks, every critical point of the linkage is a cone it passes through
 (found by a cone homotopy whose every path ended), and the homotopy proved the seeds
-(``argument = "proved"``); otherwise ``search.reason`` says what is missing.
+(``argument = "proved"``) or the five-bar chain's argument derived them (``"derived"``);
+otherwise ``search.reason`` says what is missing.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
 from engine.space.surfaces.cones import cone_fans, cone_morse_term, find_cones, is_cone
+from engine.space.surfaces.five_bar import ChainSeeds, chain_seeds, five_bar_chain
 from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.homology import (
     Homology,
@@ -209,11 +214,15 @@ def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
 
 
 def _seeds(surface: Surface, start: np.ndarray | None, witnesses: np.ndarray,
-           rng: np.random.Generator, count: int, deadline: Deadline) -> list[np.ndarray]:
-    """The height's critical points, the given configuration, projected random starts."""
+           rng: np.random.Generator, count: int, deadline: Deadline,
+           derived: np.ndarray | None = None) -> list[np.ndarray]:
+    """The height's critical points, the given configuration, the ``derived`` seeds (after
+    the configuration: where one component holds both, its mesh grows from the same point with
+    or without them), projected random starts."""
     seeds = list(witnesses)
     if start is not None:
         seeds.append(start)
+    seeds += list(derived if derived is not None else [])
     scale = float(np.median(surface.linkage.lengths[surface.cons.bars]))
     base = surface.linkage.coordinates()
     for _ in range(count):
@@ -310,11 +319,16 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     c /= np.linalg.norm(c)
     wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
         if opt.homotopy_paths_max > 0 else None
-    scale = float(np.median(linkage.lengths[cons.bars]))
-    step = opt.step_rel * scale
+    chain = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
+    derived = chain_seeds(surface, chain, rng, dl.fraction(0.3)) if chain else None
+    if derived is not None and cones is None:  # every critical point: no cone homotopy
+        refs = [refine_critical(cons, u, tol) for u in derived.critical]
+        cones = ([CriticalPoint(r.u, classify(linkage, r.u, tol), r.length_residual,
+                                r.stress_residual) for r in refs], derived.success)
+    step = opt.step_rel * float(np.median(linkage.lengths[cons.bars]))
     start = linkage.coordinates() if start_on_space else None
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
-                   rng, opt.random_starts, dl)
+                   rng, opt.random_starts, dl, derived.seeds if derived else None)
     # cones known already: mesh through them first, then from the seeds no mesh covers
     cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
@@ -327,7 +341,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
             len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
                                    dl, cones)
-        meshes, checks = [], []  # the cone pass keeps what it does not replace
+        if cone_pass is not None:  # (which keeps the meshes it does not replace)
+            meshes, checks = [], []
     if cone_pass is not None:
         meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
         critical, where = cone_pass.critical, cone_pass.where
@@ -347,7 +362,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                             if w == k and is_cone(critical[j])))
              for k, m in enumerate(meshes)]
     return SurfaceResult(comps, c, crit, owner, critical,
-                         _report(wit, comps, owner, critical, dl, budget_hit, step, cone_pass))
+                         _report(wit, comps, owner, critical, dl, budget_hit, step, cone_pass,
+                                 derived))
 
 
 @dataclass(frozen=True)
@@ -432,12 +448,15 @@ def _sound(c: SurfaceComponent) -> bool:
 
 def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
             owner: np.ndarray, critical: list[CriticalPoint], dl: Deadline, budget_hit: bool,
-            step: float, cone_pass: _ConePass | None) -> SearchReport:
-    """The search report: complete only with the homotopy's proof, every surface closed and
-    sound, every critical point of the height on one, and every critical point of the linkage
-    a cone found by the cone homotopy (every path ended) and meshed through."""
-    proved = (wit is not None and wit.success
-              and (cone_pass is None or cone_pass.ended))
+            step: float, cone_pass: _ConePass | None, derived: ChainSeeds | None = None
+            ) -> SearchReport:
+    """The search report: complete only with the homotopy's proof (or the five-bar chain's
+    derived seeds), every surface closed and sound, every critical point of the height on one,
+    and every critical point of the linkage a cone found by the cone homotopy (or the chain's
+    argument; every path ended) and meshed through."""
+    ended = cone_pass is None or cone_pass.ended
+    proved = wit is not None and wit.success and ended
+    by_chain = not proved and derived is not None and derived.success and ended
     paths = wit.paths if wit is not None else 0
     sound = all(_sound(c) for c in comps)
     meshed = cone_pass is not None and all(w >= 0 for w in cone_pass.where)
@@ -453,6 +472,7 @@ def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
         "morse_agrees": all(c.morse_agrees for c in comps),
         "cones": sum(len(c.apexes) for c in comps),
         "cone_homotopy_ended": None if cone_pass is None else cone_pass.ended,
+        "five_bar_chain": None if derived is None else derived.message,
     }
     detail = ("every compact component holds a maximum of a generic height: the "
               f"{paths} paths of the Lagrange system's homotopy (from a "
@@ -462,8 +482,9 @@ def _report(wit: HeightWitnesses | None, comps: list[SurfaceComponent],
                   f"; the {len(critical)} critical points of the linkage, all found by the "
                   "cone homotopy (every path ended), are cones the meshes pass through, their "
                   "apexes counted by stratified Morse theory" if cone_pass is not None
-                  else "")) if proved else None
+                  else "")) if proved else derived.detail if by_chain and derived else None
     return SearchReport(details, timed_out=dl.expired(), budget=budget_hit,
                         degenerate=degenerate, unresolved=not sound or missed > 0,
-                        time_budget_s=granted(dl), argument="proved" if proved else None,
+                        time_budget_s=granted(dl),
+                        argument="proved" if proved else "derived" if by_chain else None,
                         argument_detail=detail)

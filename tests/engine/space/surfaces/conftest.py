@@ -5,6 +5,8 @@ from __future__ import annotations
 from itertools import combinations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from engine.model.constraints import project
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
@@ -135,3 +137,83 @@ def slider_torus() -> Linkage:
     bs = [BarSpec("PA", ("P", "A"), 1.2), BarSpec("QB", ("Q", "B"), 0.8),
           BarSpec("AB", ("A", "B"), 2.2)]
     return build_linkage(3, vs, bs)
+
+
+def _on_circle(pole: np.ndarray, chord: float, angles: np.ndarray) -> np.ndarray:
+    """Points (N, 3) of the unit sphere at ``chord`` from ``pole`` (on it), at ``angles``
+    about the axis through ``pole``."""
+    u = np.cross(pole, [0.0, 0.0, 1.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(pole, u)
+    alpha = 2 * np.arcsin(chord / 2)
+    return np.cos(alpha) * pole + np.sin(alpha) * (np.cos(angles)[:, None] * u
+                                                   + np.sin(angles)[:, None] * v)
+
+
+def _sphere_pins(g: float) -> tuple[np.ndarray, np.ndarray]:
+    gamma = 2 * np.arcsin(g / 2)
+    return np.array([1.0, 0.0, 0.0]), np.array([np.cos(gamma), np.sin(gamma), 0.0])
+
+
+def _middle(a: np.ndarray, c: np.ndarray, l2: float, l3: float
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Where the unit sphere and the spheres of radii ``l2`` about ``a`` and ``l3`` about ``c``
+    (a, c (..., 3) on the unit sphere) meet: ``B = x a + y c + t (a x c)`` with ``B . a = 1 -
+    l2^2 / 2``, ``B . c = 1 - l3^2 / 2``; the point with ``t >= 0`` and ``t^2`` (negative:
+    no point)."""
+    ac = np.sum(a * c, axis=-1)
+    h1, h2 = 1 - l2 ** 2 / 2, 1 - l3 ** 2 / 2
+    det = 1 - ac ** 2
+    x, y = (h1 - ac * h2) / det, (h2 - ac * h1) / det
+    t2 = (1 - (x * x + y * y + 2 * x * y * ac)) / det  # |a x c|^2 = det
+    t = np.sqrt(np.maximum(t2, 0.0))
+    return x[..., None] * a + y[..., None] * c + t[..., None] * np.cross(a, c), t2
+
+
+def spherical_five_bar(g: float, l1: float, l2: float, l3: float, l4: float,
+                       pin_b: str = "O") -> Linkage:
+    """The spherical five-bar (unit sphere): ``O`` the centre, ``G1 = (1, 0, 0)`` and ``G2`` (in
+    the plane z = 0, chord ``g`` from ``G1``) pinned; ``A``, ``B``, ``C`` on the sphere (bars
+    ``OA``, ``OB``, ``OC``; ``pin_b`` replaces ``O`` as the pin of ``B``'s third bar), crank
+    ``L1`` (``G1-A``), couplers ``L2`` (``A-B``), ``L3`` (``B-C``), crank ``L4`` (``G2-C``): every
+    length is a chord. Started at the first crank angles (a grid) where ``B`` is real."""
+    g1, g2 = _sphere_pins(g)
+    t = np.linspace(0.1, 6.2, 48)
+    a, c = _on_circle(g1, l1, t)[:, None], _on_circle(g2, l4, t)[None, :]
+    a, c = np.broadcast_to(a, (48, 48, 3)), np.broadcast_to(c, (48, 48, 3))
+    b, t2 = _middle(a, c, l2, l3)
+    i, j = np.argwhere(t2 > 1e-3)[0]
+    pins = {"O": np.zeros(3), "G1": g1, "G2": g2}
+    pos = pins | {"A": a[i, j], "B": b[i, j], "C": c[i, j]}
+    vs = [VertexSpec(k, tuple(p), k in pins) for k, p in pos.items()]
+    bs = [BarSpec("OA", ("O", "A")), BarSpec("OB", (pin_b, "B")), BarSpec("OC", ("O", "C")),
+          BarSpec("L1", ("G1", "A")), BarSpec("L2", ("A", "B")), BarSpec("L3", ("B", "C")),
+          BarSpec("L4", ("G2", "C"))]
+    return build_linkage(3, vs, bs)
+
+
+def spherical_five_bar_reference(g: float, l1: float, l2: float, l3: float, l4: float,
+                                 n: int = 400) -> list[int]:
+    """The Euler characteristics (sorted) of the spherical five-bar's components from a dense
+    grid of its crank angles, with ``B`` where three spheres meet: the space is the double
+    cover of the region ``R`` of the torus where ``B`` is real, branched along its boundary
+    circles, so each component of ``R`` with a boundary is one component of ``chi = 2
+    chi(R_k)`` (the cubical complex of the grid points in ``R_k``, periodic), and ``R`` the
+    whole torus is two (the two sides of the plane ``O A C`` never meet)."""
+    g1, g2 = _sphere_pins(g)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    a, c = _on_circle(g1, l1, t)[:, None], _on_circle(g2, l4, t)[None, :]
+    inside = _middle(np.broadcast_to(a, (n, n, 3)), np.broadcast_to(c, (n, n, 3)), l2, l3)[1] >= 0
+    right, up = np.roll(inside, -1, 0), np.roll(inside, -1, 1)
+    idx = np.arange(n * n).reshape(n, n)
+    rows = np.concatenate([idx[inside & right], idx[inside & up]])
+    cols = np.concatenate([np.roll(idx, -1, 0)[inside & right], np.roll(idx, -1, 1)[inside & up]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n * n, n * n))
+    label = connected_components(graph, directed=False)[1].reshape(n, n)
+    square = inside & right & up & np.roll(right, -1, 1)
+    chis = []
+    for k in np.unique(label[inside]):
+        m = label == k
+        chis.append(2 * int((m & inside).sum() - (m & inside & right).sum()
+                            - (m & inside & up).sum() + (m & square).sum()))
+    return sorted(chis * (2 if inside.all() else 1))

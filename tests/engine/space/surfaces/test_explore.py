@@ -47,14 +47,37 @@ def test_3d_surfaces_are_proved(build, betti):
 
 
 def test_pentagon_without_the_homotopy_is_searched():
-    # below the linear product's 2^4 C(6, 4) = 240 paths the homotopy is not run
+    # below the linear product's 2^4 C(6, 4) = 240 paths the homotopy is not run; the
+    # equilateral pentagon is a five-bar chain whose couplers are equal (l2 = l3: over A = C the
+    # middle vertex runs on a circle), which engine.space.surfaces.five_bar leaves alone
     res = explore_surfaces(pentagon((1, 1, 1, 1, 1)),
                            options=SurfaceOptions(step_rel=0.35, homotopy_paths_max=239))
     (comp,) = res.components
     assert comp.homology.genus == 4 and comp.morse_agrees
-    assert res.search.reason == "searched"
+    assert res.search.reason == "searched" and res.search["five_bar_chain"] is None
     assert "240 paths exceed" in res.search["homotopy"]
     assert res.search["homotopy_start"] is None
+
+
+def test_pentagon_without_the_homotopy_is_derived():
+    """Couplers 1.2 and 1: the five-bar chain's crank angles seed it (24 paths); Farber and
+    Schuetz give its Betti numbers."""
+    lengths = (1, 1, 1.2, 1, 1)
+    res = explore_surfaces(pentagon(lengths),
+                           options=SurfaceOptions(step_rel=0.35, homotopy_paths_max=239))
+    (comp,) = res.components
+    assert comp.homology.betti_q == pentagon_betti(lengths) and comp.morse_agrees
+    assert res.search.complete and res.search["argument"] == "derived"
+    assert "240 paths exceed" in res.search["homotopy"]
+
+
+def test_without_the_homotopy_nor_a_chain_is_searched():
+    # the sliding torus is no five-bar chain: below its 2^3 C(5, 3) = 80 paths, searched
+    res = explore_surfaces(slider_torus(), options=SurfaceOptions(homotopy_paths_max=79))
+    (comp,) = res.components
+    assert comp.homology.betti_q == (1, 2, 1) and comp.morse_agrees
+    assert res.search.reason == "searched" and res.search["five_bar_chain"] is None
+    assert "80 paths exceed" in res.search["homotopy"]
 
 
 def test_pentagon_is_proved_by_the_linear_product():
