@@ -1,0 +1,277 @@
+"""The spherical four-bar's critical curves in closed form against references written here: its
+configuration space by dense sampling of the crank angle (``A`` on its hinge circle, ``B`` where
+three spheres meet), and its critical set as equalities of the arcs (law of cosines)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from engine.catalogue.presets import build_preset
+from engine.design.critical_values import critical_value_slice
+from engine.design.spherical_curves import spherical_curves, spherical_four_bar
+from engine.model.linkage import BarSpec, VertexSpec, build_linkage
+from tests.engine.design.slice_references import distance_to_curves, points_inside
+
+SHORTEST = 1e-6
+CHORDS = ("L1", "L2", "L3")
+
+
+class Sphere:
+    """A spherical four-bar as the tests see it: pins ``O = 0``, ``G1``, ``G2``; tips at
+    ``ra``, ``rb`` from ``O``; chords ``l1`` (G1 A), ``l2`` (A B), ``l3`` (B G2)."""
+
+    def __init__(self, g1: np.ndarray, g2: np.ndarray, ra: float, rb: float) -> None:
+        self.g1, self.g2, self.ra, self.rb = g1, g2, ra, rb
+        self.gamma = float(np.arccos(g1 @ g2 / np.linalg.norm(g1) / np.linalg.norm(g2)))
+
+    def arcs(self, lengths: np.ndarray) -> np.ndarray:
+        """(..., 3) the angles at ``O`` of its three triangles (NaN: does not close)."""
+        lengths = np.asarray(lengths, dtype=float)
+        p = np.array([np.linalg.norm(self.g1), self.ra, self.rb])
+        q = np.array([self.ra, self.rb, np.linalg.norm(self.g2)])
+        cos = (p * p + q * q - lengths**2) / (2 * p * q)
+        with np.errstate(invalid="ignore"):
+            return np.where(np.abs(cos) <= 1, np.arccos(np.clip(cos, -1, 1)), np.nan)
+
+    def residual(self, lengths: np.ndarray) -> np.ndarray:
+        """(...,) how far (radians) the arcs are from a critical equality: a signed sum minus
+        the ground arc a multiple of 2 pi, or an arc 0 or pi (where a triangle is flat)."""
+        a = self.arcs(lengths)
+        best = np.min(np.minimum(np.abs(a), np.abs(np.pi - a)), axis=-1)
+        for s in itertools.product((1, -1), repeat=3):
+            v = a @ np.array(s, dtype=float) - self.gamma
+            best = np.minimum(best, np.abs(v - 2 * np.pi * np.round(v / (2 * np.pi))))
+        return best
+
+    def components(self, lengths: np.ndarray, n: int = 6000) -> int:
+        """Components by dense sampling: ``A`` at ``n`` angles on its hinge circle, ``B`` the
+        (up to two) points at ``rb`` from ``O``, ``l3`` from ``G2`` and ``l2`` from ``A``. The
+        angles where ``B`` exists form arcs: the whole circle holds two components (the two
+        sides of the plane ``O A G2``, apart throughout), every other arc one (its ends are
+        folds where the two sides meet)."""
+        l1, l2, l3 = lengths
+        d1 = float(np.linalg.norm(self.g1))
+        axis = self.g1 / d1
+        along = (self.ra**2 - l1**2 + d1**2) / (2 * d1)
+        if self.ra**2 - along**2 <= 0:
+            return 0
+        rho = np.sqrt(self.ra**2 - along**2)
+        e1 = np.cross(axis, [0.3, 0.5, 0.8])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(axis, e1)
+        t = 2 * np.pi * np.arange(n) / n
+        a = along * axis + rho * (np.cos(t)[:, None] * e1 + np.sin(t)[:, None] * e2)  # (n, 3)
+        # B = x G2 + y A + z (G2 x A): B . G2 and B . A fixed, |B| = rb
+        bg = (self.rb**2 + self.g2 @ self.g2 - l3**2) / 2
+        ba = (self.rb**2 + self.ra**2 - l2**2) / 2
+        gg, ga, aa = self.g2 @ self.g2, a @ self.g2, np.einsum("ij,ij->i", a, a)
+        det = gg * aa - ga**2
+        x = (bg * aa - ba * ga) / det
+        y = (ba * gg - bg * ga) / det
+        base2 = x**2 * gg + 2 * x * y * ga + y**2 * aa
+        exists = self.rb**2 - base2 > 0  # (n,) the height off the plane O A G2 is real
+        if exists.all():
+            return 2
+        if not exists.any():
+            return 0
+        return int(np.sum(exists & ~np.roll(exists, 1)))  # runs of the circular sequence
+
+
+def preset_sphere(params: dict[str, float]) -> Sphere:
+    p = {"R": 1.0, "g": 1.2} | params
+    gam = 2 * np.arcsin(p["g"] / (2 * p["R"]))
+    return Sphere(np.array([p["R"], 0.0, 0.0]), p["R"] * np.array([np.cos(gam), np.sin(gam), 0]),
+                  p["R"], p["R"])
+
+
+def general_linkage(g1: np.ndarray, g2: np.ndarray, ra: float, rb: float,
+                    chords: tuple[float, float, float], seed: int = 0):
+    """A spherical four-bar with pins off the tips' spheres (every radius different), built
+    from a configuration found by sampling the reference: None where none was found."""
+    ref = Sphere(g1, g2, ra, rb)
+    if ref.components(np.array(chords)) == 0:
+        return None, ref
+    rng = np.random.default_rng(seed)
+    l1, l2, l3 = chords
+    for _ in range(20000):  # A on its circle at random, then B from the three spheres
+        d1 = float(np.linalg.norm(g1))
+        along = (ra**2 - l1**2 + d1**2) / (2 * d1)
+        axis = g1 / d1
+        e1 = np.cross(axis, rng.normal(size=3))
+        e1 /= np.linalg.norm(e1)
+        a = along * axis + np.sqrt(ra**2 - along**2) * e1
+        m = np.array([g2, a])
+        rhs = np.array([(rb**2 + g2 @ g2 - l3**2) / 2, (rb**2 + ra**2 - l2**2) / 2])
+        base = np.linalg.lstsq(m, rhs, rcond=None)[0]
+        h2 = rb**2 - base @ base
+        if h2 > 0:
+            nrm = np.cross(g2, a)
+            b = base + np.sqrt(h2) * nrm / np.linalg.norm(nrm)
+            verts = [VertexSpec("O", [0, 0, 0], True), VertexSpec("G1", g1.tolist(), True),
+                     VertexSpec("G2", g2.tolist(), True), VertexSpec("A", a.tolist()),
+                     VertexSpec("B", b.tolist())]
+            bars = [BarSpec("OA", ("O", "A")), BarSpec("OB", ("O", "B")),
+                    BarSpec("L1", ("G1", "A")), BarSpec("L2", ("A", "B")),
+                    BarSpec("L3", ("G2", "B"))]
+            return build_linkage(3, verts, bars), ref
+    return None, ref
+
+
+def random_spheres(count: int, seed: int = 11) -> list[dict[str, float]]:
+    """Preset parameters (chords shorter than 2 R) that assemble."""
+    rng = np.random.default_rng(seed)
+    out: list[dict[str, float]] = []
+    while len(out) < count:
+        p = {"R": float(rng.uniform(0.7, 1.5))}
+        p |= {k: float(rng.uniform(0.25, 1.9) * p["R"]) for k in ("g", "L1", "L2", "L3")}
+        if preset_sphere(p).components(np.array([p["L1"], p["L2"], p["L3"]])) > 0:
+            out.append(p)
+    return out
+
+
+CASES = [({}, ("L1", "L2"), (0.3, 0.9), (0.65, 1.95)),
+         ({}, ("L2", "L3"), (0.5, 1.5), (0.5, 1.5)),
+         ({}, ("L1", "L3"), (0.2, 1.0), (0.6, 1.4)),
+         ({}, ("L3", "L1"), (0.6, 1.4), (0.2, 2.3))]  # past L1 = 2 R: empty beyond
+for params in random_spheres(4):
+    for pair in itertools.combinations(CHORDS, 2):
+        CASES.append((params, pair, (0.6 * params[pair[0]], min(1.4 * params[pair[0]], 1.99)),
+                      (0.6 * params[pair[1]], min(1.4 * params[pair[1]], 1.99))))
+
+
+def _lengths(params: dict[str, float], axes: tuple[str, str], xy: np.ndarray) -> np.ndarray:
+    base = {"L1": 0.6, "L2": 1.3, "L3": 1.0} | {k: v for k, v in params.items() if k in CHORDS}
+    out = np.array([[base[c] for c in CHORDS]] * len(xy))
+    for m, name in enumerate(axes):
+        out[:, CHORDS.index(name)] = xy[:, m]
+    return out
+
+
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), CASES,
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(CASES)])
+def test_every_drawn_point_is_critical_and_every_critical_point_is_drawn(params, axes, xs, ys):
+    """Every point of every piece satisfies an arc equality (to rounding); scanning 41 lines of
+    each axis, every sign change of an equality's residual where the linkage assembles (the
+    reference sampler) is within a chord's sag of a piece; pieces a step apart at most."""
+    lk = build_preset("spherical-four-bar", params)
+    ref = preset_sphere(params)
+    box = np.array([xs, ys])
+    step = float(min(box[:, 1] - box[:, 0])) / 48
+    curves = spherical_curves(lk, tuple(lk.bar_ids.index(a) for a in axes), box, step, SHORTEST)
+    assert curves is not None
+    for c in curves:
+        assert np.all(np.linalg.norm(np.diff(c, axis=0), axis=1) <= step * (1 + 1e-9))
+        assert np.all((c >= box[:, 0] - 1e-12) & (c <= box[:, 1] + 1e-12))
+        assert np.all(ref.residual(_lengths(params, axes, c)) < 1e-6)
+    # scan: the signed sums' residuals change sign along a line where a curve crosses it
+    found = []
+    for m in range(2):
+        for v in np.linspace(*box[m], 41)[1:-1]:
+            t = np.linspace(*box[1 - m], 4001)
+            xy = np.zeros((len(t), 2))
+            xy[:, m], xy[:, 1 - m] = v, t
+            lengths = _lengths(params, axes, xy)
+            arcs = ref.arcs(lengths)  # (n, 3)
+            for s in itertools.product((1, -1), repeat=3):
+                for k in (-1, 0, 1):
+                    f = arcs @ np.array(s) - ref.gamma - 2 * np.pi * k
+                    for i in np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0):
+                        found.append(0.5 * (xy[i] + xy[i + 1]))
+    if found:
+        gap = distance_to_curves(np.array(found), curves)
+        assert np.all(gap <= 2 * step), gap.max()
+
+
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), CASES[:9],
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(CASES[:9])])
+def test_points_joined_away_from_the_curves_have_equal_counts(params, axes, xs, ys):
+    """Random points of the box whose joining segment stays a step away from every curve have
+    the same number of components (dense sampling): the curves hold every change."""
+    lk = build_preset("spherical-four-bar", params)
+    ref = preset_sphere(params)
+    box = np.array([xs, ys])
+    step = float(min(box[:, 1] - box[:, 0])) / 48
+    curves = spherical_curves(lk, tuple(lk.bar_ids.index(a) for a in axes), box, step, SHORTEST)
+    rng = np.random.default_rng(3)
+    pts = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.uniform(size=(25, 2))
+    pts = pts[distance_to_curves(pts, curves) > 2 * step] if curves else pts
+    counts = [ref.components(x) for x in _lengths(params, axes, pts)]
+    for i, j in itertools.combinations(range(len(pts)), 2):
+        seg = pts[i] + np.linspace(0, 1, 100)[:, None] * (pts[j] - pts[i])
+        if not curves or np.min(distance_to_curves(seg, curves)) > step:
+            assert counts[i] == counts[j], (pts[i], pts[j])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), CASES[:4],
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(CASES[:4])])
+def test_the_slice_is_derived_and_every_region_counts_as_dense_sampling(params, axes, xs, ys):
+    """The map through :func:`critical_value_slice` is complete with argument ``derived`` (the
+    curves the closed form's, the regions' counts exact) and every region's count, at its
+    sample and at points inside it, equals the dense sampling's."""
+    lk = build_preset("spherical-four-bar", params)
+    ref = preset_sphere(params)
+    box = np.array([xs, ys])
+    s = critical_value_slice(lk, [(axes[0], *xs), (axes[1], *ys)], resolution=48)
+    assert s.search.complete and s.search.argument == "derived", s.search.argument_detail
+    assert s.search.details["method"] == "closed form"
+    for r in s.regions:
+        at = [np.array(r.point)] + points_inside(s.curves, box, 48, np.array(r.point))
+        for x in _lengths(params, axes, np.array(at)):
+            assert ref.components(x) == r.components, (r.point, x)
+
+
+def test_pins_off_the_sphere_are_recognised_and_their_curves_critical():
+    """A spherical four-bar with every radius different (pins at 1.3 and 0.8 from O, tips at 1.0
+    and 1.2): recognised; its curves over two chords satisfy the arc equalities or a flat
+    triangle (the lines L = |p - q| in the box), and counts agree across them as sampled."""
+    g1, g2 = np.array([1.3, 0.0, 0.0]), 0.8 * np.array([np.cos(1.1), np.sin(1.1), 0.0])
+    lk, ref = general_linkage(g1, g2, 1.0, 1.2, (0.9, 1.1, 0.7))
+    assert lk is not None and spherical_four_bar(lk) is not None
+    box = np.array([[0.2, 2.0], [0.1, 1.6]])  # L1 over |1.3 - 1.0| = 0.3 .. 2.3: the line 0.3
+    step = 1.8 / 48
+    axes = (lk.bar_ids.index("L1"), lk.bar_ids.index("L3"))
+    curves = spherical_curves(lk, axes, box, step, SHORTEST)
+    assert curves
+    for c in curves:
+        assert np.all(ref.residual(np.column_stack([c[:, 0], np.full(len(c), 1.1), c[:, 1]]))
+                      < 1e-6)
+    edge = [c for c in curves if np.allclose(c[:, 0], 0.3)]  # the crank's flat triangle
+    assert edge
+    for c in edge:  # drawn where the rest assembles: just inside the edge, it does
+        assert ref.components(np.array([0.3 + 1e-6, 1.1, c[len(c) // 2, 1]])) > 0
+    rng = np.random.default_rng(8)
+    pts = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.uniform(size=(30, 2))
+    pts = pts[distance_to_curves(pts, curves) > 2 * step]
+    counts = [ref.components(np.array([x, 1.1, y])) for x, y in pts]
+    assert len(set(counts)) > 1
+    for i, j in itertools.combinations(range(len(pts)), 2):
+        seg = pts[i] + np.linspace(0, 1, 100)[:, None] * (pts[j] - pts[i])
+        if np.min(distance_to_curves(seg, curves)) > step:
+            assert counts[i] == counts[j], (pts[i], pts[j])
+
+
+def test_other_linkages_and_axes_decline():
+    """Not spherical four-bars (a planar four-bar, a 3D rotor chain whose hinges share no pin,
+    pins on one line through the centre) and maps over a radius are left to the tracing."""
+    box = np.array([[0.8, 1.2], [0.8, 1.2]])
+    assert spherical_four_bar(build_preset("four-bar")) is None
+    assert spherical_four_bar(build_preset("rotor-chain-3d", {"n": 2})) is None
+    lk = build_preset("spherical-four-bar")
+    assert spherical_curves(lk, (0, 1), box, 0.01, SHORTEST) is None  # OA, OB
+    assert spherical_curves(lk, (0, 2), box, 0.01, SHORTEST) is None  # OA, L1
+    g1, g2 = np.array([1.0, 0.0, 0.0]), np.array([-1.2, 0.0, 0.0])
+    line, _ = general_linkage(g1, g2, 1.0, 1.1, (0.9, 1.2, 1.0))
+    assert line is None or spherical_four_bar(line) is None
+
+
+def test_a_box_where_the_space_is_empty_has_no_curves():
+    """Chords past the triangle's range (L1 > 2 R) everywhere in the box: the space is empty,
+    no critical value; the third chord's triangle open: likewise."""
+    lk = build_preset("spherical-four-bar")
+    assert spherical_curves(lk, (2, 3), np.array([[2.1, 2.5], [0.5, 1.0]]), 0.01,
+                            SHORTEST) == []
+    assert preset_sphere({}).components(np.array([2.2, 0.7, 1.0])) == 0
