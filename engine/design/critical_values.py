@@ -55,6 +55,7 @@ from engine.design.slice_regions import (
 from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
 from engine.design.slice_turning import TurningFound, turning_paths, turning_points
 from engine.design.spherical_curves import SPHERICAL_CURVES, spherical_curves
+from engine.design.spherical_radii import radius_curves
 from engine.local.critical import refine_critical
 from engine.model.budget import (
     NEVER,
@@ -90,7 +91,7 @@ SEED_MAX_POINTS = 2000
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
 #: chains (the four-bar family), of a gated chain in its gate's lengths, of rotor chains
 #: whose cells cannot combine (:mod:`.chain_planes`), of three-rotors (:mod:`.chain_curves`) and
-#: of spherical four-bars in two chords (:mod:`.spherical_curves`)
+#: of spherical four-bars (:mod:`.spherical_curves`, :mod:`.spherical_radii`)
 #: from their closed forms and traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
@@ -158,7 +159,7 @@ def critical_value_slice(
 
     ``method="auto"`` takes the curves from closed-form critical lines where they are known
     (one-dyad planar chains; a gated chain in its gate's lengths; rotor chains whose four-bar
-    cells cannot combine in the box; three-rotors; spherical four-bars in two chords:
+    cells cannot combine in the box; three-rotors; spherical four-bars:
     :func:`_closed_form_curves`), sampled at
     the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
@@ -326,6 +327,7 @@ def _closed_form_curves(
             return None
         shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
         sphere = spherical_curves(linkage, bars, box, step, shortest)
+        sphere = radius_curves(linkage, bars, box, step, shortest) if sphere is None else sphere
         if sphere is not None:
             return sphere, SPHERICAL_CURVES
         two = two_cell_curves(linkage, bars, box, step, shortest)

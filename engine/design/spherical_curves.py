@@ -47,7 +47,8 @@ is empty; its edge is that flat triangle.
 arcs the flat critical values are straight segments of slope +-1 and the flat triangles
 segments of the lines ``alpha = 0, pi``, each mapped back to lengths and sampled uniformly (the
 bound on ``dL / dalpha`` keeps samples at most ``step`` apart). Maps over ``OA`` or ``OB``
-(both arcs of a tip move: not separable) are left to the tracing.
+(both arcs of a tip move: not separable) are drawn from the flat configurations themselves
+(:mod:`.spherical_radii`).
 
 >>> from engine.catalogue.presets import build_preset
 >>> lk = build_preset("spherical-four-bar")
@@ -79,7 +80,8 @@ Curves = list[np.ndarray]
 SPHERICAL_CURVES = (
     "a flat configuration of the spherical four-bar (every joint on the great circle through "
     "its pins: a signed sum of its arcs and the ground arc a multiple of 2 pi) or a triangle "
-    "of the centre flat where the rest assembles (closed form, in the arcs)")
+    "of the centre flat where the rest assembles (closed form: in the arcs over two chords, "
+    "from the planar flat configurations over a radius)")
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The spherical four-bar's maps over two of its chords through HTTP (issues 23 and 30):
+"""The spherical four-bar's maps over two of its bars through HTTP (issues 23 and 30):
 complete with the argument ``derived``, every curve on the critical set in the arcs and every
 region's count equal to dense sampling (:mod:`tests.engine.design.sphere_reference`); the
 figure draws the same map."""
@@ -13,7 +13,7 @@ import pytest
 from tests.engine.design.sphere_reference import preset_sphere
 from tests.service.test_figures import svg_ids, svg_text, with_prefix
 
-CHORDS = ("L1", "L2", "L3")
+BARS = ("OA", "OB", "L1", "L2", "L3")
 
 
 def _map(client: Any, path: str, axes: list[tuple[str, float, float]]) -> Any:
@@ -25,8 +25,10 @@ def _map(client: Any, path: str, axes: list[tuple[str, float, float]]) -> Any:
 
 @pytest.mark.parametrize("axes", [[("L1", 0.3, 0.9), ("L2", 0.65, 1.95)],
                                   [("L2", 0.5, 1.5), ("L3", 0.5, 1.5)],
-                                  [("L3", 0.6, 1.4), ("L1", 0.2, 1.0)]])
-def test_a_map_over_two_chords_is_derived_and_right(client: Any, axes) -> None:
+                                  [("L3", 0.6, 1.4), ("L1", 0.2, 1.0)],
+                                  [("OA", 0.8, 1.2), ("OB", 0.8, 1.2)],  # the preset matrix's
+                                  [("OB", 0.5, 1.5), ("L2", 0.6, 1.9)]])
+def test_a_map_over_two_bars_is_derived_and_right(client: Any, axes) -> None:
     r = _map(client, "/v1/analysis/critical-values", axes)
     assert r.status_code == 200, r.text
     got = r.json()
@@ -37,15 +39,16 @@ def test_a_map_over_two_chords_is_derived_and_right(client: Any, axes) -> None:
     names = [a[0] for a in axes]
 
     def lengths(x: float, y: float) -> np.ndarray:
-        out = {"L1": 0.6, "L2": 1.3, "L3": 1.0} | dict(zip(names, (x, y), strict=True))
-        return np.array([out[c] for c in CHORDS])
+        out = {"OA": 1.0, "OB": 1.0, "L1": 0.6, "L2": 1.3, "L3": 1.0} | dict(
+            zip(names, (x, y), strict=True))
+        return np.array([out[c] for c in BARS])
 
     assert got["curves"]
     for curve in got["curves"]:
         pts = np.array(curve)  # [[x, y], ...]
         assert np.all(ref.residual(np.array([lengths(x, y) for x, y in pts])) < 1e-6)
     for region in got["regions"]:
-        assert region["components"] == ref.components(lengths(*region["point"])), region
+        assert region["components"] == ref.components5(lengths(*region["point"])), region
 
 
 def test_the_figure_draws_the_derived_map(client: Any) -> None:

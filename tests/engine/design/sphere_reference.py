@@ -18,23 +18,42 @@ class Sphere:
         self.gamma = float(np.arccos(g1 @ g2 / np.linalg.norm(g1) / np.linalg.norm(g2)))
 
     def arcs(self, lengths: np.ndarray) -> np.ndarray:
-        """(..., 3) the angles at ``O`` of its three triangles (NaN: does not close)."""
+        """(..., 3) the angles at ``O`` of its three triangles (NaN: does not close), the
+        chords ``lengths`` (..., 3) at the tips' radii; (..., 5) lengths are ``OA, OB, L1, L2,
+        L3`` (the radii too)."""
         lengths = np.asarray(lengths, dtype=float)
-        p = np.array([np.linalg.norm(self.g1), self.ra, self.rb])
-        q = np.array([self.ra, self.rb, np.linalg.norm(self.g2)])
+        if lengths.shape[-1] == 5:
+            ra, rb, lengths = lengths[..., 0], lengths[..., 1], lengths[..., 2:]
+        else:
+            ra, rb = np.full(lengths.shape[:-1], self.ra), np.full(lengths.shape[:-1], self.rb)
+        p = np.stack([np.full(ra.shape, np.linalg.norm(self.g1)), ra, rb], axis=-1)
+        q = np.stack([ra, rb, np.full(rb.shape, np.linalg.norm(self.g2))], axis=-1)
         cos = (p * p + q * q - lengths**2) / (2 * p * q)
         with np.errstate(invalid="ignore"):
-            return np.where(np.abs(cos) <= 1, np.arccos(np.clip(cos, -1, 1)), np.nan)
+            # (a flat triangle's cosine may round past 1)
+            return np.where(np.abs(cos) <= 1 + 1e-12, np.arccos(np.clip(cos, -1, 1)), np.nan)
 
     def residual(self, lengths: np.ndarray) -> np.ndarray:
         """(...,) how far (radians) the arcs are from a critical equality: a signed sum minus
         the ground arc a multiple of 2 pi, or an arc 0 or pi (where a triangle is flat)."""
         a = self.arcs(lengths)
-        best = np.min(np.minimum(np.abs(a), np.abs(np.pi - a)), axis=-1)
+        return np.minimum(np.min(np.minimum(np.abs(a), np.abs(np.pi - a)), axis=-1),
+                          self.flat_residual(lengths))
+
+    def flat_residual(self, lengths: np.ndarray) -> np.ndarray:
+        """(...,) how far (radians) a signed sum of the arcs minus the ground arc is from a
+        multiple of 2 pi (every joint on one great circle)."""
+        a = self.arcs(lengths)
+        best = np.full(a.shape[:-1], np.inf)
         for s in itertools.product((1, -1), repeat=3):
             v = a @ np.array(s, dtype=float) - self.gamma
             best = np.minimum(best, np.abs(v - 2 * np.pi * np.round(v / (2 * np.pi))))
         return best
+
+    def components5(self, lengths: np.ndarray, n: int = 6000) -> int:
+        """:meth:`components` at the lengths ``OA, OB, L1, L2, L3`` (5,)."""
+        return Sphere(self.g1, self.g2, float(lengths[0]), float(lengths[1])).components(
+            np.asarray(lengths[2:], dtype=float), n)
 
     def components(self, lengths: np.ndarray, n: int = 6000) -> int:
         """Components by dense sampling: ``A`` at ``n`` angles on its hinge circle, ``B`` the

@@ -75,6 +75,16 @@ for params in random_spheres(4):
                       (0.6 * params[pair[1]], min(1.4 * params[pair[1]], 1.99))))
 
 
+BARS5 = ("OA", "OB", "L1", "L2", "L3")
+
+
+def _lengths5(lk, axes: tuple[str, str], xy: np.ndarray) -> np.ndarray:
+    out = np.tile(np.array([lk.lengths[lk.bar_ids.index(b)] for b in BARS5]), (len(xy), 1))
+    for m, name in enumerate(axes):
+        out[:, BARS5.index(name)] = xy[:, m]
+    return out
+
+
 def _lengths(params: dict[str, float], axes: tuple[str, str], xy: np.ndarray) -> np.ndarray:
     base = {"L1": 0.6, "L2": 1.3, "L3": 1.0} | {k: v for k, v in params.items() if k in CHORDS}
     out = np.array([[base[c] for c in CHORDS]] * len(xy))
@@ -138,9 +148,16 @@ def test_points_joined_away_from_the_curves_have_equal_counts(params, axes, xs, 
             assert counts[i] == counts[j], (pts[i], pts[j])
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize(("params", "axes", "xs", "ys"), CASES[:4],
-                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(CASES[:4])])
+SLICES = [({}, ("L1", "L2"), (0.3, 0.9), (0.65, 1.95)),
+          ({}, ("L2", "L3"), (0.5, 1.5), (0.5, 1.5)),
+          ({}, ("L1", "L3"), (0.2, 1.0), (0.6, 1.4)),
+          ({}, ("OA", "OB"), (0.8, 1.2), (0.8, 1.2)),  # the preset matrix's map
+          ({}, ("OB", "L2"), (0.5, 1.5), (0.6, 1.9)),
+          ({}, ("OA", "L1"), (0.5, 1.5), (0.3, 1.2))]
+
+
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), SLICES,
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(SLICES)])
 def test_the_slice_is_derived_and_every_region_counts_as_dense_sampling(params, axes, xs, ys):
     """The map through :func:`critical_value_slice` is complete with argument ``derived`` (the
     curves the closed form's, the regions' counts exact) and every region's count, at its
@@ -153,8 +170,8 @@ def test_the_slice_is_derived_and_every_region_counts_as_dense_sampling(params, 
     assert s.search.details["method"] == "closed form"
     for r in s.regions:
         at = [np.array(r.point)] + points_inside(s.curves, box, 48, np.array(r.point))
-        for x in _lengths(params, axes, np.array(at)):
-            assert ref.components(x) == r.components, (r.point, x)
+        for x in _lengths5(lk, axes, np.array(at)):
+            assert ref.components5(x) == r.components, (r.point, x)
 
 
 def test_pins_off_the_sphere_are_recognised_and_their_curves_critical():
@@ -189,13 +206,18 @@ def test_pins_off_the_sphere_are_recognised_and_their_curves_critical():
 
 def test_other_linkages_and_axes_decline():
     """Not spherical four-bars (a planar four-bar, a 3D rotor chain whose hinges share no pin,
-    pins on one line through the centre) and maps over a radius are left to the tracing."""
+    pins on one line through the centre) are left to the tracing; maps over a radius go to
+    :func:`radius_curves`, maps over two chords to :func:`spherical_curves`."""
     box = np.array([[0.8, 1.2], [0.8, 1.2]])
     assert spherical_four_bar(build_preset("four-bar")) is None
     assert spherical_four_bar(build_preset("rotor-chain-3d", {"n": 2})) is None
     lk = build_preset("spherical-four-bar")
     assert spherical_curves(lk, (0, 1), box, 0.01, SHORTEST) is None  # OA, OB
     assert spherical_curves(lk, (0, 2), box, 0.01, SHORTEST) is None  # OA, L1
+    from engine.design.spherical_radii import radius_curves
+
+    assert radius_curves(lk, (2, 3), box, 0.01, SHORTEST) is None  # two chords: no radius
+    assert radius_curves(build_preset("four-bar"), (0, 1), box, 0.01, SHORTEST) is None
     g1, g2 = np.array([1.0, 0.0, 0.0]), np.array([-1.2, 0.0, 0.0])
     line, _ = general_linkage(g1, g2, 1.0, 1.1, (0.9, 1.2, 1.0))
     assert line is None or spherical_four_bar(line) is None
@@ -208,3 +230,80 @@ def test_a_box_where_the_space_is_empty_has_no_curves():
     assert spherical_curves(lk, (2, 3), np.array([[2.1, 2.5], [0.5, 1.0]]), 0.01,
                             SHORTEST) == []
     assert preset_sphere({}).components(np.array([2.2, 0.7, 1.0])) == 0
+
+
+# -- maps with a radius among the axes (engine/design/spherical_radii.py, tested here with the
+# chords' maps: the same reference, the same checks)
+
+RADIUS_CASES = [({}, ("OA", "OB"), (0.8, 1.2), (0.8, 1.2)),  # the preset matrix's map
+                ({}, ("OA", "OB"), (0.3, 2.5), (0.3, 2.5)),
+                ({}, ("OA", "L1"), (0.5, 1.5), (0.3, 1.2)),
+                ({}, ("OA", "L2"), (0.5, 1.5), (0.6, 1.9)),
+                ({}, ("OA", "L3"), (0.5, 1.5), (0.5, 1.5)),
+                ({}, ("OB", "L1"), (0.5, 1.5), (0.3, 1.2)),
+                ({}, ("L3", "OB"), (0.5, 1.5), (0.5, 1.5))]
+for params in random_spheres(2, seed=21):
+    for pair in (("OA", "OB"), ("OA", "L2"), ("OB", "L1")):
+        r = params["R"]
+        hi = [1.4 * (r if n in ("OA", "OB") else params[n]) for n in pair]
+        RADIUS_CASES.append((params, pair, (0.6 * hi[0] / 1.4, hi[0]), (0.6 * hi[1] / 1.4, hi[1])))
+
+
+def _radius_map(params, axes, xs, ys):
+    from engine.design.spherical_radii import radius_curves
+
+    lk = build_preset("spherical-four-bar", params)
+    box = np.array([xs, ys])
+    step = float(min(box[:, 1] - box[:, 0])) / 48
+    curves = radius_curves(lk, tuple(lk.bar_ids.index(a) for a in axes), box, step, SHORTEST)
+    return lk, preset_sphere(params), box, step, curves
+
+
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), RADIUS_CASES,
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(RADIUS_CASES)])
+def test_over_a_radius_every_drawn_point_is_critical_and_every_one_drawn(params, axes, xs, ys):
+    """As for two chords: every drawn point on an arc equality (the radii moving the arcs
+    too), every sign change of an equality along 41 lines of each axis near a piece, pieces a
+    step apart at most and in the box."""
+    lk, ref, box, step, curves = _radius_map(params, axes, xs, ys)
+    assert curves is not None
+    for c in curves:
+        assert np.all(np.linalg.norm(np.diff(c, axis=0), axis=1) <= step * (1 + 1e-9))
+        assert np.all((c >= box[:, 0] - 1e-12) & (c <= box[:, 1] + 1e-12))
+        at = _lengths5(lk, axes, c)
+        assert np.all(ref.residual(at) < 1e-6)
+        # a flat triangle's point (no flat equality) is drawn only where the rest assembles:
+        # just off it, the sampled linkage has a component
+        for k in np.flatnonzero(ref.flat_residual(at) > 1e-3)[2:-2]:
+            near = [at[k] + e for e in 1e-6 * np.vstack([np.eye(5), -np.eye(5)])]
+            assert any(ref.components5(x, 50000) > 0 for x in near), c[k]
+    found = []
+    for m in range(2):
+        for v in np.linspace(*box[m], 41)[1:-1]:
+            t = np.linspace(*box[1 - m], 4001)
+            xy = np.zeros((len(t), 2))
+            xy[:, m], xy[:, 1 - m] = v, t
+            arcs = ref.arcs(_lengths5(lk, axes, xy))
+            for s in itertools.product((1, -1), repeat=3):
+                for k in (-1, 0, 1):
+                    f = arcs @ np.array(s) - ref.gamma - 2 * np.pi * k
+                    for i in np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0):
+                        found.append(0.5 * (xy[i] + xy[i + 1]))
+    if found:
+        gap = distance_to_curves(np.array(found), curves)
+        assert np.all(gap <= 2 * step), gap.max()
+
+
+@pytest.mark.parametrize(("params", "axes", "xs", "ys"), RADIUS_CASES,
+                         ids=[f"{c[1][0]}-{c[1][1]}-{i}" for i, c in enumerate(RADIUS_CASES)])
+def test_over_a_radius_points_joined_away_from_the_curves_have_equal_counts(params, axes, xs,
+                                                                            ys):
+    lk, ref, box, step, curves = _radius_map(params, axes, xs, ys)
+    rng = np.random.default_rng(4)
+    pts = box[:, 0] + (box[:, 1] - box[:, 0]) * rng.uniform(size=(25, 2))
+    pts = pts[distance_to_curves(pts, curves) > 2 * step] if curves else pts
+    counts = [ref.components5(x) for x in _lengths5(lk, axes, pts)]
+    for i, j in itertools.combinations(range(len(pts)), 2):
+        seg = pts[i] + np.linspace(0, 1, 100)[:, None] * (pts[j] - pts[i])
+        if not curves or np.min(distance_to_curves(seg, curves)) > step:
+            assert counts[i] == counts[j], (pts[i], pts[j])
