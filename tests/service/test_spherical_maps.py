@@ -1,7 +1,7 @@
 """The spherical four-bar's maps over two of its bars through HTTP (issues 23 and 30):
 complete with the argument ``derived``, every curve on the critical set in the arcs and every
 region's count equal to dense sampling (:mod:`tests.engine.design.sphere_reference`); the
-figure draws the same map."""
+figure draws the same map; the robustness margin over two chords is exact."""
 
 from __future__ import annotations
 
@@ -61,3 +61,22 @@ def test_the_figure_draws_the_derived_map(client: Any) -> None:
     ids = svg_ids(svg)
     assert len(with_prefix(ids, "cv-curve-")) == len(answer["curves"]) >= 1
     assert "incomplete" not in svg_text(svg)
+
+
+def test_a_margin_over_two_chords_is_exact(client: Any) -> None:
+    """Robustness over ``L1`` and ``L2``: the closed form, exact and derived; its nearest
+    lengths on an arc equality (the reference's); over every bar (radii too) the multistart."""
+    linkage = client.get("/v1/presets/spherical-four-bar").json()
+    r = client.post("/v1/analysis/robustness",
+                    json={"linkage": linkage, "adjustable": ["L1", "L2"]})
+    assert r.status_code == 200, r.text
+    got = r.json()
+    assert got["method"] == "closed-form" and got["guarantee"] == "exact"
+    assert got["search"]["complete"] is True and got["search"]["argument"] == "derived"
+    nearest = np.array([got["nearest"][b] for b in BARS])
+    assert preset_sphere({}).residual(nearest) < 1e-9
+    assert got["margin"] == pytest.approx(np.linalg.norm(nearest - [1.0, 1.0, 0.6, 1.3, 1.0]))
+    closed = client.post("/v1/analysis/robustness",
+                         json={"linkage": linkage, "adjustable": ["OA", "L1"],
+                               "method": "closed-form"})
+    assert closed.status_code == 422, closed.text
