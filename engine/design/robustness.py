@@ -301,7 +301,8 @@ def robustness(
         adj_all[cons.bars[adj]] = True
         exact = exact_margin(linkage, adj_all, min_critical_length(tol), 1e3 * tol.residual_atol)
         if exact is None:  # (a spherical four-bar over one or two of its chords)
-            exact = spherical_margin(linkage, adj_all, min_critical_length(tol))
+            exact = spherical_margin(linkage, adj_all, min_critical_length(tol),
+                                     deadline or NEVER)
             what = SPHERICAL_PIECES if exact is not None else what
     if method != "multistart" and exact is not None:
         found = bool(np.isfinite(exact.margin))

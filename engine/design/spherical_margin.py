@@ -34,11 +34,12 @@ from engine.design.spherical_curves import (
     chord,
     spherical_four_bar,
 )
+from engine.model.budget import NEVER, Deadline
 from engine.model.linkage import Linkage
 
 #: The margin is certified to this times the largest length (the branch and bound's gap).
 CERTIFY_RTOL = 1e-10
-#: Distance evaluations of one segment's branch and bound at most (beyond: declined).
+#: Distance evaluations of the branch and bounds of one margin at most (beyond: declined).
 MAX_EVALUATIONS = 4_000_000
 #: Intervals each segment starts with.
 START_INTERVALS = 256
@@ -48,10 +49,11 @@ SPHERICAL_PIECES = (f"critical pieces of a spherical four-bar's chords (arc equa
 
 
 def _segment_min(p: np.ndarray, q: np.ndarray, pq: np.ndarray, target: np.ndarray,
-                 tol: float) -> tuple[float, np.ndarray] | None:
+                 tol: float, budget: list[int], deadline: Deadline
+                 ) -> tuple[float, np.ndarray] | None:
     """The least distance from ``target`` (2,) of ``c(p + t (q - p))``, t in [0, 1], to within
-    ``tol`` (branch and bound, see the module docstring), and the arcs there; None past
-    ``MAX_EVALUATIONS``."""
+    ``tol`` (branch and bound, see the module docstring), and the arcs there; None once the
+    evaluations left (``budget[0]``, spent here) run out or the deadline passes."""
     slope = pq.min(axis=1)  # (2,)
     speed = float(np.hypot(*(slope * np.abs(q - p))))
 
@@ -66,13 +68,12 @@ def _segment_min(p: np.ndarray, q: np.ndarray, pq: np.ndarray, target: np.ndarra
     best, best_t = float(d_ends[k]), float(ends[k])
     lo = np.linspace(0.0, 1.0, START_INTERVALS + 1)[:-1]
     width = 1.0 / START_INTERVALS
-    spent = 2
     while len(lo):
+        budget[0] -= len(lo)
+        if budget[0] < 0 or deadline.expired():
+            return None
         mid = lo + width / 2
         d = dist(mid)
-        spent += len(mid)
-        if spent > MAX_EVALUATIONS:
-            return None
         k = int(np.argmin(d))
         if d[k] < best:
             best, best_t = float(d[k]), float(mid[k])
@@ -135,8 +136,8 @@ def _configuration(linkage: Linkage, sf: SphericalFourBar, lengths: np.ndarray,
     return linkage.coordinates(pos)
 
 
-def spherical_margin(linkage: Linkage, adjustable: np.ndarray, shortest: float
-                     ) -> ExactMargin | None:
+def spherical_margin(linkage: Linkage, adjustable: np.ndarray, shortest: float,
+                     deadline: Deadline = NEVER) -> ExactMargin | None:
     """The exact margin of a spherical four-bar over one or two adjustable chords (see the
     module docstring), or None: not a spherical four-bar, a radius or all three chords
     adjustable, or a segment's branch and bound past its budget.
@@ -148,6 +149,8 @@ def spherical_margin(linkage: Linkage, adjustable: np.ndarray, shortest: float
         The bars whose lengths may change (every bar of the linkage).
     shortest : float
         Critical lengths below this are degenerate, not critical.
+    deadline : Deadline, optional
+        Checked at every level of the branch and bounds.
 
     Examples
     --------
@@ -171,6 +174,7 @@ def spherical_margin(linkage: Linkage, adjustable: np.ndarray, shortest: float
     target = lengths[[sf.chords[i] for i in adj]]
     tol = CERTIFY_RTOL * float(lengths.max())
     found: list[tuple[float, np.ndarray, np.ndarray | None]] = []  # (d, arcs, signs)
+    budget = [MAX_EVALUATIONS]
 
     def take(arcs: np.ndarray, signs: np.ndarray | None) -> None:
         ln = np.array([chord(sides[i, 0], sides[i, 1], arcs[i]) for i in adj])
@@ -191,7 +195,7 @@ def spherical_margin(linkage: Linkage, adjustable: np.ndarray, shortest: float
         seg = _clip_segment(signs[adj], c, np.zeros(2), np.full(2, np.pi))
         if seg is None:
             continue
-        best = _segment_min(seg[0], seg[1], sides[adj], target, tol)
+        best = _segment_min(seg[0], seg[1], sides[adj], target, tol, budget, deadline)
         if best is None:
             return None
         arcs = arcs0.copy()

@@ -135,3 +135,20 @@ def test_radii_or_three_chords_are_left_to_the_multistart():
     for names in (["OA"], ["L1", "OB"], ["L1", "L2", "L3"]):
         assert spherical_margin(lk, np.isin(lk.bar_ids, names), 1e-9) is None
     assert spherical_margin(build_preset("four-bar"), np.ones(3, dtype=bool), 1e-9) is None
+
+
+def test_the_branch_and_bound_stops_at_the_deadline_and_its_budget(monkeypatch):
+    """A deadline already passed, or an evaluation budget too small, declines two chords (the
+    multistart then answers, incomplete) and leaves one chord (no search) exact."""
+    import engine.design.spherical_margin as sm
+    from engine.model.budget import Deadline
+
+    lk = build_preset("spherical-four-bar")
+    two, one = np.isin(lk.bar_ids, ["L1", "L2"]), np.isin(lk.bar_ids, ["L1"])
+    passed = Deadline.after(0.0)
+    assert spherical_margin(lk, two, 1e-9, passed) is None
+    assert spherical_margin(lk, one, 1e-9, passed) is not None
+    monkeypatch.setattr(sm, "MAX_EVALUATIONS", 1000)
+    assert spherical_margin(lk, two, 1e-9) is None
+    late = robustness(lk, ["L1", "L2"], deadline=Deadline.after(0.0))
+    assert late.guarantee == "upper-bound" and not late.search.complete
