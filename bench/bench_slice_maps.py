@@ -1,9 +1,9 @@
-"""Times of the gate and three-rotor critical-value maps (issue 23), optionally against another
-checkout of the repository (before/after), each run in a fresh process with one BLAS thread
-(as the service's workers run).
+"""Times of the gate, three-rotor and spherical four-bar critical-value maps (issue 23),
+optionally against another checkout of the repository (before/after), each run in a fresh
+process with one BLAS thread (as the service's workers run).
 
     .venv/bin/python bench/bench_slice_maps.py [--repeats 3] [--against /path/to/other/checkout]
-        [--json bench/results/slice_maps.json]
+        [--only spherical] [--json bench/results/slice_maps.json]
 """
 
 from __future__ import annotations
@@ -35,6 +35,21 @@ lk = build_preset("three-rotor")
 args = (lk, [("r1", 0.8, 1.2), ("r2", 0.8, 1.2)])
 kw = dict(resolution=48)
 """,
+    "spherical four-bar map: (L1, L2) in [0.3, 0.9] x [0.65, 1.95], resolution 48": """
+lk = build_preset("spherical-four-bar")
+args = (lk, [("L1", 0.3, 0.9), ("L2", 0.65, 1.95)])
+kw = dict(resolution=48)
+""",
+    "spherical four-bar map, the preset matrix's: (OA, OB) in [0.8, 1.2]^2, resolution 48": """
+lk = build_preset("spherical-four-bar")
+args = (lk, [("OA", 0.8, 1.2), ("OB", 0.8, 1.2)])
+kw = dict(resolution=48)
+""",
+    "spherical four-bar map: (OB, L2) in [0.5, 1.5] x [0.6, 1.9], resolution 48": """
+lk = build_preset("spherical-four-bar")
+args = (lk, [("OB", 0.5, 1.5), ("L2", 0.6, 1.9)])
+kw = dict(resolution=48)
+""",
 }
 
 CHILD = """
@@ -64,10 +79,13 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--against", type=Path, default=None)
     parser.add_argument("--json", type=Path, default=ROOT / "bench/results/slice_maps.json")
+    parser.add_argument("--only", default=None, help="the maps whose name holds this")
     args = parser.parse_args()
     trees = {"this": ROOT} | ({"against": args.against} if args.against else {})
     rows = []
     for name, setup in MAPS.items():
+        if args.only is not None and args.only not in name:
+            continue
         runs: dict[str, list[tuple[float, int, int, bool]]] = {tree: [] for tree in trees}
         for _ in range(args.repeats):  # the trees in turn: a busy machine's load falls on both
             for tree, root in trees.items():

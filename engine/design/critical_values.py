@@ -54,6 +54,8 @@ from engine.design.slice_regions import (
 )
 from engine.design.slice_scan import Scan, ScanDirection, Scanline, scan_paths
 from engine.design.slice_turning import TurningFound, turning_paths, turning_points
+from engine.design.spherical_curves import SPHERICAL_CURVES, spherical_curves
+from engine.design.spherical_radii import radius_curves
 from engine.local.critical import refine_critical
 from engine.model.budget import (
     NEVER,
@@ -88,7 +90,8 @@ SEED_MAX_POINTS = 2000
 
 #: Methods of :func:`critical_value_slice`: ``"auto"`` draws the curves of one-dyad planar
 #: chains (the four-bar family), of a gated chain in its gate's lengths, of rotor chains
-#: whose cells cannot combine (:mod:`.chain_planes`) and of three-rotors (:mod:`.chain_curves`)
+#: whose cells cannot combine (:mod:`.chain_planes`), of three-rotors (:mod:`.chain_curves`) and
+#: of spherical four-bars (:mod:`.spherical_curves`, :mod:`.spherical_radii`)
 #: from their closed forms and traces the rest;
 #: ``"traced"`` always seeds and traces (the tests cross-check the two).
 SLICE_METHODS = ("auto", "traced")
@@ -156,7 +159,8 @@ def critical_value_slice(
 
     ``method="auto"`` takes the curves from closed-form critical lines where they are known
     (one-dyad planar chains; a gated chain in its gate's lengths; rotor chains whose four-bar
-    cells cannot combine in the box; three-rotors: :func:`_closed_form_curves`), sampled at
+    cells cannot combine in the box; three-rotors; spherical four-bars:
+    :func:`_closed_form_curves`), sampled at
     the tracing step; ``"traced"`` (and every other linkage) seeds and traces them.
     ``search["method"]`` says which (``"closed form"`` or ``"traced"``).
 
@@ -322,6 +326,10 @@ def _closed_form_curves(
         if found is not None or gate is not None:
             return None
         shortest = MIN_CRITICAL_LENGTH_ATOL * tol.residual_atol
+        sphere = spherical_curves(linkage, bars, box, step, shortest)
+        sphere = radius_curves(linkage, bars, box, step, shortest) if sphere is None else sphere
+        if sphere is not None:
+            return sphere, SPHERICAL_CURVES
         two = two_cell_curves(linkage, bars, box, step, shortest)
         if two is None:
             return None

@@ -7,7 +7,10 @@ refuses such bars as input), not critical: it is never a critical value here.
 
 Two methods, and each result says which one answered and what it guarantees (``guarantee``):
 
-- ``"closed-form"`` (guarantee ``"exact"``): one-loop planar dyad chains (the four-bar family,
+- ``"closed-form"`` (guarantee ``"exact"``): spherical four-bars over one or two of their chords
+  (:mod:`engine.design.spherical_margin`: the nearest arc equality in closed form or by a
+  certified branch and bound along it, the flat triangles where the rest assembles), and
+  one-loop planar dyad chains (the four-bar family,
   any pin geometry), whose critical value set is a union of hyperplane pieces derived in
   :mod:`engine.design.dyad_margin`; the margin is the exact distance to the nearest piece.
 - ``"multistart"`` (guarantee ``"upper-bound"``: a critical value lies at this distance, found
@@ -41,6 +44,7 @@ import numpy as np
 from scipy.optimize import OptimizeResult, least_squares, minimize
 
 from engine.design.dyad_margin import ExactMargin, exact_margin
+from engine.design.spherical_margin import SPHERICAL_PIECES, spherical_margin
 from engine.local.critical import refine_critical
 from engine.model.budget import ARGUMENT_DERIVED, NEVER, Deadline, granted
 from engine.model.constraints import Constraints
@@ -58,6 +62,9 @@ DEGENERATE_START_REL = 1e-3
 
 #: A local search whose objective has not changed over this many iterations is ended.
 STALL_ITERATIONS = 10
+
+#: What the closed forms' pieces are, in the answer's message and argument.
+DYAD_PIECES = "critical hyperplanes of a one-loop dyad chain"
 
 #: Methods of :func:`robustness`: ``"auto"`` takes the closed form where it applies.
 METHODS = ("auto", "closed-form", "multistart")
@@ -267,7 +274,8 @@ def robustness(
         Random starts of each kind (projected and refined on the augmented system; free points
         off the constraints) besides the critical configurations found.
     method : {"auto", "closed-form", "multistart"}
-        ``"auto"`` takes the closed form where it applies (one-loop planar dyad chains), else
+        ``"auto"`` takes the closed form where it applies (one-loop planar dyad chains,
+        spherical four-bars over one or two chords), else
         the multistart; ``"closed-form"`` raises :class:`InvalidRequest` where it does not apply.
     deadline : Deadline, optional
         When it expires the multistart stops and returns the best margin so far, with
@@ -287,27 +295,33 @@ def robustness(
     opt = options or SpaceOptions()
     cons = Constraints(linkage)
     adj = _adjustable_mask(linkage, adjustable)
-    exact = None
+    exact, what = None, DYAD_PIECES
     if opt.closed_form:
         adj_all = np.zeros(linkage.n_bars, dtype=bool)
         adj_all[cons.bars[adj]] = True
         exact = exact_margin(linkage, adj_all, min_critical_length(tol), 1e3 * tol.residual_atol)
+        if exact is None:  # (a spherical four-bar over one or two of its chords)
+            exact = spherical_margin(linkage, adj_all, min_critical_length(tol),
+                                     deadline or NEVER)
+            what = SPHERICAL_PIECES if exact is not None else what
     if method != "multistart" and exact is not None:
         found = bool(np.isfinite(exact.margin))
         return Margin(
             exact.margin, exact.nearest, exact.critical_u, 0, 0, found,
-            f"nearest of {exact.planes} critical hyperplanes of a one-loop dyad chain"
+            f"nearest of {exact.planes} {what}"
             if found else "no critical value is reachable by the adjustable bars",
             method="closed-form", guarantee="exact",
             search=SearchReport({"planes": exact.planes}, time_budget_s=_granted(deadline),
                                 argument=ARGUMENT_DERIVED,
-                                argument_detail=f"the nearest of the {exact.planes} critical "
-                                "hyperplanes of a one-loop dyad chain, in closed form"),
-            guarantee_detail="the distance to the nearest critical hyperplane (closed form)",
+                                argument_detail=f"the nearest of the {exact.planes} {what}, "
+                                "in closed form"),
+            guarantee_detail="the distance to the nearest critical hyperplane (closed form)"
+            if what == DYAD_PIECES else f"the distance to the nearest of the {what}",
         )
     if method == "closed-form":
-        raise InvalidRequest("the closed form applies to one-loop planar dyad chains only "
-                             "(a rotor and one dyad, no sliders)", loc=("method",))
+        raise InvalidRequest("the closed form applies to one-loop planar dyad chains (a rotor "
+                             "and one dyad, no sliders) and to spherical four-bars over one "
+                             "or two chords only", loc=("method",))
     scale = float(np.median(linkage.lengths[cons.bars]))
     unit = linkage.with_positions(np.asarray(linkage.positions) / scale).with_lengths(
         linkage.lengths / scale)

@@ -35,7 +35,8 @@ class RobustnessRequest(Strict):
     options: SpaceOptions | None = None
     method: Literal["auto", "closed-form", "multistart"] | None = Field(
         None, description="auto (default): the exact closed form for one-loop planar dyad chains "
-        "(four-bars), else the multistart; closed-form: 422 where it does not apply; "
+        "(four-bars) and for spherical four-bars over one or two of their chords, else the "
+        "multistart; closed-form: 422 where it does not apply; "
         "multistart: always the multistart", json_schema_extra=default_of("auto"),
     )
 

@@ -63,6 +63,10 @@ MUST_COMPLETE = {
     ("rotor-chain-3d", path) for path in (
         "/v1/analysis/critical-points", "/v1/analysis/configuration-space",
         "/v1/analysis/splitting")
+} | {
+    # the spherical four-bar's map (OA x OB): its flat configurations and flat triangles in
+    # closed form (engine/design/spherical_radii.py), its regions counted from its hinge cells
+    ("spherical-four-bar", "/v1/analysis/critical-values")
 }
 
 
