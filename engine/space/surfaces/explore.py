@@ -402,11 +402,11 @@ def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
     there is no cone or a fan does not project."""
     found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
     cones = [cp for cp in found if is_cone(cp)]
-    fans = [(cp.u, cone_fans(surface, cp, step)) for cp in cones]
-    if not cones or any(rings is None for _, rings in fans) or dl.expired():
+    fans = [cone_fans(surface, cp, step) for cp in cones]
+    if not cones or any(fan is None for fan in fans) or dl.expired():
         return None
     mesh = march(surface, None, step, max_triangles, dl,
-                 fans=[(u, rings) for u, rings in fans if rings is not None])
+                 fans=[fan for fan in fans if fan is not None])
     parts = components(mesh)
     tree = cKDTree(mesh.vertices)
     kept = [k for k, m in enumerate(meshes) if float(np.median(tree.query(m.vertices)[0])) > step]
