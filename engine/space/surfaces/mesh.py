@@ -214,7 +214,7 @@ def _close_partner(b: _Builder, k: int, i: int, omega: float, entries: tuple[np.
     fk, pos, verts, _ = entries
     pts = b.x[verts]
     d = np.linalg.norm(pts - b.x[p], axis=1)
-    cand = (d < CLOSE * b.size[p]) & ~np.isin(verts, (p, a, c))
+    cand = (d < CLOSE * b.size[p]) & (verts != p) & (verts != a) & (verts != c)
     if not cand.any():
         return None
     loc = b.local(p, pts[cand])
