@@ -3,20 +3,20 @@ the tests).
 
     .venv/bin/python bench/bench_surfaces.py [--repeat 3] [--proof] [--http]
 
-Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon (genus
-2), the pentagon at critical lengths (four cones: the cone homotopy and the meshing through the
-apexes; genus null), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best of
-``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
-options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the linear-
-product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU time:
-on a loaded machine the wall time is that CPU time stretched by the other processes);
-``--proof`` adds each row with ``homotopy_paths_max = 4096``; ``--http`` posts the pentagon and
-the five-bar to ``/v1/analysis/configuration-space`` of a real uvicorn process on loopback
-(client-side wall time of the whole request, with ``time_budget_s: 20`` so that a loaded machine
-measures the whole answer rather than the default 4 s budget's cut), and a design at the
-critical pentagon (every cone asked for two sheets: the cone homotopy, the critical space's mesh
-and the two re-meshings) to ``/v1/design/splitting``. BLAS on one thread, as in the service's
-workers.
+Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon (genus 2),
+the pentagon at critical lengths (four cones: the cone homotopy and the meshing through the apexes;
+genus null; at (1, 2, 1, 1, 1) and (1, 1, 1, 1, 2) nearly flat or narrow cones, meshed with the step
+graded near their apexes), a five-bar (genus 3), a 3D sliding torus and a 3D sphere. For each, best
+of ``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
+options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the linear-product
+start, so their answers are ``proved``), wall and CPU seconds (the process's CPU time: on a loaded
+machine the wall time is that CPU time stretched by the other processes); ``--proof`` adds each row
+with ``homotopy_paths_max = 4096``; ``--http`` posts the pentagon and the five-bar to
+``/v1/analysis/configuration-space`` of a real uvicorn process on loopback (client-side wall time of
+the whole request, with ``time_budget_s: 20`` so that a loaded machine measures the whole answer
+rather than the default 4 s budget's cut), and a design at the critical pentagon (every cone asked
+for two sheets: the cone homotopy, the critical space's mesh and the two re-meshings) to
+``/v1/design/splitting``. BLAS on one thread, as in the service's workers.
 """
 
 from __future__ import annotations
@@ -75,6 +75,8 @@ ROWS = {
     "pentagon (1,1,1,1,1)": lambda: pentagon((1, 1, 1, 1, 1)),
     "pentagon (1,1,2,2,3)": lambda: pentagon((1, 1, 2, 2, 3)),
     "pentagon (2,1,1,1,1) critical": lambda: pentagon((2, 1, 1, 1, 1)),
+    "pentagon (1,2,1,1,1) flat": lambda: pentagon((1, 2, 1, 1, 1)),
+    "pentagon (1,1,1,1,2) flat": lambda: pentagon((1, 1, 1, 1, 2)),
     "five-bar (2,1,1.4,1.6,1)": lambda: pentagon((2, 1, 1.4, 1.6, 1)),
     "3D sliding torus": torus,
     "3D sphere": sphere,

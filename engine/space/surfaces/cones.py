@@ -18,10 +18,14 @@ so its linear product has ``2^E C(M, E)`` paths (240 for a pentagon).
 eigenvalues ``lam_i, lam_j`` share a sign and ``lam_k`` has the other; the cone's lines are
 ``gamma(theta) = (cos theta / sqrt|lam_i|, sin theta / sqrt|lam_j|, +-1 / sqrt|lam_k|)``
 (normalised), ``+`` on one nappe and ``-`` on the other. Each nappe gets a fan: the apex and a
-ring of points at distance ``step`` along lines spaced evenly in arc length, projected onto the
-lengths; the marching method (:mod:`.mesh`) grows the mesh outwards from the rings' fronts, so
-it passes through the apex as the curve tracer passes through a branch point, instead of
-cutting across the cone.
+ring of points along lines spaced evenly in arc length, projected onto the lengths; the marching
+method (:mod:`.mesh`) grows the mesh outwards from the rings' fronts, so it passes through the
+apex as the curve tracer passes through a branch point, instead of cutting across the cone.
+A cone's features (the gap between its nappes, a nappe's breadth, its radius of curvature
+across the lines) are its :func:`cone_width` ``w`` times the distance ``r`` to the apex, and
+``w`` goes to zero with the smallest ``|lam|`` against the others (a nearly flat or narrow
+cone): the step near the apex is graded as ``w r`` (:class:`.mesh.Fan`), and the rings sit
+where the quadratic cone still holds (:func:`cone_fans`).
 
 **Morse count** (:func:`cone_morse_term`): on a surface with cones a generic height ``h``
 satisfies ``chi = sum_smooth (-1)^index + sum_apexes (1 - cut)`` (stratified Morse theory: the

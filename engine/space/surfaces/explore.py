@@ -323,11 +323,18 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
         surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
         [m.vertices for m in first])
     critical, where = _linkage_critical(surface, meshes, tol)
+    # near a cone, or failing the geometric checks at every step tried (a narrow cone's
+    # tube may keep its vertices' gaps above NEAR_CRITICAL_GAP): look for the cones
     if cone_pass is None and (critical or any(
-            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
+            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes) or any(
+            k[0] or k[1] > TANGENT_ANGLE_MAX for k in checks)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
                                    dl, cones)
-        meshes, checks = [], []  # the cone pass keeps what it does not replace
+        if cone_pass is not None:  # it keeps what it does not replace
+            meshes, checks = [], []
+            # the budget spent on the meshes it replaced (finer and finer through a cone)
+            # does not count; a kept mesh stopped by it does
+            budget_hit = any("budget" in m.message for m in cone_pass.meshes)
     if cone_pass is not None:
         meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
         critical, where = cone_pass.critical, cone_pass.where

@@ -17,11 +17,14 @@ neighbours, measured counter-clockwise in ``p``'s positive frame) and
   would be thinner than ``MIN_SPLIT_ANGLE``), their new vertices at distance ``step`` from
   ``p`` in its tangent plane, projected onto the surface.
 
-A front of three vertices is closed by one triangle. Every operation keeps the mesh a
-2-manifold with boundary (the fronts), so a mesh without fronts is a closed surface; the
-geometric checks (triangles positive in their vertices' frames, close to the tangent planes) and
-the Morse check of :mod:`.morse` are what vouch that it is *this* surface. The steps are bounded
-by a triangle budget and the deadline: a mesh stopped early keeps its fronts (``closed`` False).
+A front of three vertices is closed by one triangle. Started from the fans around cones'
+apexes (:class:`Fan`), the step is graded near each apex (the cone's width times the distance
+to it, up to ``step``) and the front entries of the finest step are advanced first. Every
+operation keeps the mesh a 2-manifold with boundary (the fronts), so a mesh without fronts is
+a closed surface; the geometric checks (triangles positive in their vertices' frames, close to
+the tangent planes) and the Morse check of :mod:`.morse` are what vouch that it is *this*
+surface. The steps are bounded by a triangle budget and the deadline: a mesh stopped early
+keeps its fronts (``closed`` False).
 """
 
 from __future__ import annotations
