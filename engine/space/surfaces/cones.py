@@ -59,9 +59,6 @@ LINK_SAMPLES = 720
 #: Fewest points of a ring around an apex (the marching method closes a front of three at
 #: once: a ring of three would cap its nappe with one triangle).
 RING_MIN = 5
-#: The farthest a ring goes from its apex, in steps (the quadratic cone's error grows as the
-#: cube of the distance).
-RING_RADIUS_MAX = 3.0
 #: Near an apex the step is this times the cone's :func:`cone_width` times the distance to
 #: the apex (:class:`.mesh.Fan`): the other nappe (or the far side of its own) is then over
 #: two steps away, and an edge leaves the tangent planes by under 30 degrees.
@@ -154,21 +151,6 @@ def _lines(cp: CriticalPoint) -> tuple[np.ndarray, np.ndarray]:
     return out / np.linalg.norm(out, axis=2, keepdims=True), z
 
 
-def ring_radius(cp: CriticalPoint, step: float) -> float:
-    """How far from the apex of the cone ``cp`` its rings go: ``step``, further where the cone
-    is narrow (a ring of radius ``R`` is a loop of radius about ``R sin alpha_min``: at least
-    half a step) or flat (its nappes ``2 R cos alpha_max`` apart: at least one and a half
-    steps, so that the fronts of the two nappes are not joined), at most
-    ``RING_RADIUS_MAX`` steps."""
-    lam = np.asarray(cp.analysis.q_eigenvalues)
-    k = next(i for i in range(3) if (np.sign(lam) == np.sign(lam[i])).sum() == 1)
-    pair = np.abs(np.delete(lam, k))
-    narrow = np.arctan(np.sqrt(abs(lam[k]) / pair.max()))
-    flat = np.arctan(np.sqrt(abs(lam[k]) / pair.min()))
-    r = max(1.0, 0.5 / np.sin(narrow), 0.75 / max(np.cos(flat), 1e-12))
-    return step * min(r, RING_RADIUS_MAX)
-
-
 def cone_width(cp: CriticalPoint) -> float:
     """The cone's smallest feature at unit distance from its apex: half the least distance
     between the two nappes' unit lines, half the least across one nappe (its lines at
@@ -221,11 +203,11 @@ def cone_fans(surface: Surface, cp: CriticalPoint, step: float) -> Fan | None:
     counter-clockwise in their positive frames (module docstring), and the slope of the
     step near the apex (:class:`.mesh.Fan`: ``GRADE`` times :func:`cone_width`).
 
-    Where the graded step reaches ``step`` within :func:`ring_radius` the rings are there,
-    their points about ``step`` apart; otherwise (a nearly flat or narrow cone) they are one
-    step out, their points the graded step apart. A ring whose points move more than
-    ``RING_MOVE`` widths times its radius when projected (the quadratic cone does not hold
-    there) is put at half the radius, at most ``RING_HALVINGS`` times; None after that.
+    The rings are one step out, their points the graded step apart (the slope times the
+    radius). A ring whose points move more than ``RING_MOVE`` widths times its radius along
+    the zero modes when projected (the quadratic cone does not hold there: its error grows as
+    ``r^3`` against the width ``|lam| r^2``) is put at half the radius, at most
+    ``RING_HALVINGS`` times; None after that.
 
     Examples
     --------
@@ -245,18 +227,13 @@ def cone_fans(surface: Surface, cp: CriticalPoint, step: float) -> Fan | None:
     lines, z = _lines(cp)
     width = cone_width(cp)
     slope = GRADE * width
-    radius = ring_radius(cp, step)
-    spacing = step
-    if slope * radius < step:  # graded: the rings one step out
-        radius = step
-        spacing = slope * radius
+    radius = step
     for _ in range(RING_HALVINGS + 1):
-        rings = [_ring(surface, cp, nappe, z, radius, min(spacing, step),
+        rings = [_ring(surface, cp, nappe, z, radius, min(slope * radius, step),
                        RING_MOVE * width * radius) for nappe in lines]
         if all(r is not None for r in rings):
             return Fan(cp.u, [r for r in rings if r is not None], slope)
         radius *= 0.5
-        spacing = slope * radius
     return None
 
 

@@ -71,11 +71,10 @@ from engine.space.witnesses import PATHS_MAX, bounded
 #: bend), and the component is meshed again with a shorter step.
 TANGENT_ANGLE_MAX = np.deg2rad(45.0)
 #: Edge ends within this many (median) edge lengths of a cone's apex's ring (:func:`.cones.
-#: ring_radius`) are left out of the
-#: tangent-angle check (an edge there leaves the tangent planes by about half its length over
-#: the distance to the apex: 60 degrees at 1.3 steps on the pentagon at (2, 1, 1, 1, 1)); the
-#: meshes there are vouched for by the fold check, the links (two cycles at each apex, one
-#: elsewhere) and the Morse count with the apexes' terms.
+#: cone_fans`) are left out of the tangent-angle check (an edge there leaves the tangent planes by
+#: about half its length over the distance to the apex: 60 degrees at 1.3 steps on the pentagon at
+#: (2, 1, 1, 1, 1) with one step everywhere); the meshes there are vouched for by the fold check,
+#: the links (two cycles at each apex, one elsewhere) and the Morse count with the apexes' terms.
 APEX_ZONE = 3.0
 #: The step of a component meshed again (its geometric checks failed), relative to the last.
 REMESH_FACTOR = 0.6
