@@ -5,12 +5,13 @@ the tests).
 
 Rows: the equilateral planar pentagon with one bar pinned (genus 4), a generic pentagon (genus
 2), the pentagon at critical lengths (four cones: the cone homotopy and the meshing through the
-apexes; genus null), a five-bar (genus 3), a 3D sliding torus, a 3D sphere and three spherical
-five-bars (4,608 Lagrange paths: ``derived`` by their crank angles' 24). For each, best of
-``--repeat``: the marching alone at the default step, then :func:`explore_surfaces` with default
-options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from the linear-
-product start, so their answers are ``proved``), wall and CPU seconds (the process's CPU time:
-on a loaded machine the wall time is that CPU time stretched by the other processes);
+apexes; genus null; at (1, 2, 1, 1, 1) and (1, 1, 1, 1, 2) nearly flat or narrow cones, meshed
+with the step graded near their apexes), a five-bar (genus 3), a 3D sliding torus, a 3D sphere
+and three spherical five-bars (4,608 Lagrange paths: ``derived`` by their crank angles' 24). For
+each, best of ``--repeat``: the marching alone at the default step, then :func:`explore_surfaces`
+with default options (homotopy within 512 paths: the pentagons' Lagrange systems need 240 from
+the linear-product start, so their answers are ``proved``), wall and CPU seconds (the process's
+CPU time: on a loaded machine the wall time is that CPU time stretched by the other processes);
 ``--proof`` adds each row with ``homotopy_paths_max = 4096``; ``--http`` posts the pentagon and
 the five-bar to ``/v1/analysis/configuration-space`` of a real uvicorn process on loopback
 (client-side wall time of the whole request, with ``time_budget_s: 20`` so that a loaded machine
@@ -105,6 +106,8 @@ ROWS = {
     "pentagon (1,1,1,1,1)": lambda: pentagon((1, 1, 1, 1, 1)),
     "pentagon (1,1,2,2,3)": lambda: pentagon((1, 1, 2, 2, 3)),
     "pentagon (2,1,1,1,1) critical": lambda: pentagon((2, 1, 1, 1, 1)),
+    "pentagon (1,2,1,1,1) flat": lambda: pentagon((1, 2, 1, 1, 1)),
+    "pentagon (1,1,1,1,2) flat": lambda: pentagon((1, 1, 1, 1, 2)),
     "five-bar (2,1,1.4,1.6,1)": lambda: pentagon((2, 1, 1.4, 1.6, 1)),
     "3D sliding torus": torus,
     "3D sphere": sphere,

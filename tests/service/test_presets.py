@@ -84,6 +84,34 @@ def test_planar_polygon_presets_against_farber_schuetz(client, query, lengths):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("lengths", [(1.0, 2.0, 1.0, 1.0, 1.0), (1.0, 1.0, 1.0, 1.0, 2.0)])
+def test_pentagon_through_nearly_flat_cones_is_proved(client, lengths):
+    """At (1, 2, 1, 1, 1) and (1, 1, 1, 1, 2) the pentagon's four cones are nearly flat or
+    narrow (one |lam| about 0.1 against 2 to 3.6): complete and proved, one surface pinched
+    at the four collinear pentagons, its Euler characteristic the mean of Farber and
+    Schuetz's on the two sides of the lengths along a generic change (-2)."""
+    from tests.engine.space.surfaces.test_cones import chi_reference
+
+    query = "pentagon?" + "&".join(f"L{k}={x}" for k, x in enumerate(lengths))
+    lk = client.get(f"/v1/presets/{query}")
+    assert lk.status_code == 200, lk.text
+    r = client.post("/v1/analysis/configuration-space",
+                    json={"linkage": lk.json(), "options": {"time_budget_s": 120}})
+    assert r.status_code == 200, r.text[:500]
+    body = r.json()
+    assert body["search"]["complete"] and body["search"]["argument"] == "proved", body["search"]
+    chi = chi_reference(lengths)
+    assert chi == -2
+    (surf,) = body["surfaces"]
+    assert surf["closed"] and surf["morse_agrees"] and surf["inverted_triangles"] == 0
+    assert surf["euler"] == surf["morse_sum"] == chi and surf["genus"] is None
+    assert surf["betti_q"] == surf["betti_z2"] == [1, 2 - chi, 1]
+    assert len(surf["apexes"]) == surf["defects"]["pinched_vertices"] == 4
+    for k in surf["apexes"]:  # collinear: every vertex on the x axis
+        assert max(abs(p[k][1]) for p in surf["positions"].values()) < 1e-8
+
+
+@pytest.mark.slow
 def test_sphere_slider_is_a_torus(client):
     """For every B on its circle, A runs on the circle where the spheres about P and B meet: an
     orientable circle bundle over a circle, a torus (b = 1, 2, 1)."""

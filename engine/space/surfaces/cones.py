@@ -18,10 +18,14 @@ so its linear product has ``2^E C(M, E)`` paths (240 for a pentagon).
 eigenvalues ``lam_i, lam_j`` share a sign and ``lam_k`` has the other; the cone's lines are
 ``gamma(theta) = (cos theta / sqrt|lam_i|, sin theta / sqrt|lam_j|, +-1 / sqrt|lam_k|)``
 (normalised), ``+`` on one nappe and ``-`` on the other. Each nappe gets a fan: the apex and a
-ring of points at distance ``step`` along lines spaced evenly in arc length, projected onto the
-lengths; the marching method (:mod:`.mesh`) grows the mesh outwards from the rings' fronts, so
-it passes through the apex as the curve tracer passes through a branch point, instead of
-cutting across the cone.
+ring of points along lines spaced evenly in arc length, projected onto the lengths; the marching
+method (:mod:`.mesh`) grows the mesh outwards from the rings' fronts, so it passes through the
+apex as the curve tracer passes through a branch point, instead of cutting across the cone.
+A cone's features (the gap between its nappes, a nappe's breadth, its radius of curvature
+across the lines) are its :func:`cone_width` ``w`` times the distance ``r`` to the apex, and
+``w`` goes to zero with the smallest ``|lam|`` against the others (a nearly flat or narrow
+cone): the step near the apex is graded as ``w r`` (:class:`.mesh.Fan`), and the rings sit
+where the quadratic cone still holds (:func:`cone_fans`).
 
 **Morse count** (:func:`cone_morse_term`): on a surface with cones a generic height ``h``
 satisfies ``chi = sum_smooth (-1)^index + sum_apexes (1 - cut)`` (stratified Morse theory: the
@@ -42,6 +46,7 @@ from engine.model.tolerances import Tolerances
 from engine.space.homotopy import REGULAR, SINGULAR, track
 from engine.space.linear_product import LinearProduct, Structure, bezout
 from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.mesh import Fan
 from engine.space.witnesses import FAR_REACH, SINGULAR_IMAG_TOL, _reach, bar_quadrics
 
 #: ``|t|`` (``|r| = 1``) below which an end is a critical-point candidate (a singular end is
@@ -54,9 +59,16 @@ LINK_SAMPLES = 720
 #: Fewest points of a ring around an apex (the marching method closes a front of three at
 #: once: a ring of three would cap its nappe with one triangle).
 RING_MIN = 5
-#: The farthest a ring goes from its apex, in steps (the quadratic cone's error grows as the
-#: cube of the distance).
-RING_RADIUS_MAX = 3.0
+#: Near an apex the step is this times the cone's :func:`cone_width` times the distance to
+#: the apex (:class:`.mesh.Fan`): the other nappe (or the far side of its own) is then over
+#: two steps away, and an edge leaves the tangent planes by under 30 degrees.
+GRADE = 1.0
+#: A ring point may move at most this times the cone's width times the ring's radius when
+#: it is projected onto the lengths (it stays on its own nappe, near its own line: the
+#: quadratic cone holds there); otherwise the ring is put at half the radius.
+RING_MOVE = 0.25
+#: Times a ring's radius is halved at most.
+RING_HALVINGS = 4
 
 
 def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
@@ -139,49 +151,90 @@ def _lines(cp: CriticalPoint) -> tuple[np.ndarray, np.ndarray]:
     return out / np.linalg.norm(out, axis=2, keepdims=True), z
 
 
-def ring_radius(cp: CriticalPoint, step: float) -> float:
-    """How far from the apex of the cone ``cp`` its rings go: ``step``, further where the cone
-    is narrow (a ring of radius ``R`` is a loop of radius about ``R sin alpha_min``: at least
-    half a step) or flat (its nappes ``2 R cos alpha_max`` apart: at least one and a half
-    steps, so that the fronts of the two nappes are not joined), at most
-    ``RING_RADIUS_MAX`` steps."""
-    lam = np.asarray(cp.analysis.q_eigenvalues)
-    k = next(i for i in range(3) if (np.sign(lam) == np.sign(lam[i])).sum() == 1)
-    pair = np.abs(np.delete(lam, k))
-    narrow = np.arctan(np.sqrt(abs(lam[k]) / pair.max()))
-    flat = np.arctan(np.sqrt(abs(lam[k]) / pair.min()))
-    r = max(1.0, 0.5 / np.sin(narrow), 0.75 / max(np.cos(flat), 1e-12))
-    return step * min(r, RING_RADIUS_MAX)
+def cone_width(cp: CriticalPoint) -> float:
+    """The cone's smallest feature at unit distance from its apex: half the least distance
+    between the two nappes' unit lines, half the least across one nappe (its lines at
+    ``theta`` and ``theta + pi``), and the least radius of curvature across the lines (one
+    over the link's largest geodesic curvature on the unit sphere: a cone's curvature across
+    its lines at distance ``r`` is ``k_g / r``). All three scale with the distance, and go
+    to zero as the smallest ``|lam|`` does against the others (a flat cone's nappes nearly
+    touch along a sharp edge, a narrow one's are thin tubes)."""
+    lines, _ = _lines(cp)
+    between = float(np.sqrt(max(2.0 - 2.0 * float((lines[0] @ lines[1].T).max()), 0.0)))
+    across = min(float(np.linalg.norm(n - np.roll(n, LINK_SAMPLES // 2, axis=0),
+                                      axis=1).min()) for n in lines)
+    bend = 0.0
+    for n in lines:  # k_g = c . (c' x c'') / |c'|^3 of the link c(theta), by differences
+        d1 = 0.5 * (np.roll(n, -1, axis=0) - np.roll(n, 1, axis=0))
+        d2 = np.roll(n, -1, axis=0) - 2.0 * n + np.roll(n, 1, axis=0)
+        k = np.abs(np.einsum("si,si->s", n, np.cross(d1, d2))) / np.maximum(
+            np.linalg.norm(d1, axis=1) ** 3, 1e-300)
+        bend = max(bend, float(k.max()))
+    return min(0.5 * between, 0.5 * across, 1.0 / max(bend, 1e-12))
 
 
-def cone_fans(surface: Surface, cp: CriticalPoint, step: float) -> list[np.ndarray] | None:
-    """Two rings (n, M) of points on the space at :func:`ring_radius` from the apex of the cone
-    ``cp``, one per nappe, about ``step`` apart, counter-clockwise in their positive frames
-    (module docstring); None where a point does not project within half the radius of its
-    line."""
+def _ring(surface: Surface, cp: CriticalPoint, nappe: np.ndarray, z: np.ndarray,
+          radius: float, spacing: float, move: float) -> np.ndarray | None:
+    """One nappe's ring (n, M) at ``radius``, its points about ``spacing`` apart, projected;
+    None where a point moves more than ``move`` along the zero modes ``z`` (3, M) (the move
+    across them, about ``radius^2``, takes it onto the lengths and leaves its line alone)."""
+    gaps = np.linalg.norm(np.roll(nappe, -1, axis=0) - nappe, axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(gaps)])
+    n = max(RING_MIN, int(round(radius * arc[-1] / spacing)))
+    pick = np.searchsorted(arc, np.arange(n) * arc[-1] / n)
+    pts = []
+    for g in nappe[np.minimum(pick, len(nappe) - 1)]:
+        guess = cp.u + radius * (g @ z)
+        u, ok = surface.project(guess)
+        if not ok or np.linalg.norm(z @ (u - guess)) > move:
+            return None
+        pts.append(u)
+    ring = np.array(pts)
+    # the fan (apex, ring[m], ring[m + 1]) positive in the first ring point's frame: the
+    # turn from ring[1] - ring[0] to apex - ring[0] counter-clockwise
+    fr = surface.frame(ring[0]).basis
+    a = (cp.u - ring[0]) @ fr
+    b = (ring[1] - ring[0]) @ fr
+    return ring if b[0] * a[1] - b[1] * a[0] > 0 else ring[::-1].copy()
+
+
+def cone_fans(surface: Surface, cp: CriticalPoint, step: float) -> Fan | None:
+    """The apex of the cone ``cp``, two rings (n, M) of points on the space, one per nappe,
+    counter-clockwise in their positive frames (module docstring), and the slope of the
+    step near the apex (:class:`.mesh.Fan`: ``GRADE`` times :func:`cone_width`).
+
+    The rings are one step out, their points the graded step apart (the slope times the
+    radius). A ring whose points move more than ``RING_MOVE`` widths times its radius along
+    the zero modes when projected (the quadratic cone does not hold there: its error grows as
+    ``r^3`` against the width ``|lam| r^2``) is put at half the radius, at most
+    ``RING_HALVINGS`` times; None after that.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from engine.model.tolerances import Tolerances
+    >>> from engine.model.linkage import build_linkage, VertexSpec, BarSpec
+    >>> pts = {"P0": (0, 0), "P1": (2, 0), "A": (2.5, 0.8), "B": (1.7, 1.4), "C": (0.6, 0.8)}
+    >>> vs = [VertexSpec(k, p, k in ("P0", "P1")) for k, p in pts.items()]
+    >>> bs = [BarSpec(f"b{i}", e, x) for i, (e, x) in enumerate(zip(
+    ...     [("P0", "P1"), ("P1", "A"), ("A", "B"), ("B", "C"), ("C", "P0")], (2, 1, 1, 1, 1)))]
+    >>> lk = build_linkage(2, vs, bs)
+    >>> cones, _ = find_cones(lk, Tolerances(), np.random.default_rng(0))
+    >>> fan = cone_fans(Surface(lk), cones[0], 0.25)
+    >>> len(fan.rings), fan.slope > 0
+    (2, True)
+    """
     lines, z = _lines(cp)
-    radius = ring_radius(cp, step)
-    rings = []
-    for nappe in lines:
-        gaps = np.linalg.norm(np.roll(nappe, -1, axis=0) - nappe, axis=1)
-        arc = np.concatenate([[0.0], np.cumsum(gaps)])
-        n = max(RING_MIN, int(round(radius * arc[-1] / step)))
-        pick = np.searchsorted(arc, np.arange(n) * arc[-1] / n)
-        pts = []
-        for g in nappe[np.minimum(pick, len(nappe) - 1)]:
-            guess = cp.u + radius * (g @ z)
-            u, ok = surface.project(guess)
-            if not ok or np.linalg.norm(u - guess) > 0.5 * radius:
-                return None
-            pts.append(u)
-        ring = np.array(pts)
-        # the fan (apex, ring[m], ring[m + 1]) positive in the first ring point's frame: the
-        # turn from ring[1] - ring[0] to apex - ring[0] counter-clockwise
-        fr = surface.frame(ring[0]).basis
-        a = (cp.u - ring[0]) @ fr
-        b = (ring[1] - ring[0]) @ fr
-        rings.append(ring if b[0] * a[1] - b[1] * a[0] > 0 else ring[::-1].copy())
-    return rings
+    width = cone_width(cp)
+    slope = GRADE * width
+    radius = step
+    for _ in range(RING_HALVINGS + 1):
+        rings = [_ring(surface, cp, nappe, z, radius, min(slope * radius, step),
+                       RING_MOVE * width * radius) for nappe in lines]
+        if all(r is not None for r in rings):
+            return Fan(cp.u, [r for r in rings if r is not None], slope)
+        radius *= 0.5
+    return None
 
 
 def cone_morse_term(cp: CriticalPoint, c: np.ndarray) -> int:

@@ -76,11 +76,10 @@ from engine.space.witnesses import PATHS_MAX, bounded
 #: bend), and the component is meshed again with a shorter step.
 TANGENT_ANGLE_MAX = np.deg2rad(45.0)
 #: Edge ends within this many (median) edge lengths of a cone's apex's ring (:func:`.cones.
-#: ring_radius`) are left out of the
-#: tangent-angle check (an edge there leaves the tangent planes by about half its length over
-#: the distance to the apex: 60 degrees at 1.3 steps on the pentagon at (2, 1, 1, 1, 1)); the
-#: meshes there are vouched for by the fold check, the links (two cycles at each apex, one
-#: elsewhere) and the Morse count with the apexes' terms.
+#: cone_fans`) are left out of the tangent-angle check (an edge there leaves the tangent planes by
+#: about half its length over the distance to the apex: 60 degrees at 1.3 steps on the pentagon at
+#: (2, 1, 1, 1, 1) with one step everywhere); the meshes there are vouched for by the fold check,
+#: the links (two cycles at each apex, one elsewhere) and the Morse count with the apexes' terms.
 APEX_ZONE = 3.0
 #: The step of a component meshed again (its geometric checks failed), relative to the last.
 REMESH_FACTOR = 0.6
@@ -337,12 +336,18 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
         surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
         [m.vertices for m in first])
     critical, where = _linkage_critical(surface, meshes, tol)
+    # near a cone, or failing the geometric checks at every step tried (a narrow cone's
+    # tube may keep its vertices' gaps above NEAR_CRITICAL_GAP): look for the cones
     if cone_pass is None and (critical or any(
-            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
+            len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes) or any(
+            k[0] or k[1] > TANGENT_ANGLE_MAX for k in checks)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
                                    dl, cones)
-        if cone_pass is not None:  # (which keeps the meshes it does not replace)
+        if cone_pass is not None:  # it keeps what it does not replace
             meshes, checks = [], []
+            # the budget spent on the meshes it replaced (finer and finer through a cone)
+            # does not count; a kept mesh stopped by it does
+            budget_hit = any("budget" in m.message for m in cone_pass.meshes)
     if cone_pass is not None:
         meshes, checks = cone_pass.meshes + meshes, cone_pass.checks + checks
         critical, where = cone_pass.critical, cone_pass.where
@@ -418,11 +423,11 @@ def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
     there is no cone or a fan does not project."""
     found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
     cones = [cp for cp in found if is_cone(cp)]
-    fans = [(cp.u, cone_fans(surface, cp, step)) for cp in cones]
-    if not cones or any(rings is None for _, rings in fans) or dl.expired():
+    fans = [cone_fans(surface, cp, step) for cp in cones]
+    if not cones or any(fan is None for fan in fans) or dl.expired():
         return None
     mesh = march(surface, None, step, max_triangles, dl,
-                 fans=[(u, rings) for u, rings in fans if rings is not None])
+                 fans=[fan for fan in fans if fan is not None])
     parts = components(mesh)
     tree = cKDTree(mesh.vertices)
     kept = [k for k, m in enumerate(meshes) if float(np.median(tree.query(m.vertices)[0])) > step]

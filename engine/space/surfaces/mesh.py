@@ -17,11 +17,14 @@ neighbours, measured counter-clockwise in ``p``'s positive frame) and
   would be thinner than ``MIN_SPLIT_ANGLE``), their new vertices at distance ``step`` from
   ``p`` in its tangent plane, projected onto the surface.
 
-A front of three vertices is closed by one triangle. Every operation keeps the mesh a
-2-manifold with boundary (the fronts), so a mesh without fronts is a closed surface; the
-geometric checks (triangles positive in their vertices' frames, close to the tangent planes) and
-the Morse check of :mod:`.morse` are what vouch that it is *this* surface. The steps are bounded
-by a triangle budget and the deadline: a mesh stopped early keeps its fronts (``closed`` False).
+A front of three vertices is closed by one triangle. Started from the fans around cones'
+apexes (:class:`Fan`), the step is graded near each apex (the cone's width times the distance
+to it, up to ``step``) and the front entries of the finest step are advanced first. Every
+operation keeps the mesh a 2-manifold with boundary (the fronts), so a mesh without fronts is
+a closed surface; the geometric checks (triangles positive in their vertices' frames, close to
+the tangent planes) and the Morse check of :mod:`.morse` are what vouch that it is *this*
+surface. The steps are bounded by a triangle budget and the deadline: a mesh stopped early
+keeps its fronts (``closed`` False).
 """
 
 from __future__ import annotations
@@ -43,6 +46,9 @@ SMALL_ANGLE = np.deg2rad(75.0)
 MIN_SPLIT_ANGLE = 0.8
 #: A projected new vertex may move at most this many steps off its tangent-plane point.
 MAX_PROJECTION_MOVE = 0.5
+#: A graded mesh (:class:`Fan`) advances the front entries whose step is within this factor
+#: of the smallest first (:func:`_priority`).
+FINEST = 1.5
 #: Front vertices whose new vertices could not be projected are retried this many times
 #: (the step halved each time) before the mesh stops as stuck.
 RETRIES = 2
@@ -81,6 +87,27 @@ class Mesh:
     apexes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
+@dataclass(frozen=True)
+class Fan:
+    """The start of a mesh around a cone's apex (:func:`.cones.cone_fans`).
+
+    Attributes
+    ----------
+    apex : (M,) float
+    rings : list of (n, M) float
+        One ring per nappe, counter-clockwise in their positive frames: the first fronts.
+    slope : float
+        Within ``step / slope`` of the apex the step is ``slope`` times the distance to it
+        (never below ``slope`` times half the rings' distance): a cone's features (the gap
+        between its nappes, a nappe's width) grow as the distance, so a graded step resolves
+        them at every distance. ``inf``: the step everywhere.
+    """
+
+    apex: np.ndarray
+    rings: list[np.ndarray]
+    slope: float = np.inf
+
+
 class _Builder:
     def __init__(self, surface: Surface, step: float) -> None:
         self.s, self.h = surface, step
@@ -88,18 +115,25 @@ class _Builder:
         self.x = np.empty((64, surface.n))  # (capacity, M): vertices
         self.z = np.empty((64, surface.n, 2))  # their frames
         self.gap = np.empty(64)
+        self.size = np.empty(64)  # the step at each vertex (Fan.slope)
         self.tri: list[tuple[int, int, int]] = []
         self.fronts: list[list[int]] = []
         self.apexes: list[int] = []
+        self.grading: list[tuple[np.ndarray, float, float]] = []  # apex, slope, floor
 
     def add(self, u: np.ndarray) -> int:
         if self.count == len(self.x):
             self.x = np.concatenate([self.x, np.empty_like(self.x)])
             self.z = np.concatenate([self.z, np.empty_like(self.z)])
             self.gap = np.concatenate([self.gap, np.empty_like(self.gap)])
+            self.size = np.concatenate([self.size, np.empty_like(self.size)])
         fr = self.s.frame(u)
         k = self.count
         self.x[k], self.z[k], self.gap[k] = u, fr.basis, fr.gap
+        size = self.h
+        for apex, slope, floor in self.grading:
+            size = min(size, max(slope * float(np.linalg.norm(u - apex)), floor))
+        self.size[k] = size
         self.count += 1
         return k
 
@@ -135,13 +169,17 @@ class _Builder:
         return False
 
 
-    def start_cones(self, fans: list[tuple[np.ndarray, list[np.ndarray]]]) -> None:
+    def start_cones(self, fans: list[Fan]) -> None:
         """Every cone's apex and a fan around it on each nappe (:func:`.cones.cone_fans`):
-        the rings are the first fronts."""
-        for apex, rings in fans:
-            a = self.add(apex)
+        the rings are the first fronts; the step graded near each apex (:class:`Fan`)."""
+        for fan in fans:
+            if np.isfinite(fan.slope):
+                inner = min(float(np.linalg.norm(r - fan.apex, axis=1).min()) for r in fan.rings)
+                self.grading.append((fan.apex, fan.slope, 0.5 * fan.slope * inner))
+        for fan in fans:
+            a = self.add(fan.apex)
             self.apexes.append(a)
-            for ring in rings:
+            for ring in fan.rings:
                 idx = [self.add(u) for u in ring]
                 self.tri += [(a, idx[k], idx[(k + 1) % len(idx)]) for k in range(len(idx))]
                 self.fronts.append(idx)
@@ -179,7 +217,7 @@ def _close_partner(b: _Builder, k: int, i: int, omega: float, entries: tuple[np.
     fk, pos, verts, _ = entries
     pts = b.x[verts]
     d = np.linalg.norm(pts - b.x[p], axis=1)
-    cand = (d < CLOSE * b.h) & ~np.isin(verts, (p, a, c))
+    cand = (d < CLOSE * b.size[p]) & (verts != p) & (verts != a) & (verts != c)
     if not cand.any():
         return None
     loc = b.local(p, pts[cand])
@@ -227,7 +265,7 @@ def _grow(b: _Builder, k: int, i: int, omega: float) -> bool:
     va = b.local(p, b.x[a][None])[0]
     t0 = np.arctan2(va[1], va[0])
     for attempt in range(RETRIES + 1):
-        length = b.h * 0.5 ** attempt
+        length = float(b.size[p]) * 0.5 ** attempt
         first = b.count
         new = []
         for m in range(1, n):
@@ -247,10 +285,11 @@ def _grow(b: _Builder, k: int, i: int, omega: float) -> bool:
 
 def march(surface: Surface, seed: np.ndarray | None, step: float, max_triangles: int,
           deadline: Deadline = NEVER,
-          fans: list[tuple[np.ndarray, list[np.ndarray]]] | None = None) -> Mesh:
+          fans: list[Fan] | None = None) -> Mesh:
     """Mesh the component through ``seed`` (on the surface) with edges about ``step``; or,
     with ``fans`` (apexes and their rings, :func:`.cones.cone_fans`) instead of a seed, every
-    component through those cones at once (:func:`components` parts them).
+    component through those cones at once (:func:`components` parts them), the edges graded
+    near the apexes (:class:`Fan`).
 
     Examples
     --------
@@ -286,7 +325,7 @@ def march(surface: Surface, seed: np.ndarray | None, step: float, max_triangles:
             continue
         entries = _front_entries(b)
         fk, pos, verts, ang = entries
-        order = np.argsort(ang)
+        order = np.argsort(_priority(b, verts, ang, stuck))
         pick = next((int(o) for o in order if int(verts[o]) not in stuck), None)
         if pick is None:
             return _result(b, f"{len(stuck)} front vertices could not be advanced (no new "
@@ -302,6 +341,21 @@ def march(surface: Surface, seed: np.ndarray | None, step: float, max_triangles:
             stuck.clear()
     _flip_folded(b)
     return _result(b, "closed")
+
+
+def _priority(b: _Builder, verts: np.ndarray, ang: np.ndarray, stuck: set[int]) -> np.ndarray:
+    """The order in which front entries are taken: the smallest front angle first
+    (Hartmann), among the entries whose step is within ``FINEST`` of the smallest (of those
+    not stuck); with one step everywhere, the angles themselves. A graded mesh thus grows out
+    from its apexes first, as advancing-front methods take the smallest faces first: a coarse
+    front that reached a fine one still waiting would pass it by."""
+    if not b.grading:
+        return ang
+    size = b.size[verts]
+    free = ~np.isin(verts, list(stuck)) if stuck else np.ones(len(verts), dtype=bool)
+    if not free.any():
+        return ang
+    return ang + 4 * np.pi * (size > FINEST * float(size[free].min()))
 
 
 def _negative(b: _Builder, tri: np.ndarray) -> np.ndarray:

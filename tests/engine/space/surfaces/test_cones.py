@@ -5,6 +5,8 @@ lengths' second-order expansion, computed here from the bars."""
 
 from __future__ import annotations
 
+from itertools import product
+
 import numpy as np
 import pytest
 from scipy.linalg import null_space
@@ -14,6 +16,7 @@ from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import (
     cone_fans,
     cone_morse_term,
+    cone_width,
     find_cones,
     is_cone,
     resolve_apexes,
@@ -24,15 +27,36 @@ from engine.space.surfaces.homology import manifold_defects, surface_homology
 from tests.engine.design.test_surface_splitting import collinear_pentagons
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
-#: A generic direction of length change: the spaces at L +- eps v are generic and every cone
-#: resolves one way on one side and the other way on the other, so that the critical space's
-#: Euler characteristic is the mean of theirs (each cone changes it by -1 or +1).
-V = np.array([0.0, 0.013, 0.007, 0.011, 0.005])
+#: Directions of length change, tried in turn until one is generic for the lengths at hand
+#: (:func:`generic_direction`): the spaces at L +- v are then generic and every cone resolves
+#: one way on one side and the other way on the other, so that the critical space's Euler
+#: characteristic is the mean of theirs (each cone changes it by -1 or +1). The first is off
+#: every wall through (2, 1, 1, 1, 1), but not through (1, 2, 1, 1, 1): there
+#: L1 + L4 = L0 + L2 + L3 and 0.013 + 0.005 = 0 + 0.007 + 0.011, so L +- V stays critical
+#: and the closed form (for generic lengths) says nothing about it.
+DIRECTIONS = [np.array([0.0, 0.013, 0.007, 0.011, 0.005]),
+              np.array([0.0, 0.0131, 0.0067, 0.0113, 0.0049]),
+              np.array([0.0029, -0.0071, 0.0123, 0.0047, -0.0101])]
 
 
-def chi_reference(lengths: tuple[float, ...]) -> int:
+def generic_direction(lengths: tuple[float, ...], skip: int = 0) -> np.ndarray:
+    """The first of ``DIRECTIONS`` (after ``skip``) along which ``lengths`` leaves every wall
+    ``sum eps_i L_i = 0`` (eps = +-1: a collinear polygon, where the closed form does not
+    apply) that it lies on, and crosses no other: L +- v is generic on both sides."""
+    lv = np.array(lengths, dtype=float)
+    signs = np.array(list(product((1.0, -1.0), repeat=len(lv))))
+    on = np.abs(signs @ lv) < 1e-9
+    for v in DIRECTIONS[skip:]:
+        if (np.abs(signs[on] @ v) > 1e-4).all() and (
+                np.abs(signs[~on] @ v) < 0.5 * np.abs(signs[~on] @ lv)).all():
+            return v
+    raise AssertionError(f"no generic direction for {lengths}")
+
+
+def chi_reference(lengths: tuple[float, ...], skip: int = 0) -> int:
+    v = generic_direction(lengths, skip)
     chis = [sum((-1) ** i * b for i, b in enumerate(pentagon_betti(tuple(np.array(lengths)
-                                                                        + s * V))))
+                                                                        + s * v))))
             for s in (1, -1)]
     assert (chis[0] + chis[1]) % 2 == 0
     return (chis[0] + chis[1]) // 2
@@ -79,7 +103,20 @@ def link_pieces(tri: np.ndarray, apex: int) -> list[set[int]]:
 
 CRITICAL = [((2, 1, 1, 1, 1), 0.15), ((2, 1, 1, 1, 1), 0.25), ((2, 1, 1, 1, 1), 0.35),
             ((1.5, 1, 1, 1, 1.5), 0.25), ((3, 1, 1.5, 1.5, 1), 0.25),
-            ((1, 1.5, 1.5, 1, 1), 0.25)]
+            ((1, 1.5, 1.5, 1, 1), 0.25),
+            # nearly flat and narrow cones: |lam| 0.11 and 0.12 against 2.3 to 3.6
+            ((1, 2, 1, 1, 1), 0.25), ((1, 1, 1, 1, 2), 0.25)]
+
+
+def test_the_reference_agrees_along_other_directions():
+    """The mean of the two sides' Euler characteristics does not depend on the generic
+    direction; and the first direction is not generic at (1, 2, 1, 1, 1), whose reference
+    along it would be -1."""
+    for lengths, _ in CRITICAL:
+        assert chi_reference(lengths) == chi_reference(lengths, skip=2)
+    lengths = (1, 2, 1, 1, 1)
+    assert generic_direction(lengths) is not DIRECTIONS[0]
+    assert chi_reference(lengths) == -2
 
 
 @pytest.mark.slow
@@ -119,6 +156,14 @@ def test_critical_spaces_are_meshed_through_their_cones(lengths, step):
             assert abs(side.sum()) == len(side)  # one nappe each
             sides.append(side[0])
         assert sides[0] == -sides[1]
+        # near the apex (within twice its ring, at least 0.3) no triangle joins the nappes:
+        # each sees one sign of the lone coordinate (at least 0.2 r from zero on these cones)
+        r_all = np.linalg.norm(x - u, axis=1)
+        side_all = np.sign((x - u) @ z @ vec[:, lone])
+        ring_r = float(r_all[np.unique(tri[(tri == apex).any(axis=1)])].max())
+        close = tri[(r_all[tri] < max(0.3, 2.0 * ring_r)).all(axis=1)
+                    & (tri != apex).all(axis=1)]
+        assert len(close) and (np.abs(side_all[close].sum(axis=1)) == 3).all()
         # every mesh vertex near the apex on the cone gamma^T Q gamma = 0, to third order
         delta = x - u
         r = np.linalg.norm(delta, axis=1)
@@ -128,19 +173,74 @@ def test_critical_spaces_are_meshed_through_their_cones(lengths, step):
         assert np.all(np.abs(form) <= 4.0 * r[near] ** 3)
 
 
-def test_fans_lie_on_the_lengths_around_the_apex():
-    lk = pentagon((2, 1, 1, 1, 1))
+@pytest.mark.parametrize("lengths", [(2, 1, 1, 1, 1), (1, 2, 1, 1, 1)])
+def test_fans_lie_on_the_lengths_around_the_apex(lengths):
+    """Each ring on the lengths, one per nappe (the lone coordinate of Q's eigenbasis, from
+    the bars here, of one sign on each ring and opposite on the two), its points the graded
+    step apart; the slope of that step at most half the least gap between the quadratic
+    cone's nappes (their nearest lines ``2 atan(sqrt(|lam_min| / |lam_k|))`` apart) and half
+    the breadth of a nappe (``2 atan(sqrt(|lam_k| / |lam_max|))``)."""
+    lk = pentagon(lengths)
     surface = Surface(lk)
     cones, ended = find_cones(lk, Tolerances(), np.random.default_rng(0))
-    assert ended and all(is_cone(cp) for cp in cones)
+    assert ended and len(cones) == 4 and all(is_cone(cp) for cp in cones)
     for cp in cones:
-        rings = cone_fans(surface, cp, 0.25)
-        assert rings is not None and len(rings) == 2
-        for ring in rings:
+        fan = cone_fans(surface, cp, 0.25)
+        assert fan is not None and len(fan.rings) == 2 and np.array_equal(fan.apex, cp.u)
+        z, q = second_order(lengths, cp.u)
+        lam, vec = np.linalg.eigh(q)
+        lone = int(np.flatnonzero(np.sign(lam) != np.sign(np.sum(np.sign(lam))))[0])
+        pair = np.abs(np.delete(lam, lone))
+        gap = np.sin(np.arctan(np.sqrt(pair.min() / abs(lam[lone]))))
+        breadth = np.sin(np.arctan(np.sqrt(abs(lam[lone]) / pair.max())))
+        assert 0 < fan.slope <= min(gap, breadth) * (1 + 1e-3)
+        sides = []
+        for ring in fan.rings:
             assert len(ring) >= 5
             assert max(surface.cons.max_residual(p) for p in ring) <= 1e-9
             d = np.linalg.norm(ring - cp.u, axis=1)
-            assert np.all((d > 0.2) & (d < 0.8))
+            assert np.all((d > 0.05) & (d < 0.8))
+            side = np.sign((ring - cp.u) @ z @ vec[:, lone])
+            assert abs(side.sum()) == len(side)
+            sides.append(side[0])
+            spacing = np.linalg.norm(ring - np.roll(ring, 1, axis=0), axis=1)
+            assert spacing.max() <= 1.5 * min(0.25, fan.slope * d.mean())
+        assert sides[0] == -sides[1]
+
+
+#: Critical lengths (2 - s, 1 + s, 1, 1, 1) (L0 + L1 = L2 + L3 + L4: the pentagon folded
+#: flat at (3, 2, 1)): one cone, narrower as s grows, towards (1, 2, 1, 1, 1) and its four.
+FAMILY = [0.25, 0.5, 0.75, 0.9]
+
+
+@pytest.mark.slow
+def test_narrowing_cones_are_proved_right_or_left_incomplete():
+    """Along the family the cone's width falls (the smallest |lam| against the largest, from
+    the bars here, falls too); each answer is either complete with Farber and Schuetz's
+    topology and the collinear pentagons as apexes, or incomplete: never a wrong proved
+    one. The three widest are proved; at s = 0.9 the space is close to the critical necks
+    of (1, 2, 1, 1, 1) far from the cone, where the step is too coarse for the tangent-angle
+    check, and the answer says so (unresolved)."""
+    widths, ratios, proved = [], [], []
+    for s in FAMILY:
+        lengths = (2 - s, 1 + s, 1, 1, 1)
+        res = explore_surfaces(pentagon(lengths))
+        ref = collinear_pentagons(lengths)
+        (cp,) = [cp for cp in res.critical_points if is_cone(cp)]
+        assert len(ref) == 1 and np.abs(ref[0] - cp.u).max() < 1e-8
+        lam = np.abs(np.linalg.eigvalsh(second_order(lengths, cp.u)[1]))
+        widths.append(cone_width(cp))
+        ratios.append(lam.min() / lam.max())
+        if not res.search.complete:
+            assert res.search.reason in ("unresolved", "degenerate", "budget")
+            continue
+        chi = chi_reference(lengths)
+        (comp,) = res.components
+        assert comp.homology.euler == chi and comp.homology.betti_q == (1, 2 - chi, 1)
+        assert len(comp.apexes) == 1 and comp.morse_agrees
+        proved.append(s)
+    assert widths == sorted(widths, reverse=True) and ratios == sorted(ratios, reverse=True)
+    assert proved == [0.25, 0.5, 0.75]
 
 
 def test_the_apex_term_of_the_morse_count():
