@@ -256,6 +256,14 @@ class EnginePool:
         return pool is not None and not starting and not pool.active
 
     @property
+    def must_wait(self) -> bool:
+        """True when a request handed over now waits for a worker: every worker holds an
+        admitted request (one that is running or waiting), or the pool is not ready (starting,
+        or being replaced). False when a worker is free: any delay before the task starts is
+        then the hop and the machine's load, not a queue (see :func:`_queued_too_long`)."""
+        return not self.ready or self.admitted >= self.workers
+
+    @property
     def ready(self) -> bool:
         """Started (every worker answered once), not starting a new pool, and not broken."""
         return self._started and not self.starting and not self.broken
@@ -430,7 +438,8 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer.
     ``queued_at``: when the pool was handed the request (``time.monotonic``, one clock for the
-    machine's processes), to tell the time lost waiting for a worker (_queued_too_long)."""
+    machine's processes), to tell the time lost waiting for a worker (_queued_too_long); None
+    where a worker was free then (``EnginePool.must_wait``): no time was lost in a queue."""
     waited = 0.0 if queued_at is None else time.monotonic() - queued_at
     if kernel:
         trace_kernel.prepare()
@@ -489,9 +498,14 @@ async def engine_call(request: Request, settings: Settings,
     else:
         pool = engine_pool(request)
         spill, answered = pool.spill_files.take(), False
+        # a request handed to a free worker lost no time in a queue: a slow start there is the
+        # hop and the machine's load (a loaded 2-core machine took 1.7 s to start a 5,000-rotor
+        # chain's second order on an idle worker, which then answered 503 "waited for an engine
+        # worker" instead of the 422 too-costly)
+        queued_at = time.monotonic() if pool.must_wait else None
         try:
             answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill,
-                                    True, time.monotonic())
+                                    True, queued_at)
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
             answered = True

@@ -10,14 +10,19 @@ deadlines, not the session app's generous ones, decide when the answers come.
 most one unit of work that does not look at it (one sparse null space, one trace step, one
 refinement or classification: at most 0.5 s measured on these inputs at 400 rotors), then the
 mapping and serialising of what was found (at most 0.3 s) and the hop to and from the worker
-process; doubled, for a machine shared with other processes.
+process; doubled. Those are seconds of an idle machine: on a loaded one that work takes longer
+by the factor :func:`tests.load.stretch` measures in an engine worker and in this process just
+before and just after the request (the larger of the two, at least 1), and the margin is scaled
+by it. The budget itself is not: the deadline is wall-clock time from the request's arrival, on
+any machine. (Unscaled, the 20,000-rotor chain's map answered after 4.5 s at load 5, and after
+12-68 s at load 12 with the nice-10 worker beside three busy processes, a stretch of 10-30.)
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pytest
@@ -25,6 +30,7 @@ import pytest
 from service.config import Settings
 from service.main import create_app
 from tests.conftest import ApiClient
+from tests.load import stretch
 from tests.service.preset_matrix import bar_length, free_bars
 
 Json = dict[str, Any]
@@ -37,8 +43,8 @@ SEARCH_S = 4.0
 
 @pytest.fixture(scope="module")
 def api() -> Iterator[ApiClient]:
-    # one engine worker, warmed by a first request (it loads the compiled kernels, a second or
-    # more from numba's cache): no timed request lands on a cold worker
+    # one engine worker, started by ApiClient (tests.conftest.start_ready: the kernels loaded)
+    # and then given a first request: no timed request lands on a cold worker or pool
     app = create_app(Settings.from_env().replace(time_limit_s=30.0, search_time_s=SEARCH_S,
                                                  workers=1))
     client = ApiClient(app)
@@ -50,17 +56,33 @@ def api() -> Iterator[ApiClient]:
     app.state.engine_pool.close()
 
 
-def timed_post(api: ApiClient, path: str, body: Json) -> tuple[Any, float]:
+class Timed(NamedTuple):
+    """A request's seconds, and the machine's slowdown measured around it."""
+
+    seconds: float
+    stretch: float
+
+    def within(self, budget: float) -> bool:
+        return self.seconds <= budget + MARGIN_S * self.stretch
+
+    def __str__(self) -> str:
+        return f"{self.seconds:.2f} s (margin {MARGIN_S} s x stretch {self.stretch:.1f})"
+
+
+def timed_post(api: ApiClient, path: str, body: Json) -> tuple[Any, Timed]:
+    before = stretch(api.app)
     t0 = time.monotonic()
     r = api.post(path, json=body)
-    return r, time.monotonic() - t0
+    took = time.monotonic() - t0
+    return r, Timed(took, max(before, stretch(api.app)))
 
 
-def assert_in_time(r: Any, took: float, budget: float, search: bool = True) -> None:
-    """200 within ``budget + MARGIN_S``; a JSON answer's search report complete, or cut by
-    time with ``time_budget_s`` the budget (or incomplete for another named reason)."""
+def assert_in_time(r: Any, took: Timed, budget: float, search: bool = True) -> None:
+    """200 within ``budget`` plus the margin in the machine's current speed; a JSON answer's
+    search report complete, or cut by time with ``time_budget_s`` the budget (or incomplete
+    for another named reason)."""
     assert r.status_code == 200, r.text[:500]
-    assert took <= budget + MARGIN_S, f"answered after {took:.2f} s (budget {budget} s)"
+    assert took.within(budget), f"answered after {took} (budget {budget} s)"
     if search:
         report = r.json()["search"]
         assert report["time_budget_s"] == budget
@@ -213,7 +235,7 @@ def test_no_search_answers_later_than_its_budget_plus_the_margin(api, path):
     if path == "/v1/design/splitting" and r.status_code == 422:
         # a search cut before it found the target branch point: the target is named
         assert r.json()["errors"][0]["loc"][-3:-1] == ["targets", 0], r.text
-        assert took <= SMALL_BUDGET_S + MARGIN_S
+        assert took.within(SMALL_BUDGET_S), f"answered after {took}"
         return
     assert_in_time(r, took, SMALL_BUDGET_S, search=not path.startswith("/v1/figures"))
 

@@ -24,6 +24,7 @@ import pytest
 
 from service.config import Settings
 from service.main import create_app
+from tests.conftest import start_ready
 from tests.service.test_uvicorn_process import HOST, ROOT, free_port, stop, wait_until_ready
 
 # Time limits, faults and queues: seconds each by nature.
@@ -80,7 +81,7 @@ def overrun_body() -> dict[str, Any]:
 
 @pytest.fixture()
 def small_app() -> Iterator[Any]:
-    app = create_app(Settings(workers=1, time_limit_s=1.5, max_queue=8))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=1.5, max_queue=8)))
     yield app
     app.state.engine_pool.close()
 
@@ -135,15 +136,22 @@ def test_time_limit_stops_the_request_and_the_next_one_is_served(small_app, kl_c
 def test_a_killed_worker_fails_its_request_cleanly_and_the_next_one_succeeds(
     kl_chain, four_bar
 ):
-    app = create_app(Settings(workers=1, time_limit_s=60))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=60)))
     pool = app.state.engine_pool
 
     async def scenario() -> tuple[httpx.Response, list[int], httpx.Response, str]:
         async with client_for(app) as c:
+            victims = pool.worker_pids()
+            idle = cpu_seconds(victims)
             task = asyncio.create_task(
                 c.post("/v1/analysis/configuration-space", json=busy_body(30.0)))
-            await asyncio.sleep(1.0)  # the worker is busy with it now
-            victims = pool.worker_pids()
+            # the worker is busy with it once it has spent CPU on it (an idle one spends none):
+            # a fixed sleep of 1 s killed it, at load 12, before it had taken the request, and
+            # the request failed as one waiting for a worker, without the worker's exit code
+            deadline = time.monotonic() + 60
+            while cpu_seconds(victims) < idle + 0.2:
+                assert time.monotonic() < deadline and not task.done()
+                await asyncio.sleep(0.05)
             for pid in victims:
                 os.kill(pid, signal.SIGKILL)  # as the out-of-memory killer would
             failed = await task
@@ -162,8 +170,17 @@ def test_a_killed_worker_fails_its_request_cleanly_and_the_next_one_succeeds(
     assert metric(metrics, "linkage_engine_events_total", event="worker_failed") == 1
 
 
+def cpu_seconds(pids: list[int]) -> float:
+    """CPU seconds (user and system) spent by the processes ``pids`` so far."""
+    ticks = 0
+    for pid in pids:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        ticks += int(fields[11]) + int(fields[12])  # utime, stime (fields 14, 15 of stat)
+    return ticks / os.sysconf("SC_CLK_TCK")
+
+
 def test_small_requests_stay_fast_while_a_slow_one_runs(kl_chain, four_bar):
-    app = create_app(Settings(workers=1, time_limit_s=12, max_queue=8))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=12, max_queue=8)))
     small_bodies = [("/v1/analysis/rigidity", {"linkage": four_bar}),
                     ("/v1/analysis/second-order", {"linkage": four_bar})]
 
@@ -204,7 +221,7 @@ def test_small_requests_stay_fast_while_a_slow_one_runs(kl_chain, four_bar):
 
 
 def test_busy_when_the_queue_is_full(kl_chain, four_bar):
-    app = create_app(Settings(workers=1, time_limit_s=3, max_queue=1))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=3, max_queue=1)))
 
     async def scenario() -> tuple[httpx.Response, httpx.Response, httpx.Response]:
         async with client_for(app) as c:
@@ -226,7 +243,7 @@ def test_busy_when_the_queue_is_full(kl_chain, four_bar):
 
 
 def test_metrics_count_requests_by_route_and_status(four_bar):
-    app = create_app(Settings(workers=1))
+    app = start_ready(create_app(Settings(workers=1)))
 
     async def scenario() -> str:
         async with client_for(app) as c:

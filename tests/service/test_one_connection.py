@@ -20,7 +20,7 @@ from fastapi import FastAPI
 from service.config import Settings
 from service.main import create_app
 from service.protocol import GuardedH11Protocol
-from tests.service.test_uvicorn_process import HOST, free_port
+from tests.service.test_uvicorn_process import HOST, STARTUP_TIMEOUT, free_port
 
 pytestmark = pytest.mark.process
 
@@ -31,6 +31,7 @@ class Server:
 
     def __init__(self, app: FastAPI) -> None:
         self.port = free_port()
+        self.app = app
         config = uvicorn.Config(app, host=HOST, port=self.port, log_level="warning",
                                 http=GuardedH11Protocol, access_log=False)
         self.server = uvicorn.Server(config)
@@ -38,8 +39,11 @@ class Server:
 
     def __enter__(self) -> Server:
         self.thread.start()
-        deadline = time.monotonic() + 120
-        while not self.server.started:
+        deadline = time.monotonic() + STARTUP_TIMEOUT
+        # ready, as an orchestrator routes to it (/health/ready): the lifespan starts the
+        # workers in the background once the port is open, and a request sent before then
+        # lands on their start-up (the server closed the connection at load 12)
+        while not (self.server.started and self.app.state.engine_pool.ready):
             assert time.monotonic() < deadline and self.thread.is_alive(), "did not start"
             time.sleep(0.05)
         return self

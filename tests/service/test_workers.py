@@ -587,3 +587,44 @@ def test_time_lost_in_the_queue_is_a_503_not_a_too_costly_422():
     assert "waited 3.2 s" in busy.detail and busy.retry_after == 3
     back = pickle.loads(pickle.dumps(busy))
     assert (type(back), back.detail, back.retry_after) == (workers.Busy, busy.detail, 3)
+
+
+def test_only_a_request_that_finds_every_worker_taken_counts_its_wait(monkeypatch, four_bar):
+    """The time from the hand-over to a worker counts as queueing (for the 503 above) only
+    where every worker was taken then, or the pool not ready: a request handed to a free
+    worker that starts late on a loaded machine lost no time in a queue (it answered 503
+    "waited for an engine worker" instead of its 422 too-costly)."""
+    handed: list[tuple[str, float | None]] = []
+    original = EnginePool.run
+
+    async def recorded(self: EnginePool, time_limit: float, fn: Any, *args: Any) -> Any:
+        handed.append((args[0].__name__, args[-1]))  # _as_json's job and its queued_at
+        return await original(self, time_limit, fn, *args)
+
+    monkeypatch.setattr(EnginePool, "run", recorded)
+    app = create_app(Settings(workers=1, time_limit_s=30))
+    pool = app.state.engine_pool
+    assert pool.must_wait  # not started: a request would wait for the workers' start
+
+    async def scenario() -> list[httpx.Response]:
+        async with client_for(app) as c:
+            alone = await c.post("/v1/analysis/critical-points", json={"linkage": four_bar})
+            slow = asyncio.create_task(
+                c.post("/v1/analysis/configuration-space", json=busy_body(2.0)))
+            deadline = time.monotonic() + 60
+            while pool.admitted < 1:  # the slow one holds the only worker
+                assert time.monotonic() < deadline and not slow.done()
+                await asyncio.sleep(0.01)
+            behind = await c.post("/v1/analysis/critical-points", json={"linkage": four_bar})
+            return [alone, await slow, behind]
+
+    pool.start()
+    try:
+        assert not pool.must_wait
+        responses = asyncio.run(scenario())
+    finally:
+        pool.close()
+    assert [r.status_code for r in responses] == [200, 200, 200]
+    (job, alone), (_, slow), (_, behind) = handed
+    assert job == "critical_points" and alone is None and slow is None
+    assert isinstance(behind, float)  # handed over while the slow one held the worker
