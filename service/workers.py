@@ -27,7 +27,6 @@ processes, and unpickled (30-80 ms for 13 MB on a 2-core machine), where the fil
 write and one read of the bytes. A file whose request was answered is kept for the next
 request (``SpillFiles``: a new file's pages cost the kernel as much again as the copy);
 one whose worker may still be running (time limit, cancellation, failure) is removed at once.
-
 Each worker's ``malloc`` (glibc) keeps freed memory for the next request
 (:func:`tune_malloc`): by default every array of more than 128 kB is mapped fresh from the
 kernel and returned when freed, so a configuration-space answer of 10^5 points pays some 10^4
@@ -256,14 +255,6 @@ class EnginePool:
         return pool is not None and not starting and not pool.active
 
     @property
-    def must_wait(self) -> bool:
-        """True when a request handed over now waits for a worker: every worker holds an
-        admitted request (one that is running or waiting), or the pool is not ready (starting,
-        or being replaced). False when a worker is free: any delay before the task starts is
-        then the hop and the machine's load, not a queue (see :func:`_queued_too_long`)."""
-        return not self.ready or self.admitted >= self.workers
-
-    @property
     def ready(self) -> bool:
         """Started (every worker answered once), not starting a new pool, and not broken."""
         return self._started and not self.starting and not self.broken
@@ -437,9 +428,8 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer.
-    ``queued_at``: when the pool was handed the request (``time.monotonic``, one clock for the
-    machine's processes), to tell the time lost waiting for a worker (_queued_too_long); None
-    where a worker was free then (``EnginePool.must_wait``): no time was lost in a queue."""
+    ``queued_at``: when the pool was handed the request with every worker taken (``monotonic``),
+    to tell the time lost in the queue (_queued_too_long); None where one was free."""
     waited = 0.0 if queued_at is None else time.monotonic() - queued_at
     if kernel:
         trace_kernel.prepare()
@@ -488,24 +478,20 @@ async def engine_call(request: Request, settings: Settings,
     millisecond: ``INLINE_MAX_VERTICES``), in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
     settings = with_arrival(request, settings)  # (searches count their time from there)
+    pool = engine_pool(request)
     if light or inline:
-        pool = engine_pool(request)
         with pool.light_lane(settings.time_limit_s):
             answer = (_as_json(fn, body, settings, None, False) if inline
                       else await run_in_threadpool(_as_json, fn, body, settings, None, False))
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:
-        pool = engine_pool(request)
         spill, answered = pool.spill_files.take(), False
-        # a request handed to a free worker lost no time in a queue: a slow start there is the
-        # hop and the machine's load (a loaded 2-core machine took 1.7 s to start a 5,000-rotor
-        # chain's second order on an idle worker, which then answered 503 "waited for an engine
-        # worker" instead of the 422 too-costly)
-        queued_at = time.monotonic() if pool.must_wait else None
+        # a free worker's late start is the load's, no queue's (503 "waited" instead of a 422)
+        queued = not pool.ready or pool.admitted >= pool.workers
         try:
             answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill,
-                                    True, queued_at)
+                                    True, time.monotonic() if queued else None)
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
             answered = True

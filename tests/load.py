@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from types import TracebackType
 from typing import Any
 
 #: Iterations of the reference work: about 40 ms of CPU on the 2-core test machine when idle,
@@ -42,3 +43,40 @@ def stretch(app: Any) -> float:
     pool = app.state.engine_pool
     worker = asyncio.run(pool.run(60.0, reference_work, REFERENCE_ITERATIONS))
     return max(1.0, worker, reference_work())
+
+
+class Timer:
+    """Wall seconds of a block and the machine's slowdown around it (:func:`stretch` of
+    ``app``'s engine worker and this process, or this process's alone without ``app``), for a
+    bound whose margin is seconds of work on an idle machine::
+
+        with Timer() as t:
+            work()
+        assert t.within(budget, margin), t
+    """
+
+    def __init__(self, app: Any = None) -> None:
+        self.app = app
+        self.seconds = 0.0
+        self.stretch = 1.0
+
+    def _stretch(self) -> float:
+        return stretch(self.app) if self.app is not None else max(1.0, reference_work())
+
+    def __enter__(self) -> Timer:
+        self.stretch = self._stretch()
+        self._t0 = time.monotonic()
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, err: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.seconds = time.monotonic() - self._t0
+        self.stretch = max(self.stretch, self._stretch())
+
+    def within(self, budget: float, margin: float) -> bool:
+        """True when the block took at most ``budget`` (wall-clock, e.g. a deadline's) plus
+        ``margin`` (idle seconds of work) times the slowdown measured."""
+        return self.seconds <= budget + margin * self.stretch
+
+    def __str__(self) -> str:
+        return f"{self.seconds:.2f} s at a measured slowdown of {self.stretch:.1f}"
