@@ -27,7 +27,6 @@ processes, and unpickled (30-80 ms for 13 MB on a 2-core machine), where the fil
 write and one read of the bytes. A file whose request was answered is kept for the next
 request (``SpillFiles``: a new file's pages cost the kernel as much again as the copy);
 one whose worker may still be running (time limit, cancellation, failure) is removed at once.
-
 Each worker's ``malloc`` (glibc) keeps freed memory for the next request
 (:func:`tune_malloc`): by default every array of more than 128 kB is mapped fresh from the
 kernel and returned when freed, so a configuration-space answer of 10^5 points pays some 10^4
@@ -429,8 +428,8 @@ def _as_json(fn: Callable[[B, Settings], BaseModel], body: B, settings: Settings
     With ``spill`` (a file the service handed to this request), an answer of at least
     ``SPILL_MIN_BYTES`` is written there and only its size returned; where that fails (the
     file is gone, the file system full) the bytes are returned as for a small answer.
-    ``queued_at``: when the pool was handed the request (``time.monotonic``, one clock for the
-    machine's processes), to tell the time lost waiting for a worker (_queued_too_long)."""
+    ``queued_at``: when the pool was handed the request with every worker taken (``monotonic``),
+    to tell the time lost in the queue (_queued_too_long); None where one was free."""
     waited = 0.0 if queued_at is None else time.monotonic() - queued_at
     if kernel:
         trace_kernel.prepare()
@@ -479,19 +478,20 @@ async def engine_call(request: Request, settings: Settings,
     millisecond: ``INLINE_MAX_VERTICES``), in the service's thread pool when ``light`` (bounded
     cost), else in a worker process under ``settings.time_limit_s``."""
     settings = with_arrival(request, settings)  # (searches count their time from there)
+    pool = engine_pool(request)
     if light or inline:
-        pool = engine_pool(request)
         with pool.light_lane(settings.time_limit_s):
             answer = (_as_json(fn, body, settings, None, False) if inline
                       else await run_in_threadpool(_as_json, fn, body, settings, None, False))
         assert isinstance(answer, bytes)  # no spill file: the bytes themselves
         payload = answer
     else:
-        pool = engine_pool(request)
         spill, answered = pool.spill_files.take(), False
+        # a free worker's late start is the load's, no queue's (503 "waited" instead of a 422)
+        queued = not pool.ready or pool.admitted >= pool.workers
         try:
             answer = await pool.run(settings.time_limit_s, _as_json, fn, body, settings, spill,
-                                    True, time.monotonic())
+                                    True, time.monotonic() if queued else None)
             payload = (answer if isinstance(answer, bytes)
                        else await run_in_threadpool(_read_spill, spill, answer))
             answered = True

@@ -121,10 +121,28 @@ def pytest_report_header(config: pytest.Config) -> list[str]:
             f"tracer: {'compiled (numba)' if trace_kernel.enabled() else 'Python loop'}"]
 
 
+def start_ready(app: Any) -> Any:
+    """``app`` brought into the state a user meets (``/health/ready`` 200, as an orchestrator
+    routes to it): its engine workers started as the lifespan's start-up step starts them
+    (``EnginePool.start``: until each has answered once, and the watchdog; the lifespan's
+    ``malloc`` tuning of the service process is left out, the test process runs the engine's
+    own tests too). The ASGI transport (httpx's, and Starlette's ``TestClient`` outside
+    a ``with``) runs no lifespan: without this the pool starts inside the first engine request,
+    and on a loaded machine (8-10 s at load 5-6, 80-93 s with numba's cache cold) that start-up
+    is counted as the request's time waited for a worker (503 ``busy`` instead of 422) and spends
+    its search budget and its timed bounds. Returns ``app``; a second call does nothing."""
+    pool = app.state.engine_pool
+    if not pool.ready:
+        pool.start()
+    return app
+
+
 class ApiClient:
-    """Synchronous facade over ``httpx.AsyncClient`` with the ASGI transport (no network)."""
+    """Synchronous facade over ``httpx.AsyncClient`` with the ASGI transport (no network), on
+    ``app`` started as a server's lifespan would (:func:`start_ready`)."""
 
     def __init__(self, app: Any) -> None:
+        self.app = start_ready(app)
         self._loop = asyncio.new_event_loop()
         self._client = httpx.AsyncClient(
             transport=httpx.ASGITransport(app=app, raise_app_exceptions=False),
@@ -151,8 +169,8 @@ def app() -> Iterator[Any]:
     # check complete answers; the limit itself is tested in tests/service/test_hardening.py,
     # the default search time (anytime answers) in tests/service/test_anytime.py, with apps of
     # their own.
-    application = create_app(Settings.from_env().replace(time_limit_s=600.0,
-                                                         search_time_s=300.0))
+    application = start_ready(create_app(Settings.from_env().replace(time_limit_s=600.0,
+                                                                     search_time_s=300.0)))
     yield application
     application.state.engine_pool.close()
 

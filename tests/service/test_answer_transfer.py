@@ -24,6 +24,7 @@ from service.main import create_app
 from service.mappers import linkage_out
 from service.schemas.common import AnalysisRequest
 from service.schemas.space import SpaceRequest
+from tests.conftest import start_ready
 from tests.service.test_hardening import (
     OVERRUN_PATH,
     assert_problem,
@@ -93,7 +94,7 @@ def test_answers_through_a_worker_reuse_one_file(tmp_path, monkeypatch, crank_ro
     """Default and compact answers of a real worker are the in-process ones; one after the
     other they cross in one file, which is gone when the pool closes."""
     monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
-    app = create_app(Settings(workers=1, time_limit_s=120))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=120)))
     settings = get_settings()
     files = []
 
@@ -149,7 +150,7 @@ def test_spill_files_are_kept_within_bounds(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_a_request_stopped_at_the_time_limit_leaves_no_file(tmp_path, monkeypatch):
     monkeypatch.setattr(spill_files, "spill_dir", lambda: str(tmp_path))
-    app = create_app(Settings(workers=1, time_limit_s=1.5))
+    app = start_ready(create_app(Settings(workers=1, time_limit_s=1.5)))
 
     async def scenario() -> Any:
         async with client_for(app) as c:

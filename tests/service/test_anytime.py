@@ -98,8 +98,16 @@ def test_the_time_budget_is_the_requests_within_the_limit(api):
         r = api.post("/v1/analysis/critical-points",
                      json={"linkage": linkage, "options": {"time_budget_s": asked}})
         assert r.status_code == 200, r.text
-        assert r.json()["search"]["time_budget_s"] == granted
-        assert r.json()["search"]["complete"] is True and r.json()["search"]["reason"] is None
+        search = r.json()["search"]
+        assert search["time_budget_s"] == granted
+        # The four-bar's three branch points took 80 ms through HTTP at load 4: 0.25 s asked
+        # may end before them on a loaded machine (incomplete at load 12, the deadline counted
+        # from the request's arrival), cut by time; the 9 s granted is ample anywhere.
+        if asked == granted:
+            assert search["complete"] is (search["reason"] is None)
+            assert search["reason"] in (None, "time")
+        else:
+            assert search["complete"] is True and search["reason"] is None
 
 
 @pytest.mark.parametrize("bad", [0, -1, "2", None, 1e6])

@@ -89,7 +89,17 @@ def shot(driver: Any, name: str) -> None:
     driver.save_screenshot(str(ARTIFACTS / name))
 
 
+#: Seconds a UI change that needs a request may take before a test gives up: a bound for a
+#: page that is stuck, not a latency claim (tests/service/test_browser_drag.py measures the
+#: latencies), so a loaded machine's slow answers are waited for: waits of 5 and 10 s for an
+#: answer drawn were shorter than one request of the served uvicorn takes at load 12.
+UI_WAIT_S = 60.0
+
+
 def wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
+    """The first true value of ``condition()``, polled every 50 ms; AssertionError after
+    ``timeout`` seconds (a give-up bound: at least :data:`UI_WAIT_S`)."""
+    timeout = max(timeout, UI_WAIT_S)
     deadline = time.monotonic() + timeout
     while True:
         value = condition()

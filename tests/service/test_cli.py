@@ -7,12 +7,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from engine.catalogue.presets import PRESETS
+from tests.load import Timer
 
 pytestmark = pytest.mark.process
 SCRIPT = str(Path(sys.executable).with_name("linkage-topology"))
@@ -41,11 +41,11 @@ def probe(*args: str, cwd: Path) -> tuple[str, dict]:
 
 
 def test_help_answers_at_once() -> None:
-    start = time.monotonic()
-    proc = cli("--help")
-    took = time.monotonic() - start
+    with Timer() as t:
+        proc = cli("--help")
     assert proc.returncode == 0 and "presets" in proc.stdout and "figure" in proc.stdout
-    assert took < 1.0, f"--help took {took:.2f} s"
+    # a second of an idle machine, scaled by the slowdown measured around it (tests/load.py)
+    assert t.within(0.0, 1.0), f"--help took {t}"
 
 
 def test_version() -> None:

@@ -35,7 +35,7 @@ from tests.service.test_browser import (
     shot,
     wait_for,
 )
-from tests.service.test_uvicorn_process import HOST, ROOT, free_port, stop
+from tests.service.test_uvicorn_process import HOST, ROOT, STARTUP_TIMEOUT, free_port, stop
 
 __all__ = ["browser"]  # the fixture, shared with test_browser
 
@@ -170,16 +170,16 @@ def service(**settings: str) -> Iterator[str]:
                 cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                 stderr=stderr)
         try:
-            deadline = time.monotonic() + 90
+            deadline = time.monotonic() + STARTUP_TIMEOUT
             with httpx.Client(base_url=url, trust_env=False, timeout=5.0) as client:
                 while True:
                     assert proc.poll() is None, stderr_path.read_text(errors="replace")
                     try:
-                        if client.get("/health").status_code == 200:
+                        if client.get("/health/ready").status_code == 200:
                             break
                     except httpx.TransportError:
                         pass
-                    assert time.monotonic() < deadline, "uvicorn did not start in 90 s"
+                    assert time.monotonic() < deadline, "uvicorn was not ready in time"
                     time.sleep(0.2)
             yield url
         finally:

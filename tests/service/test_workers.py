@@ -29,6 +29,7 @@ from tests.service.test_hardening import (
     assert_problem,
     busy_body,
     client_for,
+    collinear,
     overrun_body,
 )
 
@@ -305,9 +306,14 @@ def test_an_idle_worker_killed_before_any_request_is_replaced(four_bar, watchdog
             pool.start()
             victims = pool.worker_pids()
             kill(victims)
-            await asyncio.sleep(0.3)  # pebble notices the death within its 0.1 s loop
+            # pebble notices the death within its 0.1 s loop, the watchdog replaces the pool
+            # within its 0.5 s, on an idle machine (fixed sleeps of 0.3 and 1.0 s were too
+            # short at load 10: /health/ready still answered 200 before pebble noticed)
+            deadline = time.monotonic() + 60
+            while not (pool.replacements and pool.ready if watchdog else pool.broken):
+                assert time.monotonic() < deadline
+                await asyncio.sleep(0.05)
             if watchdog:
-                await asyncio.sleep(1.0)
                 not_ready = None
             else:  # nothing replaces it before a request: the pool is reported broken
                 not_ready = await c.get("/health/ready")
@@ -504,21 +510,6 @@ def test_a_tiny_first_order_request_is_answered_on_the_event_loop(monkeypatch):
     assert "AnyIO" not in loop_thread and "AnyIO" in pool_thread, threads
 
 
-def collinear(n: int, bars: int, pinned: int = 0) -> dict[str, Any]:
-    """``n`` vertices on a line in the plane (the first ``pinned`` of them pinned) and ``bars``
-    bars: a path, then chords in a fixed order. Every vertical motion of a free vertex is a
-    zero mode and most bars carry a self-stress: the degenerate case the light lane's estimate
-    has to bound."""
-    pairs = [(i, i + 1) for i in range(n - 1)]
-    pairs += [(i, j) for gap in range(2, n) for i in range(n - gap) for j in (i + gap,)]
-    assert bars <= len(pairs)
-    return {"dimension": 2,
-            "vertices": [{"id": f"v{i}", "position": [float(i) + 0.1 * i * i, 0.0],
-                          "fixed": i < pinned} for i in range(n)],
-            "bars": [{"id": f"b{k}", "ends": [f"v{i}", f"v{j}"]}
-                     for k, (i, j) in enumerate(pairs[:bars])]}
-
-
 @pytest.mark.parametrize(("n", "bars", "pinned", "fixed", "light", "light_second"), [
     # M = 2 (n - pinned) free coordinates counted by hand, E = bars
     (4, 3, 2, None, True, True),        # the four-bar's sizes: M 4, E 3, M E 12
@@ -587,3 +578,42 @@ def test_time_lost_in_the_queue_is_a_503_not_a_too_costly_422():
     assert "waited 3.2 s" in busy.detail and busy.retry_after == 3
     back = pickle.loads(pickle.dumps(busy))
     assert (type(back), back.detail, back.retry_after) == (workers.Busy, busy.detail, 3)
+
+
+def test_only_a_request_that_finds_every_worker_taken_counts_its_wait(monkeypatch, four_bar):
+    """The time from the hand-over to a worker counts as queueing (for the 503 above) only
+    where every worker was taken then, or the pool not ready: a request handed to a free
+    worker that starts late on a loaded machine lost no time in a queue (it answered 503
+    "waited for an engine worker" instead of its 422 too-costly)."""
+    handed: list[tuple[str, float | None]] = []
+    original = EnginePool.run
+
+    async def recorded(self: EnginePool, time_limit: float, fn: Any, *args: Any) -> Any:
+        handed.append((args[0].__name__, args[-1]))  # _as_json's job and its queued_at
+        return await original(self, time_limit, fn, *args)
+
+    monkeypatch.setattr(EnginePool, "run", recorded)
+    app = create_app(Settings(workers=1, time_limit_s=30))
+    pool = app.state.engine_pool
+
+    async def scenario() -> list[httpx.Response]:
+        async with client_for(app) as c:
+            alone = await c.post("/v1/analysis/critical-points", json={"linkage": four_bar})
+            slow = asyncio.create_task(
+                c.post("/v1/analysis/configuration-space", json=busy_body(2.0)))
+            deadline = time.monotonic() + 60
+            while pool.admitted < 1:  # the slow one holds the only worker
+                assert time.monotonic() < deadline and not slow.done()
+                await asyncio.sleep(0.01)
+            behind = await c.post("/v1/analysis/critical-points", json={"linkage": four_bar})
+            return [alone, await slow, behind]
+
+    pool.start()
+    try:
+        responses = asyncio.run(scenario())
+    finally:
+        pool.close()
+    assert [r.status_code for r in responses] == [200, 200, 200]
+    (job, alone), (_, slow), (_, behind) = handed
+    assert job == "critical_points" and alone is None and slow is None
+    assert isinstance(behind, float)  # handed over while the slow one held the worker

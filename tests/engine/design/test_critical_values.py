@@ -20,6 +20,7 @@ from tests.engine.design.slice_references import (
     gate_rotor_turns,
     points_inside,
 )
+from tests.load import Timer
 
 SIGNS = list(itertools.product((1, -1), repeat=3))
 
@@ -339,17 +340,17 @@ def test_a_100_rotor_chain_s_map_answers_within_its_budget():
     preset matrix's request): traced, its starts took 10 s of dense algebra past a 4 s
     deadline; now the traced map stops at its deadline, and the default method draws the
     first four-bar's flat planes and counts the regions by the chain rules (complete)."""
-    import time
 
     from engine.model.budget import Deadline
 
     lk = build_preset("kl-chain", {"n": 100})
     free = np.flatnonzero(lk.active)  # (the bars with a free end, in request order)
     axes = [(lk.bar_ids[k], 0.8 * lk.lengths[k], 1.2 * lk.lengths[k]) for k in free[:2]]
-    t0 = time.monotonic()
-    s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0), method="traced")
-    took = time.monotonic() - t0
-    assert took <= 4.0 + 2.0, f"answered after {took:.2f} s"
+    with Timer() as t:
+        s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0), method="traced")
+    # test_bounded's margin of 2 s of an idle machine's work after the deadline, scaled by the
+    # load measured around the call (tests/load.py)
+    assert t.within(4.0, 2.0), f"answered after {t}"
     assert s.search["complete"] is False and s.search["reason"] == "time"
     s = critical_value_slice(lk, axes, deadline=Deadline.after(4.0))
     assert s.search["complete"] and s.search["argument"] == "derived"

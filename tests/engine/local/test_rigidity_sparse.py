@@ -5,8 +5,6 @@ large chains, where only invariants can be checked."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -17,6 +15,7 @@ from engine.model.constraints import Constraints
 from engine.model.linkage import BarSpec, Linkage, VertexSpec, build_linkage
 from engine.model.lu import Factor, parity
 from tests.engine.local.test_rigidity import check_invariants, same_subspace
+from tests.load import Timer
 
 
 def straight_kl_chain(n: int) -> Linkage:
@@ -225,10 +224,11 @@ def test_a_large_null_space_goes_to_the_dense_svd(n):
 
 def test_a_dense_svd_that_would_not_end_in_time_is_not_started():
     chain = straight_kl_chain(1000)  # M = 2000: a dense SVD of about 10 s or more
-    t0 = time.monotonic()
-    with pytest.raises(OutOfTime):
+    with Timer() as t, pytest.raises(OutOfTime):
         first_order(chain, deadline=Deadline.after(1.0))
-    assert time.monotonic() - t0 < 5.0  # (the sparse rounds before it stop at the deadline)
+    # the sparse rounds before it stop at the deadline; 4 s of an idle machine's work after it
+    # (scaled by the load: tests/load.py), far below the SVD's 10 s
+    assert t.within(1.0, 4.0), t
 
 
 def test_a_round_of_the_completion_that_would_not_end_in_time_is_not_started():

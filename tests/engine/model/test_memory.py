@@ -10,7 +10,6 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 
@@ -30,6 +29,7 @@ from engine.model.memory import (
     available_memory,
     check_memory,
 )
+from tests.load import Timer
 from tests.service.test_uvicorn_process import ROOT
 
 
@@ -52,10 +52,10 @@ def floppy(free: int, braced_every: int = 0) -> Linkage:
 def test_floppy_chains_beyond_both_methods_are_refused_at_once(free):
     linkage = floppy(free)
     for analysis in (first_order, second_order):
-        t0 = time.perf_counter()
-        with pytest.raises(LimitExceeded) as err:
+        with Timer() as t, pytest.raises(LimitExceeded) as err:
             analysis(linkage)
-        assert time.perf_counter() - t0 < 5  # refused from the sizes, nothing computed
+        # refused from the sizes, nothing computed: 5 s on an idle machine, scaled by the load
+        assert t.within(0.0, 5.0), t
         assert not isinstance(err.value, MemoryLimitExceeded)
         assert f"{free - 1} independent zero modes" in err.value.message
         assert f"({SPARSE_MAX_NULLITY})" in err.value.message
