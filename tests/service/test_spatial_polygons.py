@@ -436,7 +436,7 @@ def test_tight_caps_are_meshed_finer(lengths):
 def test_a_small_gap_without_a_cone_keeps_its_meshes():
     """A short bar (0.206 against 1.832) makes ``s_min / s_max`` of ``J`` small (0.015) far
     from any critical point: the cone homotopy runs, finds none, and the meshes stay in the
-    answer (they were dropped). Its thin sphere bends at curvature 21 (a step of 0.04 against
+    answer. Its thin sphere bends at curvature 21 (a step of 0.04 against
     the default 0.35: over the triangle budget at one step everywhere), so the answer may stay
     incomplete; it must never be complete and wrong."""
     lengths = (0.39, 0.206, 1.832, 1.408)
