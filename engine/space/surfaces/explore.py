@@ -51,7 +51,7 @@ from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
 from engine.space.surfaces.cones import cone_fans, cone_morse_term, find_cones, is_cone
 from engine.space.surfaces.five_bar import ChainSeeds, chain_seeds, five_bar_chain
-from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.geometry import Surface, finer_step
 from engine.space.surfaces.homology import (
     Homology,
     edges_of,
@@ -81,8 +81,6 @@ TANGENT_ANGLE_MAX = np.deg2rad(45.0)
 #: (2, 1, 1, 1, 1) with one step everywhere); the meshes there are vouched for by the fold check,
 #: the links (two cycles at each apex, one elsewhere) and the Morse count with the apexes' terms.
 APEX_ZONE = 3.0
-#: The step of a component meshed again (its geometric checks failed), relative to the last.
-REMESH_FACTOR = 0.6
 #: Times a component is meshed again at most.
 REMESH_MAX = 2
 #: Mesh vertices where ``s_min / s_max`` of ``J`` is below this are refined as possible
@@ -257,18 +255,22 @@ def _linkage_critical(surface: Surface, meshes: list[Mesh], tol: Tolerances
 
 def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadline
           ) -> tuple[Mesh, tuple[int, float], bool]:
-    """March from ``seed``; where the closed mesh fails the geometric checks, march again
-    with ``REMESH_FACTOR`` times the step (at most ``REMESH_MAX`` times) while the budget and
-    the deadline allow. The mesh, its checks (folded triangles, largest edge angle) and whether
-    the budget stopped a march."""
+    """March from ``seed``; where its first hexagon does not project or the closed mesh fails
+    the geometric checks, march again with a shorter step (:func:`.geometry.finer_step`, at
+    most ``REMESH_MAX`` times) while the budget and the deadline allow. The mesh, its checks
+    (folded triangles, largest edge angle) and whether the budget stopped a march."""
     mesh = march(surface, seed, step, left, dl)
+    if not len(mesh.triangles) and surface.frame(seed).gap >= NEAR_CRITICAL_GAP:  # no apex
+        step = finer_step(surface, step, seed[None], None, np.inf)
+        mesh = march(surface, seed, step, left, dl)
     check = _geometry_checks(mesh)
     for _ in range(REMESH_MAX):
         if not mesh.closed or not (check[0] or check[1] > TANGENT_ANGLE_MAX) or dl.expired():
             break
         if len(mesh.gaps) and float(mesh.gaps.min()) < NEAR_CRITICAL_GAP:
             break  # near a cone of the linkage: no step makes the surface smooth there
-        step *= REMESH_FACTOR
+        step = finer_step(surface, step, mesh.vertices, mesh.frames,
+                          left / max(len(mesh.triangles), 1))
         finer = march(surface, seed, step, left, dl)
         if not finer.closed:
             return mesh, check, "budget" in finer.message
