@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.design import DesignResult, Target, check_request, design
-from engine.design.surface_splitting import SurfaceSplit, cone_sign, remesh_split
+from engine.design.surface_homotopy import line_witnesses
+from engine.design.surface_splitting import SurfaceSplit, cone_sign, one_homotopy, remesh_split
 from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
@@ -132,8 +133,12 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                                "cone_homotopy_ended": ended}, timed_out=deadline.expired(),
                               unresolved=not ended, time_budget_s=granted(deadline))
         return SurfaceDesign(result, cones, signs, None, None, None, ended, report)
+    line = line_witnesses(linkage, result.perturbation, tol, np.random.default_rng(seed + 1),
+                          deadline.fraction(CONE_SHARE), at=(1.0, -1.0)) \
+        if one_homotopy(Constraints(linkage), options) else None
     split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline,
-                         found=found)
+                         found=found, witnesses=None if line is None else {
+                             w: (line.height, h) for w, h in line.heights.items()})
     decided = all(c.sign != 0 for c in split.cones)
     change = sum(c.euler_change for c in split.cones) if decided else None
     met = all(split.cones[t.cone].sign == s for t, s in zip(targets, signs, strict=True))

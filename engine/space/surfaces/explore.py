@@ -286,10 +286,18 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      options: SurfaceOptions | None = None, start_on_space: bool = True,
                      deadline: Deadline | None = None,
-                     cones: tuple[list[CriticalPoint], bool] | None = None) -> SurfaceResult:
+                     cones: tuple[list[CriticalPoint], bool] | None = None,
+                     meshes: list[Mesh] | None = None,
+                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None
+                     ) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
     with its topology (module docstring); ``cones``: the critical points and whether every
-    path ended, where :func:`.cones.find_cones` has run already for this linkage.
+    path ended, where :func:`.cones.find_cones` has run already for this linkage; ``meshes``:
+    closed meshes of this linkage's surface made otherwise (:func:`.transport.transport`),
+    checked as marched ones are, the seeds they cover not marched again; ``witnesses``: a
+    height ``c`` (M,) and its critical points on this surface found by a homotopy elsewhere
+    (:func:`engine.design.surface_homotopy.line_witnesses`), used instead of solving its
+    Lagrange system here.
 
     Examples
     --------
@@ -308,8 +316,12 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     rng = np.random.default_rng(opt.seed)
     c = rng.normal(size=cons.n_free)
     c /= np.linalg.norm(c)
-    wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
-        if opt.homotopy_paths_max > 0 else None
+    wit: HeightWitnesses | None
+    if witnesses is not None:
+        c, wit = witnesses
+    else:
+        wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
+            if opt.homotopy_paths_max > 0 else None
     scale = float(np.median(linkage.lengths[cons.bars]))
     step = opt.step_rel * scale
     start = linkage.coordinates() if start_on_space else None
@@ -318,10 +330,12 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     # cones known already: mesh through them first, then from the seeds no mesh covers
     cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
-    first = [] if cone_pass is None else cone_pass.meshes
-    meshes, checks, budget_hit = _mesh_seeds(
+    given = list(meshes or [])
+    first = given + ([] if cone_pass is None else cone_pass.meshes)
+    marched, checks, budget_hit = _mesh_seeds(
         surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
         [m.vertices for m in first])
+    meshes, checks = given + marched, [_geometry_checks(m) for m in given] + checks
     critical, where = _linkage_critical(surface, meshes, tol)
     if cone_pass is None and (critical or any(
             len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes)):
