@@ -33,7 +33,7 @@ from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import find_cones, is_cone
-from engine.space.surfaces.explore import SurfaceOptions, require_two_dof
+from engine.space.surfaces.explore import SurfaceOptions, require_two_dof, search_height
 
 #: Share of the deadline the cone search may use (the rest meshes the two perturbed spaces).
 CONE_SHARE = 0.3
@@ -134,8 +134,9 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                               unresolved=not ended, time_budget_s=granted(deadline))
         return SurfaceDesign(result, cones, signs, None, None, None, ended, report)
     line = line_witnesses(linkage, result.perturbation, tol, np.random.default_rng(seed + 1),
-                          deadline.fraction(CONE_SHARE), at=(1.0, -1.0)) \
-        if one_homotopy(Constraints(linkage), options) else None
+                          deadline.fraction(CONE_SHARE), at=(1.0, -1.0),
+                          height=search_height(cons.n_free, options)) \
+        if one_homotopy(cons, options) else None
     split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline,
                          found=found, witnesses=None if line is None else {
                              w: (line.height, h) for w, h in line.heights.items()})

@@ -166,10 +166,11 @@ def _heights(at: Linkage, tol: Tolerances, family: LineFamily, ends: np.ndarray,
 
 def line_witnesses(linkage: Linkage, d_l: np.ndarray, tol: Tolerances,
                    rng: np.random.Generator, deadline: Deadline,
-                   at: tuple[float, ...] = (0.0, 1.0, -1.0)) -> LineWitnesses:
+                   at: tuple[float, ...] = (0.0, 1.0, -1.0),
+                   height: np.ndarray | None = None) -> LineWitnesses:
     """Every critical point of the linkage at ``L`` (where ``0`` is in ``at``) and of a random
     height at ``L + w dL`` for each other ``w`` in ``at`` (module docstring; those lengths must
-    not be critical).
+    not be critical); ``height``: the unit height ``r`` (M,), else drawn from ``rng``.
 
     Examples
     --------
@@ -189,8 +190,8 @@ def line_witnesses(linkage: Linkage, d_l: np.ndarray, tol: Tolerances,
     """
     cons = Constraints(linkage)
     e, m = cons.n_constraints, cons.n_free
-    r = rng.normal(size=m)
-    r /= np.linalg.norm(r)
+    r = rng.normal(size=m) if height is None else np.asarray(height, dtype=float)
+    r = r / np.linalg.norm(r)
     family = LineFamily(linkage, cons, d_l, r, rng.normal(size=e))
     w_star = complex(rng.uniform(-REAL, REAL), rng.uniform(IMAG_MIN, IMAG_MAX))
     structure, total = cone_structure(e, m)

@@ -51,6 +51,7 @@ from engine.space.surfaces.explore import (
     SurfaceResult,
     explore_surfaces,
     require_two_dof,
+    search_height,
 )
 from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.homology import Homology, surface_homology
@@ -133,7 +134,8 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
         cps, ended = find_cones(linkage, tol, rng, deadline.fraction(0.3))
         return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol,
                             options, deadline, found=cps)
-    line = line_witnesses(linkage, d_l, tol, rng, deadline.fraction(LINE_SHARE))
+    line = line_witnesses(linkage, d_l, tol, rng, deadline.fraction(LINE_SHARE),
+                          height=search_height(cons.n_free, options))
     return remesh_split(linkage, [cp for cp in line.cones if is_cone(cp)], line.ended, d_l,
                         tol, options, deadline, found=line.cones,
                         witnesses={w: (line.height, h) for w, h in line.heights.items()})

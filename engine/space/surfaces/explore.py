@@ -283,6 +283,21 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
                             angle, mine, morse, agrees, critical, mesh.message, mesh.apexes)
 
 
+def _height(n_free: int, seed: int) -> tuple[np.ndarray, np.random.Generator]:
+    """The generic height ``c`` (M,) of the search with options ``seed``, and the generator
+    that then draws the rest."""
+    rng = np.random.default_rng(seed)
+    c = rng.normal(size=n_free)
+    return c / np.linalg.norm(c), rng
+
+
+def search_height(n_free: int, options: SurfaceOptions | None = None) -> np.ndarray:
+    """The generic height of :func:`explore_surfaces` with ``options`` (whose critical points a
+    caller may find beforehand, as :func:`engine.design.surface_homotopy.line_witnesses`
+    does: the same seeds, met in the same places)."""
+    return _height(n_free, (options or SurfaceOptions()).seed)[0]
+
+
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      options: SurfaceOptions | None = None, start_on_space: bool = True,
                      deadline: Deadline | None = None,
@@ -313,9 +328,7 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
     surface = Surface(linkage, cons, tol.residual_atol)
-    rng = np.random.default_rng(opt.seed)
-    c = rng.normal(size=cons.n_free)
-    c /= np.linalg.norm(c)
+    c, rng = _height(cons.n_free, opt.seed)
     wit: HeightWitnesses | None
     if witnesses is not None:
         c, wit = witnesses
