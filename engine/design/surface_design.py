@@ -89,6 +89,22 @@ def check_targets(targets: list[ConeTarget]) -> None:
                                  loc=("targets", k, "sheets"))
 
 
+def _unfound(cones: list[CriticalPoint], targets: list[ConeTarget], bars: int,
+             deadline: Deadline) -> SurfaceDesign:
+    """The answer where the cone search stopped (its deadline) before finding a target's cone:
+    no design, and a report saying why (not a refusal: the cone may exist)."""
+    missing = next(t.cone for t in targets if not 0 <= t.cone < len(cones))
+    message = (f"the cones' homotopy stopped before every path ended: {len(cones)} cones "
+               f"found, no cone {missing} to design for")
+    result = DesignResult(False, np.zeros(bars), 0.0, [], False, message)
+    report = SearchReport({"method": "cone homotopy", "cones": len(cones),
+                           "cone_homotopy_ended": False}, timed_out=deadline.expired(),
+                          unresolved=True, time_budget_s=granted(deadline),
+                          argument_detail="no proof: " + message)
+    return SurfaceDesign(result, cones, np.zeros(0, dtype=np.int64), None, None, None, False,
+                         report)
+
+
 def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list[str],
                    margin: float, max_change: float | None = None,
                    tol: Tolerances | None = None, options: SurfaceOptions | None = None,
@@ -120,9 +136,11 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                               deadline.fraction(CONE_SHARE))
     cones = [cp for cp in found if is_cone(cp)]
     for k, t in enumerate(targets):
-        if not 0 <= t.cone < len(cones):
+        if not 0 <= t.cone < len(cones) and ended:
             raise InvalidRequest(f"no cone {t.cone} (found {len(cones)})",
                                  loc=("targets", k, "branch_point"))
+    if any(not 0 <= t.cone < len(cones) for t in targets):
+        return _unfound(cones, targets, len(linkage.lengths), deadline)
     signs = np.array([t.sign if not t.sheets else cone_sign(cones[t.cone], t.sheets)
                       for t in targets], dtype=np.int64)
     result = design(linkage, cones, [Target(t.cone, int(s)) for t, s in zip(targets, signs,
