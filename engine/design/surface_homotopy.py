@@ -4,10 +4,10 @@
 The cone system of :func:`engine.space.surfaces.cones.cone_system` (``f = 0, J^T lambda =
 t r, a . lambda = 1``) has as solutions the critical points of the linkage (``t = 0``) and the
 critical points of the height ``r . u`` (``t != 0``, the Lagrange system's solutions with
-multipliers ``lambda / t``). A splitting needs both at ``L`` (its cones; the critical space's
-seeds) and the second at ``L + dL`` and ``L - dL`` (the seeds of the re-meshings). It solved
-them with four homotopies of ``2^E C(M, E)`` paths each (240 for a pentagon); here the
-lengths move along the complex line ``L(w) = L + w dL``:
+multipliers ``lambda / t``). A splitting needs the first at ``L`` (its cones) and the second
+at ``L + dL`` and ``L - dL`` (the seeds of the re-meshings). It solved them with three
+homotopies of ``2^E C(M, E)`` paths each (240 for a pentagon); here the lengths move along the
+complex line ``L(w) = L + w dL``:
 
 1. the linear-product homotopy of the cone system at a random complex ``w*`` (one
    ``2^E C(M, E)``-path homotopy): with probability one ``w*`` is a generic parameter of the
@@ -20,11 +20,15 @@ lengths move along the complex line ``L(w) = L + w dL``:
    the parameter avoids the finitely many points of the line where solutions meet, which a
    segment from a random complex ``w*`` does with probability one. So the ends at ``w = 0``
    hold every critical point of the linkage (what :func:`.cones.find_cones` claims), and the
-   ends at each ``w`` every critical point of the height (what :func:`engine.space.surfaces.
-   morse.height_witnesses` claims), as long as every path ended.
+   ends at ``w = +-1`` every critical point of the height there (what
+   :func:`engine.space.surfaces.morse.height_witnesses` claims), as long as every path ended.
+   (At ``w = 0`` the height's critical points are not taken: at critical lengths some lie
+   next to a cone, ill-conditioned beside its double end, and the critical space's meshing
+   solves for them on its own.)
 
-The paths: ``2^E C(M, E) + 3 N`` instead of ``4 x 2^E C(M, E)`` (a pentagon: 384 instead of
-960), the parameter paths short (the lengths move by ``dL``).
+The paths: ``2^E C(M, E) + 3 N`` instead of ``3 x 2^E C(M, E)`` (a pentagon: 384 instead of
+720), the parameter paths short (the lengths move by ``dL``); a design, whose ``dL`` follows
+from the cones, asks for ``w = +-1`` only.
 """
 
 from __future__ import annotations
