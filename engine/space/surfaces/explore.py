@@ -59,6 +59,7 @@ from engine.space.surfaces.morse import (
     HeightWitnesses,
     assign,
     classify_points,
+    generic_height,
     height_witnesses,
     pl_critical_vertices,
     ring,
@@ -283,19 +284,10 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
                             angle, mine, morse, agrees, critical, mesh.message, mesh.apexes)
 
 
-def _height(n_free: int, seed: int) -> tuple[np.ndarray, np.random.Generator]:
-    """The generic height ``c`` (M,) of the search with options ``seed``, and the generator
-    that then draws the rest."""
-    rng = np.random.default_rng(seed)
-    c = rng.normal(size=n_free)
-    return c / np.linalg.norm(c), rng
-
-
 def search_height(n_free: int, options: SurfaceOptions | None = None) -> np.ndarray:
-    """The generic height of :func:`explore_surfaces` with ``options`` (whose critical points a
-    caller may find beforehand, as :func:`engine.design.surface_homotopy.line_witnesses`
-    does: the same seeds, met in the same places)."""
-    return _height(n_free, (options or SurfaceOptions()).seed)[0]
+    """The height of :func:`explore_surfaces` with ``options`` (:func:`.morse.generic_height`),
+    whose critical points a caller may find beforehand (the same seeds)."""
+    return generic_height(n_free, (options or SurfaceOptions()).seed)[0]
 
 
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
@@ -328,7 +320,7 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
     surface = Surface(linkage, cons, tol.residual_atol)
-    c, rng = _height(cons.n_free, opt.seed)
+    c, rng = generic_height(cons.n_free, opt.seed)
     wit: HeightWitnesses | None
     if witnesses is not None:
         c, wit = witnesses
