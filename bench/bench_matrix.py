@@ -233,8 +233,6 @@ WHY_INCOMPLETE = [
     "are traced: the turning points of their slices need more homotopy paths than the bound "
     "(2,400 for a 3D two-rotor chain), so their regions' counts are exact but the curves "
     "are `searched`.",
-    "- `splitting` of the two-degree-of-freedom presets is complete but over the 2 s target: "
-    "it meshes the surface and finds the cones by homotopy (3.2-3.4 s on the quiet machine).",
     "- a figure is complete when the analysis it draws is (the JSON cell of the same preset: "
     "`draws` names its reason); the figure says so in its title.",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.design import DesignResult, Target, check_request, design
-from engine.design.surface_splitting import SurfaceSplit, cone_sign, remesh_split
+from engine.design.surface_homotopy import line_witnesses
+from engine.design.surface_splitting import SurfaceSplit, cone_sign, one_homotopy, remesh_split
 from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
@@ -32,7 +33,7 @@ from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import find_cones, is_cone
-from engine.space.surfaces.explore import SurfaceOptions, require_two_dof
+from engine.space.surfaces.explore import SurfaceOptions, require_two_dof, search_height
 
 #: Share of the deadline the cone search may use (the rest meshes the two perturbed spaces).
 CONE_SHARE = 0.3
@@ -88,6 +89,22 @@ def check_targets(targets: list[ConeTarget]) -> None:
                                  loc=("targets", k, "sheets"))
 
 
+def _unfound(cones: list[CriticalPoint], targets: list[ConeTarget], bars: int,
+             deadline: Deadline) -> SurfaceDesign:
+    """The answer where the cone search stopped (its deadline) before finding a target's cone:
+    no design, and a report saying why (not a refusal: the cone may exist)."""
+    missing = next(t.cone for t in targets if not 0 <= t.cone < len(cones))
+    message = (f"the cones' homotopy stopped before every path ended: {len(cones)} cones "
+               f"found, no cone {missing} to design for")
+    result = DesignResult(False, np.zeros(bars), 0.0, [], False, message)
+    report = SearchReport({"method": "cone homotopy", "cones": len(cones),
+                           "cone_homotopy_ended": False}, timed_out=deadline.expired(),
+                          unresolved=True, time_budget_s=granted(deadline),
+                          argument_detail="no proof: " + message)
+    return SurfaceDesign(result, cones, np.zeros(0, dtype=np.int64), None, None, None, False,
+                         report)
+
+
 def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list[str],
                    margin: float, max_change: float | None = None,
                    tol: Tolerances | None = None, options: SurfaceOptions | None = None,
@@ -119,9 +136,11 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                               deadline.fraction(CONE_SHARE))
     cones = [cp for cp in found if is_cone(cp)]
     for k, t in enumerate(targets):
-        if not 0 <= t.cone < len(cones):
+        if not 0 <= t.cone < len(cones) and ended:
             raise InvalidRequest(f"no cone {t.cone} (found {len(cones)})",
                                  loc=("targets", k, "branch_point"))
+    if any(not 0 <= t.cone < len(cones) for t in targets):
+        return _unfound(cones, targets, len(linkage.lengths), deadline)
     signs = np.array([t.sign if not t.sheets else cone_sign(cones[t.cone], t.sheets)
                       for t in targets], dtype=np.int64)
     result = design(linkage, cones, [Target(t.cone, int(s)) for t, s in zip(targets, signs,
@@ -132,8 +151,13 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
                                "cone_homotopy_ended": ended}, timed_out=deadline.expired(),
                               unresolved=not ended, time_budget_s=granted(deadline))
         return SurfaceDesign(result, cones, signs, None, None, None, ended, report)
+    line = line_witnesses(linkage, result.perturbation, tol, np.random.default_rng(seed + 1),
+                          deadline.fraction(CONE_SHARE), at=(1.0, -1.0),
+                          height=search_height(cons.n_free, options)) \
+        if one_homotopy(cons, options) else None
     split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline,
-                         found=found)
+                         found=found, witnesses=None if line is None else {
+                             w: (line.height, h) for w, h in line.heights.items()})
     decided = all(c.sign != 0 for c in split.cones)
     change = sum(c.euler_change for c in split.cones) if decided else None
     met = all(split.cones[t.cone].sign == s for t, s in zip(targets, signs, strict=True))

@@ -37,15 +37,30 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.splitting import conic_delta
+from engine.design.surface_homotopy import line_witnesses
 from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
-from engine.space.surfaces.cones import find_cones, is_cone, resolve_apexes
-from engine.space.surfaces.explore import SurfaceOptions, explore_surfaces, require_two_dof
+from engine.space.linear_product import bezout
+from engine.space.surfaces.cones import cone_structure, find_cones, is_cone, resolve_apexes
+from engine.space.surfaces.explore import (
+    SurfaceOptions,
+    SurfaceResult,
+    explore_surfaces,
+    require_two_dof,
+    search_height,
+)
+from engine.space.surfaces.geometry import Surface
 from engine.space.surfaces.homology import Homology, surface_homology
+from engine.space.surfaces.mesh import Mesh
+from engine.space.surfaces.morse import HeightWitnesses
+from engine.space.surfaces.transport import transport
+
+#: Share of the deadline the homotopy of the cones and the heights may use (the rest meshes).
+LINE_SHARE = 0.4
 
 
 @dataclass(frozen=True)
@@ -114,9 +129,24 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
     tol = tol or Tolerances()
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
-    cps, ended = find_cones(linkage, tol, np.random.default_rng(seed), deadline.fraction(0.3))
-    return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol, options,
-                        deadline, found=cps)
+    rng = np.random.default_rng(seed)
+    if not one_homotopy(cons, options):
+        cps, ended = find_cones(linkage, tol, rng, deadline.fraction(0.3))
+        return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol,
+                            options, deadline, found=cps)
+    line = line_witnesses(linkage, d_l, tol, rng, deadline.fraction(LINE_SHARE),
+                          height=search_height(cons.n_free, options))
+    return remesh_split(linkage, [cp for cp in line.cones if is_cone(cp)], line.ended, d_l,
+                        tol, options, deadline, found=line.cones,
+                        witnesses={w: (line.height, h) for w, h in line.heights.items()})
+
+
+def one_homotopy(cons: Constraints, options: SurfaceOptions | None) -> bool:
+    """Whether the cones at ``L`` and the heights' critical points at ``L +- dL`` come from one
+    homotopy (:func:`engine.design.surface_homotopy.line_witnesses`): where the options let
+    the surfaces' homotopy run its ``2^E C(M, E)`` paths."""
+    structure, _ = cone_structure(cons.n_constraints, cons.n_free)
+    return bezout(structure) <= (options or SurfaceOptions()).homotopy_paths_max
 
 
 Betti = tuple[int, int, int]
@@ -161,6 +191,58 @@ def predict_betti(linkage: Linkage, cones: list[ConeResolution],
     return critical, (_summed(sides[0])[1], _summed(sides[1])[1])
 
 
+def _remesh_sides(linkage: Linkage, d_l: np.ndarray, tol: Tolerances,
+                  options: SurfaceOptions | None, deadline: Deadline, smooth: bool,
+                  witnesses: dict[float, tuple[np.ndarray, HeightWitnesses]]
+                  ) -> tuple[list[int | None], list[Betti | None], bool, bool]:
+    """The Euler characteristics and Betti numbers of the complete meshes at ``L + dL`` and
+    ``L - dL`` (None where incomplete or out of time), whether both are complete, and whether
+    ``L - dL``'s meshes were moved from ``L + dL``'s. With no cone at ``L`` (``smooth``) the
+    two spaces are alike, and ``L + dL``'s closed meshes are moved onto ``L - dL``
+    (:func:`engine.space.surfaces.transport.transport`) instead of marching anew: the answer
+    at ``L - dL`` judges them (its own height homotopy, fold, tangent and Morse checks), and
+    where they fail it marches. ``witnesses``: the heights' critical points by side (``1.0``,
+    ``-1.0``) where they are known."""
+    eulers: list[int | None] = []
+    bettis: list[Betti | None] = []
+    complete, moved = True, False
+    given: list[Mesh] | None = None
+    for k, sign in enumerate((1.0, -1.0)):
+        if deadline.expired():
+            eulers.append(None)
+            bettis.append(None)
+            complete = False
+            continue
+        at = linkage.with_lengths(linkage.lengths + sign * d_l)
+        dl = deadline.fraction(0.5 if k == 0 else 1.0)
+        out = explore_surfaces(at, tol, options, deadline=dl, start_on_space=False,
+                               meshes=given, witnesses=witnesses.get(sign))
+        if given is not None and not out.search.complete and not dl.expired():
+            out = explore_surfaces(at, tol, options, deadline=dl, start_on_space=False,
+                                   witnesses=witnesses.get(sign))
+        elif given is not None:
+            moved = bool(out.search.complete)
+        if k == 0 and smooth and out.search.complete:
+            given = _moved(at.with_lengths(linkage.lengths - d_l), out, tol)
+        complete &= bool(out.search.complete)
+        euler, betti = _summed([c.homology for c in out.components])
+        eulers.append(euler)
+        bettis.append(betti)
+    return eulers, bettis, complete, moved
+
+
+def _moved(at: Linkage, out: SurfaceResult, tol: Tolerances) -> list[Mesh] | None:
+    """``out``'s closed meshes (no apexes) moved onto ``at``'s surface; None where one cannot
+    be."""
+    surface = Surface(at, Constraints(at), tol.residual_atol)
+    step = float(out.search["step"])
+    moved = [transport(surface, c.vertices, c.triangles, step) for c in out.components
+             if c.closed and not len(c.apexes)]
+    if len(moved) != len(out.components) or any(m is None for m in moved):
+        return None
+    return [m for m in moved if m is not None]
+
+
 def _why_not(ended: bool, complete: bool, verified: bool, message: str) -> str:
     """The sentence of why a surface splitting has no argument (what it did establish)."""
     why = [] if ended else ["the cones' homotopy did not end on every path, so a cone may be "
@@ -172,36 +254,26 @@ def _why_not(ended: bool, complete: bool, verified: bool, message: str) -> str:
 
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
                  tol: Tolerances, options: SurfaceOptions | None = None,
-                 deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None
+                 deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None,
+                 witnesses: dict[float, tuple[np.ndarray, HeightWitnesses]] | None = None
                  ) -> SurfaceSplit:
     """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
     homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
     numbers (:func:`predict_betti`) and their check by meshing the linkage at ``L + dL`` and
     ``L - dL`` (:func:`split_surface`); ``found``: every critical point the search found
-    (the cones among them), which the critical space's meshing then need not search again."""
+    (the cones among them), which the critical space's meshing then need not search again;
+    ``witnesses``: the height and its critical points at ``L + w dL`` for ``w = +-1``
+    (:func:`engine.design.surface_homotopy.line_witnesses`), which the re-meshings then need
+    not solve for."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
     critical, predicted_betti = predict_betti(
         linkage, cones, None if found is None else (found, ended), tol, options,
         deadline.fraction(1 / 3))
-    eulers: list[int | None] = []
-    bettis: list[Betti | None] = []
-    complete = ended
-    for k, sign in enumerate((1.0, -1.0)):
-        if deadline.expired():
-            eulers.append(None)
-            bettis.append(None)
-            complete = False
-            continue
-        at = linkage.with_lengths(linkage.lengths + sign * d_l)
-        out = explore_surfaces(at, tol, options, deadline=deadline.fraction(0.5 if k == 0
-                                                                            else 1.0),
-                               start_on_space=False)
-        complete &= bool(out.search.complete)
-        euler, betti = _summed([c.homology for c in out.components])
-        eulers.append(euler)
-        bettis.append(betti)
+    eulers, bettis, complete, moved = _remesh_sides(linkage, d_l, tol, options, deadline,
+                                                     not cps, witnesses or {})
+    complete &= ended
     betti_agrees = None not in predicted_betti and list(predicted_betti) == bettis
     verified = (predicted is not None and eulers[0] is not None and eulers[1] is not None
                 and eulers[0] - eulers[1] == predicted
@@ -215,13 +287,17 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
                "the re-meshed topology differs from the prediction")
     report = SearchReport(
         {"method": "cone homotopy and re-meshing", "cones": len(cones),
-         "cone_homotopy_ended": ended, "verified": verified, "betti_verified": betti_agrees},
+         "cone_homotopy_ended": ended, "verified": verified, "betti_verified": betti_agrees,
+         "minus_side_mesh": "moved" if moved else "marched"},
         timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
         argument="proved" if complete and verified else None,
         argument_detail=(f"the {len(cones)} cones found by homotopy (every path ended) resolve "
                          "as predicted: the complete re-meshings at L + dL and L - dL differ in "
                          "Euler characteristic by the predicted amount" + (
+                             " (L - dL's meshes moved from L + dL's and checked as marched "
+                             "ones: folds, tangent planes, the Morse count of its own height "
+                             "homotopy)" if moved else "") + (
                              ", and their Betti numbers are those of the critical space's mesh "
                              "with each apex resolved" if betti_agrees else ""))
         if complete and verified else _why_not(ended, complete, verified, message))

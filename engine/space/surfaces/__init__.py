@@ -16,8 +16,8 @@ from engine.space.surfaces.explore import (
     SurfaceOptions,
     SurfaceResult,
     explore_surfaces,
-    require_two_dof,
 )
+from engine.space.surfaces.geometry import require_two_dof
 from engine.space.surfaces.homology import Homology, manifold_defects, surface_homology
 
 __all__ = [

@@ -71,6 +71,41 @@ RING_MOVE = 0.25
 RING_HALVINGS = 4
 
 
+def cone_system(quad: np.ndarray, r: np.ndarray, a: np.ndarray, x: np.ndarray,
+                lengths: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The values (N, E + M + 1) and Jacobians (N, E + M + 1, M + E + 2) of ``f = 0,
+    J^T lambda = t r, a . lambda = 1`` (module docstring) at ``x`` (N, M + E + 2): ``X = (x_0,
+    y, mu, t)`` in the scaled coordinates of ``quad`` (:func:`engine.space.witnesses.
+    bar_quadrics`); ``lengths`` (N, E): each row's scaled squared lengths, where they differ
+    from those in ``quad`` (whose ``[a, 0, 0]`` then holds the rest of the constant term)."""
+    e, m = len(quad), quad.shape[1] - 1
+    xu, mu, t = x[:, :m + 1], x[:, m + 1:m + 1 + e], x[:, -1]
+    g = np.einsum("amn,pn->pam", quad, xu)  # (N, E, M + 1)
+    x0 = x[:, 0]
+    if lengths is not None:
+        g[:, :, 0] -= lengths * x0[:, None]
+    f = np.concatenate([np.einsum("pam,pm->pa", g, xu),
+                        2 * np.einsum("pa,pam->pm", mu, g[:, :, 1:]) - (t * x0)[:, None] * r,
+                        (mu @ a - x0)[:, None]], axis=1)
+    jac = np.zeros((len(x), e + m + 1, m + e + 2), dtype=complex)
+    jac[:, :e, :m + 1] = 2 * g
+    jac[:, e:e + m, :m + 1] = 2 * np.einsum("pa,amn->pmn", mu, quad[:, 1:, :])
+    jac[:, e:e + m, 0] -= t[:, None] * r
+    jac[:, e:e + m, m + 1:m + 1 + e] = 2 * g[:, :, 1:].transpose(0, 2, 1)
+    jac[:, e:e + m, -1] = -x0[:, None] * r
+    jac[:, -1, m + 1:m + 1 + e] = a
+    jac[:, -1, 0] = -1
+    return f, jac
+
+
+def cone_structure(e: int, m: int) -> tuple[Structure, np.ndarray]:
+    """The bihomogeneous structure of :func:`cone_system` (groups ``y`` and ``(mu, t)``) and
+    its total degrees."""
+    structure = Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 2)),
+                          np.array([[2, 0]] * e + [[1, 1]] * m + [[0, 1]]))
+    return structure, np.array([2] * (e + m) + [1])
+
+
 def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
                deadline: Deadline = NEVER) -> tuple[list[CriticalPoint], bool]:
     """Every critical point (module docstring), refined and classified; and whether every path
@@ -81,34 +116,25 @@ def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
     r = rng.normal(size=m)
     r /= np.linalg.norm(r)
     a = rng.normal(size=e)
-
-    def system(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        xu, mu, t = x[:, :m + 1], x[:, m + 1:m + 1 + e], x[:, -1]
-        g = np.einsum("amn,pn->pam", quad, xu)  # (N, E, M + 1)
-        x0 = x[:, 0]
-        f = np.concatenate([np.einsum("pam,pm->pa", g, xu),
-                            2 * np.einsum("pa,pam->pm", mu, g[:, :, 1:]) - (t * x0)[:, None] * r,
-                            (mu @ a - x0)[:, None]], axis=1)
-        jac = np.zeros((len(x), e + m + 1, m + e + 2), dtype=complex)
-        jac[:, :e, :m + 1] = 2 * g
-        jac[:, e:e + m, :m + 1] = 2 * np.einsum("pa,amn->pmn", mu, quad[:, 1:, :])
-        jac[:, e:e + m, 0] -= t[:, None] * r
-        jac[:, e:e + m, m + 1:m + 1 + e] = 2 * g[:, :, 1:].transpose(0, 2, 1)
-        jac[:, e:e + m, -1] = -x0[:, None] * r
-        jac[:, -1, m + 1:m + 1 + e] = a
-        jac[:, -1, 0] = -1
-        return f, jac
-
-    structure = Structure((np.arange(1, m + 1), np.arange(m + 1, m + e + 2)),
-                          np.array([[2, 0]] * e + [[1, 1]] * m + [[0, 1]]))
-    total = np.array([2] * (e + m) + [1])
+    structure, total = cone_structure(e, m)
     assert bezout(structure) > 0
-    res = track(system, total, rng, deadline, far=FAR_REACH * _reach(linkage, cons, scale),
+    res = track(lambda x: cone_system(quad, r, a, x), total, rng, deadline,
+                far=FAR_REACH * _reach(linkage, cons, scale),
                 start=LinearProduct(structure, total, rng))
-    x0 = res.ends[:, 0]
-    y = res.ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
-    t = res.ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
-    ok = np.isin(res.state, (REGULAR, SINGULAR)) & np.isfinite(y).all(axis=1)
+    return cones_from_ends(linkage, tol, res.ends, res.state, scale, centre), res.success
+
+
+def cones_from_ends(linkage: Linkage, tol: Tolerances, ends: np.ndarray, state: np.ndarray,
+                    scale: float, centre: np.ndarray) -> list[CriticalPoint]:
+    """The critical points among the ends (P, M + E + 2) of :func:`cone_system`'s paths (their
+    ``state``): the near-real finite ends with ``t`` near 0, refined, classified, without
+    repeats, in the order of their coordinates."""
+    cons = Constraints(linkage)
+    m = cons.n_free
+    x0 = ends[:, 0]
+    y = ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
+    t = ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
+    ok = np.isin(state, (REGULAR, SINGULAR)) & np.isfinite(y).all(axis=1)
     near_real = np.linalg.norm(y.imag, axis=1) <= SINGULAR_IMAG_TOL * np.maximum(
         np.linalg.norm(y, axis=1), 1.0)
     cand = ok & near_real & (np.abs(t) <= T_TOL)
@@ -124,7 +150,7 @@ def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
     # the homotopy's paths: the cones' numbers, which a design names, do not depend on the seed
     key = np.round(np.array([cp.u for cp in found]).reshape(len(found), m) / same, 0)
     order = np.lexsort(key.T[::-1]) if len(found) else np.zeros(0, dtype=np.int64)
-    return [found[int(k)] for k in order], res.success
+    return [found[int(k)] for k in order]
 
 
 def is_cone(cp: CriticalPoint) -> bool:

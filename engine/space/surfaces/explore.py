@@ -45,42 +45,35 @@ from scipy.spatial import cKDTree
 from engine.local.critical import CriticalPoint, classify, refine_critical
 from engine.model.budget import NEVER, Deadline, granted
 from engine.model.constraints import Constraints
-from engine.model.errors import InvalidLinkage
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import SAME_POINT_REL, Tolerances
 from engine.space.surfaces.cones import cone_fans, cone_morse_term, find_cones, is_cone
 from engine.space.surfaces.five_bar import ChainSeeds, chain_seeds, five_bar_chain
-from engine.space.surfaces.geometry import Surface, finer_step
+from engine.space.surfaces.geometry import Surface, finer_step, require_two_dof
 from engine.space.surfaces.homology import (
     Homology,
-    edges_of,
     manifold_defects,
     surface_homology,
 )
-from engine.space.surfaces.mesh import Mesh, components, march
+from engine.space.surfaces.mesh import Mesh, components, geometry_checks, march
 from engine.space.surfaces.morse import (
     HeightCritical,
     HeightWitnesses,
     assign,
     classify_points,
+    generic_height,
     height_witnesses,
     pl_critical_vertices,
     ring,
 )
-from engine.space.witnesses import PATHS_MAX, bounded
+from engine.space.witnesses import PATHS_MAX
 
 #: Largest angle (radians) between a mesh edge and the tangent planes at its ends: it grows as
 #: the step times the surface's curvature (the equilateral pentagon: 36 degrees at
 #: ``step_rel = 0.25``); beyond it the mesh cuts across the surface (a thin part, a tight
 #: bend), and the component is meshed again with a shorter step.
 TANGENT_ANGLE_MAX = np.deg2rad(45.0)
-#: Edge ends within this many (median) edge lengths of a cone's apex's ring (:func:`.cones.
-#: cone_fans`) are left out of the tangent-angle check (an edge there leaves the tangent planes by
-#: about half its length over the distance to the apex: 60 degrees at 1.3 steps on the pentagon at
-#: (2, 1, 1, 1, 1) with one step everywhere); the meshes there are vouched for by the fold check,
-#: the links (two cycles at each apex, one elsewhere) and the Morse count with the apexes' terms.
-APEX_ZONE = 3.0
 #: Times a component is meshed again at most.
 REMESH_MAX = 2
 #: Mesh vertices where ``s_min / s_max`` of ``J`` is below this are refined as possible
@@ -147,69 +140,6 @@ class SurfaceResult:
     search: SearchReport
 
 
-def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
-    """Raise :class:`InvalidLinkage` unless ``M - E = 2`` with something fixed and a bounded
-    configuration space (every moving vertex on a bar, every piece of the bar graph pinned:
-    the components are then compact, and each can be meshed whole)."""
-    if cons.n_free - cons.n_constraints != 2 or not linkage.anything_fixed:
-        raise InvalidLinkage(
-            "surfaces need two degrees of freedom (M - E = 2 with something fixed); this "
-            f"linkage has M = {cons.n_free}, E = {cons.n_constraints}"
-            + ("" if linkage.anything_fixed else " and nothing fixed"),
-            loc=("bars",),
-        )
-    moving = ~np.asarray(linkage.fixed, dtype=bool).all(axis=1)
-    on_bar = np.zeros(linkage.n_vertices, dtype=bool)
-    on_bar[linkage.ends[cons.bars].ravel()] = True
-    if (moving & ~on_bar).any() or not bounded(linkage, cons):
-        raise InvalidLinkage(
-            "the configuration space is unbounded (a moving vertex on no bar, or a piece of "
-            "the bar graph with no pinned vertex): its surfaces cannot be meshed whole",
-            loc=("bars",),
-        )
-
-
-def _geometry_checks(mesh: Mesh) -> tuple[int, float]:
-    """Triangles negative in at least two of their vertices' positive frames (folded), and
-    the largest angle between an edge and the tangent planes at its ends (an edge of a mesh
-    that follows the surface leaves its tangent planes by about half the step times the
-    curvature; unlike the plane of a thin triangle, an edge's direction is well defined)."""
-    tri, x = mesh.triangles, mesh.vertices
-    if not len(tri):
-        return 0, 0.0
-    frames = mesh.frames  # (N, M, 2)
-    negative = np.zeros(len(tri), dtype=np.int64)
-    e1 = x[tri[:, 1]] - x[tri[:, 0]]
-    e2 = x[tri[:, 2]] - x[tri[:, 0]]
-    for k in range(3):
-        z = frames[tri[:, k]]
-        a = np.einsum("tm,tmj->tj", e1, z)
-        b = np.einsum("tm,tmj->tj", e2, z)
-        # an apex's frame means nothing: its triangles are judged in the other two frames
-        negative += (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0) & ~np.isin(tri[:, k],
-                                                                            mesh.apexes)
-    edges, _ = edges_of(tri)
-    d = x[edges[:, 1]] - x[edges[:, 0]]
-    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
-    # an apex has no tangent plane, and a cone's curvature grows as one over the distance to
-    # its apex: within APEX_ZONE edges of one the angle says nothing about cutting across
-    near_apex = np.zeros(len(x), dtype=bool)
-    for a in mesh.apexes:  # its ring's radius (the farthest neighbour) and APEX_ZONE edges
-        nbr = np.unique(tri[(tri == a).any(axis=1)])
-        reach = float(np.linalg.norm(x[nbr] - x[a], axis=1).max())
-        near_apex |= np.linalg.norm(x - x[a], axis=1) <= reach + APEX_ZONE * float(
-            np.median(length))
-    worst = 0.0
-    for end in (0, 1):
-        inplane = np.linalg.norm(np.einsum("em,emj->ej", d, frames[edges[:, end]]), axis=1)
-        off = np.sqrt(np.maximum(length ** 2 - inplane ** 2, 0.0)) / length
-        off[near_apex[edges[:, end]]] = 0.0
-        worst = max(worst, float(np.arcsin(np.clip(off, 0.0, 1.0)).max()))
-    # a fold shows in the frames of most of a triangle's vertices; a sliver left by a join
-    # (its area near zero) may lean across one vertex's frame without any overlap
-    return int((negative >= 2).sum()), worst
-
-
 def _seeds(surface: Surface, start: np.ndarray | None, witnesses: np.ndarray,
            rng: np.random.Generator, count: int, deadline: Deadline,
            derived: np.ndarray | None = None) -> list[np.ndarray]:
@@ -263,7 +193,7 @@ def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadli
     if not len(mesh.triangles) and surface.frame(seed).gap >= NEAR_CRITICAL_GAP:  # no apex
         step = finer_step(surface, step, seed[None], None, np.inf)
         mesh = march(surface, seed, step, left, dl)
-    check = _geometry_checks(mesh)
+    check = geometry_checks(mesh)
     for _ in range(REMESH_MAX):
         if not mesh.closed or not (check[0] or check[1] > TANGENT_ANGLE_MAX) or dl.expired():
             break
@@ -274,7 +204,7 @@ def _mesh(surface: Surface, seed: np.ndarray, step: float, left: int, dl: Deadli
         finer = march(surface, seed, step, left, dl)
         if not finer.closed:
             return mesh, check, "budget" in finer.message
-        mesh, check = finer, _geometry_checks(finer)
+        mesh, check = finer, geometry_checks(finer)
     return mesh, check, "budget" in mesh.message
 
 
@@ -293,13 +223,27 @@ def _component(mesh: Mesh, check: tuple[int, float], crit: HeightCritical, owner
                             angle, mine, morse, agrees, critical, mesh.message, mesh.apexes)
 
 
+def search_height(n_free: int, options: SurfaceOptions | None = None) -> np.ndarray:
+    """The height of :func:`explore_surfaces` with ``options`` (:func:`.morse.generic_height`),
+    whose critical points a caller may find beforehand (the same seeds)."""
+    return generic_height(n_free, (options or SurfaceOptions()).seed)[0]
+
+
 def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      options: SurfaceOptions | None = None, start_on_space: bool = True,
                      deadline: Deadline | None = None,
-                     cones: tuple[list[CriticalPoint], bool] | None = None) -> SurfaceResult:
+                     cones: tuple[list[CriticalPoint], bool] | None = None,
+                     meshes: list[Mesh] | None = None,
+                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None
+                     ) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
     with its topology (module docstring); ``cones``: the critical points and whether every
-    path ended, where :func:`.cones.find_cones` has run already for this linkage.
+    path ended, where :func:`.cones.find_cones` has run already for this linkage; ``meshes``:
+    closed meshes of this linkage's surface made otherwise (:func:`.transport.transport`),
+    checked as marched ones are, the seeds they cover not marched again; ``witnesses``: a
+    height ``c`` (M,) and its critical points on this surface found by a homotopy elsewhere
+    (:func:`engine.design.surface_homotopy.line_witnesses`), used instead of solving its
+    Lagrange system here.
 
     Examples
     --------
@@ -315,28 +259,33 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     cons = Constraints(linkage)
     require_two_dof(linkage, cons)
     surface = Surface(linkage, cons, tol.residual_atol)
-    rng = np.random.default_rng(opt.seed)
-    c = rng.normal(size=cons.n_free)
-    c /= np.linalg.norm(c)
-    wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
-        if opt.homotopy_paths_max > 0 else None
+    c, rng = generic_height(cons.n_free, opt.seed)
+    wit: HeightWitnesses | None
+    if witnesses is not None:
+        c, wit = witnesses
+    else:
+        wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
+            if opt.homotopy_paths_max > 0 else None
     chain = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
     derived = chain_seeds(surface, chain, rng, dl.fraction(0.3)) if chain else None
     if derived is not None and cones is None:  # every critical point: no cone homotopy
         refs = [refine_critical(cons, u, tol) for u in derived.critical]
         cones = ([CriticalPoint(r.u, classify(linkage, r.u, tol), r.length_residual,
                                 r.stress_residual) for r in refs], derived.success)
-    step = opt.step_rel * float(np.median(linkage.lengths[cons.bars]))
+    scale = float(np.median(linkage.lengths[cons.bars]))
+    step = opt.step_rel * scale
     start = linkage.coordinates() if start_on_space else None
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
                    rng, opt.random_starts, dl, derived.seeds if derived else None)
     # cones known already: mesh through them first, then from the seeds no mesh covers
     cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
-    first = [] if cone_pass is None else cone_pass.meshes
-    meshes, checks, budget_hit = _mesh_seeds(
+    given = list(meshes or [])
+    first = given + ([] if cone_pass is None else cone_pass.meshes)
+    marched, checks, budget_hit = _mesh_seeds(
         surface, seeds, step, opt.max_triangles - sum(len(m.triangles) for m in first), dl,
         [m.vertices for m in first])
+    meshes, checks = given + marched, [geometry_checks(m) for m in given] + checks
     critical, where = _linkage_critical(surface, meshes, tol)
     # near a cone, or failing the geometric checks at every step tried (a narrow cone's
     # tube may keep its vertices' gaps above NEAR_CRITICAL_GAP): look for the cones
@@ -440,7 +389,7 @@ def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
         d = [float(cKDTree(m.vertices).query(cp.u)[0]) if len(m.vertices) else np.inf
              for m in out]
         where.append(int(np.argmin(d)) if d and min(d) <= same else -1)
-    return _ConePass(out, [checks[k] for k in kept] + [_geometry_checks(p) for p in parts],
+    return _ConePass(out, [checks[k] for k in kept] + [geometry_checks(p) for p in parts],
                      found, where, ended, "budget" in mesh.message)
 
 

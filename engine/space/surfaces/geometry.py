@@ -22,7 +22,9 @@ import numpy as np
 
 from engine.model.batched import BatchedConstraints
 from engine.model.constraints import Constraints
+from engine.model.errors import InvalidLinkage
 from engine.model.linkage import Linkage
+from engine.space.witnesses import bounded
 
 #: Gauss-Newton iterations of a projection onto the surface.
 PROJECT_ITERATIONS = 12
@@ -166,3 +168,25 @@ def finer_step(surface: Surface, step: float, points: np.ndarray, frames: np.nda
     finer = max(min(REMESH_FACTOR, CURVATURE_STEP / (kappa * step) if kappa > 0 else 1.0),
                 FINER_MIN)
     return step * (finer if finer ** -2 <= room else REMESH_FACTOR)
+
+
+def require_two_dof(linkage: Linkage, cons: Constraints) -> None:
+    """Raise :class:`InvalidLinkage` unless ``M - E = 2`` with something fixed and a bounded
+    configuration space (every moving vertex on a bar, every piece of the bar graph pinned:
+    the components are then compact, and each can be meshed whole)."""
+    if cons.n_free - cons.n_constraints != 2 or not linkage.anything_fixed:
+        raise InvalidLinkage(
+            "surfaces need two degrees of freedom (M - E = 2 with something fixed); this "
+            f"linkage has M = {cons.n_free}, E = {cons.n_constraints}"
+            + ("" if linkage.anything_fixed else " and nothing fixed"),
+            loc=("bars",),
+        )
+    moving = ~np.asarray(linkage.fixed, dtype=bool).all(axis=1)
+    on_bar = np.zeros(linkage.n_vertices, dtype=bool)
+    on_bar[linkage.ends[cons.bars].ravel()] = True
+    if (moving & ~on_bar).any() or not bounded(linkage, cons):
+        raise InvalidLinkage(
+            "the configuration space is unbounded (a moving vertex on no bar, or a piece of "
+            "the bar graph with no pinned vertex): its surfaces cannot be meshed whole",
+            loc=("bars",),
+        )

@@ -17,6 +17,15 @@ the triangles are taken in breadth-first order over shared edges and the edges n
 order of first appearance, so that a column's lowest entry is usually an edge no earlier column
 has and the reduction is short.
 
+Where every edge lies in exactly two triangles (a closed surface, also with pinched vertices
+such as a cone's apex) ``rank d2`` needs no reduction (:func:`_paired_ranks`): a 2-chain is a
+cycle when the coefficients of the two triangles at each edge cancel, so along every piece
+connected through edges one coefficient fixes all the others. Over Z/2 (all equal) every piece
+carries one cycle; over Q (equal up to the signs of the edge's two directions) a piece carries
+one exactly when those signs are consistent, i.e. when it is orientable. So ``rank d2 = F -
+pieces`` over Z/2 and ``F - orientable pieces`` over Q, exactly, in a few vectorised passes
+(a pentagon's mesh of some 2,500 triangles: 10 ms instead of about 250 ms).
+
 A closed surface is checked separately (:func:`manifold_defects`): every edge in exactly two
 triangles and the link of every vertex a single cycle.
 
@@ -162,12 +171,57 @@ def _pieces(edges: np.ndarray, verts: np.ndarray) -> int:
     return len(np.unique(label[verts]))
 
 
+def _paired_ranks(tri: np.ndarray, tri_edges: np.ndarray, n_edges: int
+                  ) -> tuple[int, int, bool] | None:
+    """``rank d2`` over Z/2 and over Q and whether every piece is orientable, where every edge
+    lies in exactly two triangles of three distinct vertices (module docstring); None
+    elsewhere.
+
+    The triangles joined across each edge form a graph whose pieces are counted; a piece is
+    orientable when its double cover (each triangle as given and flipped, the two triangles
+    at an edge joined as given where they run along it in opposite directions, else the one
+    flipped) does not join a triangle to its own flip."""
+    f = len(tri)
+    count = np.bincount(tri_edges.ravel(), minlength=n_edges)
+    if (count != 2).any() or (tri[:, 0] == tri[:, 1]).any() or (tri[:, 1] == tri[:, 2]).any() \
+            or (tri[:, 2] == tri[:, 0]).any():
+        return None
+    half = np.argsort(tri_edges.ravel(), kind="stable")  # half-edges by edge: pairs in a row
+    h1, h2 = half[0::2], half[1::2]
+    t1, t2 = h1 // 3, h2 // 3
+    # +1 where the triangle runs along its side from the smaller vertex to the larger
+    run1 = np.where(tri[t1, h1 % 3] < tri[t1, (h1 % 3 + 1) % 3], 1, -1)
+    run2 = np.where(tri[t2, h2 % 3] < tri[t2, (h2 % 3 + 1) % 3], 1, -1)
+    pieces, label = connected_components(
+        coo_matrix((np.ones(len(t1)), (t1, t2)), shape=(f, f)), directed=False)
+    keep = run1 != run2  # coherent as given: the edge is run both ways
+    rows = np.concatenate([t1, t1 + f])
+    cols = np.concatenate([np.where(keep, t2, t2 + f), np.where(keep, t2 + f, t2)])
+    _, cover = connected_components(
+        coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(2 * f, 2 * f)), directed=False)
+    first = np.unique(label, return_index=True)[1]  # one triangle of each piece
+    orientable_pieces = int((cover[first] != cover[first + f]).sum())
+    return f - pieces, f - orientable_pieces, orientable_pieces == pieces
+
+
 def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int, int]:
     """``(V, E, F, rank d1 over Z/2, rank d2 over Z/2, rank d1 over Q, rank d2 over Q)``."""
+    return _ranks(triangles)[0]
+
+
+def _ranks(triangles: np.ndarray
+           ) -> tuple[tuple[int, int, int, int, int, int, int], bool | None]:
+    """:func:`boundary_ranks` and, where every edge lies in two triangles, whether every piece
+    is orientable (None elsewhere: :func:`orientable` decides)."""
     tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if not len(tri):
-        return 0, 0, 0, 0, 0, 0, 0
+        return (0, 0, 0, 0, 0, 0, 0), True
     edges, tri_edges = edges_of(tri)
+    verts = np.unique(tri)
+    paired = _paired_ranks(tri, tri_edges, len(edges))
+    if paired is not None:
+        rank1 = len(verts) - _pieces(edges, verts)
+        return (len(verts), len(edges), len(tri), rank1, paired[0], rank1, paired[1]), paired[2]
     order = _bfs_order(tri_edges, len(edges))
     # edges renumbered by first appearance along the BFS: a column's lowest entry is then
     # mostly an edge that no earlier column holds
@@ -178,7 +232,6 @@ def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int,
             if renum[e] < 0:
                 renum[e] = k
                 k += 1
-    verts = np.unique(tri)
     # d1 is the incidence matrix of the graph of the edges: its rank over any field is the
     # number of vertices less the number of connected pieces (a spanning forest's edges are
     # independent, every other edge closes a cycle of them), exact without elimination
@@ -195,7 +248,7 @@ def boundary_ranks(triangles: np.ndarray) -> tuple[int, int, int, int, int, int,
             col[int(renum[tri_edges[t, j]])] = 1 if a < b else -1
         d2_z2.append(list(col))
         d2_q.append(col)
-    return len(verts), len(edges), len(tri), rank1, _rank_z2(d2_z2), rank1, _rank_q(d2_q)
+    return (len(verts), len(edges), len(tri), rank1, _rank_z2(d2_z2), rank1, _rank_q(d2_q)), None
 
 
 def orientable(triangles: np.ndarray) -> bool:
@@ -280,10 +333,10 @@ def manifold_defects(triangles: np.ndarray) -> dict[str, int]:
 def surface_homology(triangles: np.ndarray) -> Homology:
     """Euler characteristic, Betti numbers over Z/2 and Q, and orientability of a
     triangulated 2-complex (module docstring)."""
-    v, e, f, r1z, r2z, r1q, r2q = boundary_ranks(triangles)
+    (v, e, f, r1z, r2z, r1q, r2q), orient = _ranks(triangles)
     return Homology(
         vertices=v, edges=e, triangles=f, euler=v - e + f,
         betti_z2=(v - r1z, e - r1z - r2z, f - r2z),
         betti_q=(v - r1q, e - r1q - r2q, f - r2q),
-        orientable=orientable(triangles) if f else True,
+        orientable=orientable(triangles) if orient is None else orient,
     )

@@ -37,6 +37,7 @@ from scipy.sparse.csgraph import connected_components
 
 from engine.model.budget import NEVER, Deadline
 from engine.space.surfaces.geometry import Surface
+from engine.space.surfaces.homology import edges_of
 
 #: Front vertices within this many steps of the front vertex being processed are joined to it.
 CLOSE = 1.0
@@ -439,3 +440,52 @@ def components(mesh: Mesh) -> list[Mesh]:
                         fronts, not fronts, mesh.message if fronts else "closed",
                         new[mesh.apexes[label[mesh.apexes] == k]]))
     return out
+
+
+#: Edge ends within this many (median) edge lengths of a cone's apex's ring (:func:`.cones.
+#: cone_fans`) are left out of the tangent-angle check (an edge there leaves the tangent planes by
+#: about half its length over the distance to the apex: 60 degrees at 1.3 steps on the pentagon at
+#: (2, 1, 1, 1, 1) with one step everywhere); the meshes there are vouched for by the fold check,
+#: the links (two cycles at each apex, one elsewhere) and the Morse count with the apexes' terms.
+APEX_ZONE = 3.0
+
+
+def geometry_checks(mesh: Mesh) -> tuple[int, float]:
+    """Triangles negative in at least two of their vertices' positive frames (folded), and
+    the largest angle between an edge and the tangent planes at its ends (an edge of a mesh
+    that follows the surface leaves its tangent planes by about half the step times the
+    curvature; unlike the plane of a thin triangle, an edge's direction is well defined)."""
+    tri, x = mesh.triangles, mesh.vertices
+    if not len(tri):
+        return 0, 0.0
+    frames = mesh.frames  # (N, M, 2)
+    negative = np.zeros(len(tri), dtype=np.int64)
+    e1 = x[tri[:, 1]] - x[tri[:, 0]]
+    e2 = x[tri[:, 2]] - x[tri[:, 0]]
+    for k in range(3):
+        z = frames[tri[:, k]]
+        a = np.einsum("tm,tmj->tj", e1, z)
+        b = np.einsum("tm,tmj->tj", e2, z)
+        # an apex's frame means nothing: its triangles are judged in the other two frames
+        negative += (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] <= 0) & ~np.isin(tri[:, k],
+                                                                            mesh.apexes)
+    edges, _ = edges_of(tri)
+    d = x[edges[:, 1]] - x[edges[:, 0]]
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+    # an apex has no tangent plane, and a cone's curvature grows as one over the distance to
+    # its apex: within APEX_ZONE edges of one the angle says nothing about cutting across
+    near_apex = np.zeros(len(x), dtype=bool)
+    for a in mesh.apexes:  # its ring's radius (the farthest neighbour) and APEX_ZONE edges
+        nbr = np.unique(tri[(tri == a).any(axis=1)])
+        reach = float(np.linalg.norm(x[nbr] - x[a], axis=1).max())
+        near_apex |= np.linalg.norm(x - x[a], axis=1) <= reach + APEX_ZONE * float(
+            np.median(length))
+    worst = 0.0
+    for end in (0, 1):
+        inplane = np.linalg.norm(np.einsum("em,emj->ej", d, frames[edges[:, end]]), axis=1)
+        off = np.sqrt(np.maximum(length ** 2 - inplane ** 2, 0.0)) / length
+        off[near_apex[edges[:, end]]] = 0.0
+        worst = max(worst, float(np.arcsin(np.clip(off, 0.0, 1.0)).max()))
+    # a fold shows in the frames of most of a triangle's vertices; a sliver left by a join
+    # (its area near zero) may lean across one vertex's frame without any overlap
+    return int((negative >= 2).sum()), worst

@@ -201,6 +201,14 @@ def classify_points(surface: Surface, c: np.ndarray, starts: np.ndarray,
                           np.asarray(lams).reshape(-1, surface.cons.n_constraints), idx)
 
 
+def generic_height(n_free: int, seed: int) -> tuple[np.ndarray, np.random.Generator]:
+    """A random unit height ``c`` (M,) drawn from ``seed``, and the generator that then draws
+    the rest (:func:`engine.space.surfaces.explore.explore_surfaces`'s)."""
+    rng = np.random.default_rng(seed)
+    c = rng.normal(size=n_free)
+    return c / np.linalg.norm(c), rng
+
+
 def height_witnesses(surface: Surface, c: np.ndarray, rng: np.random.Generator,
                      deadline: Deadline = NEVER, paths_max: int = 4096) -> HeightWitnesses:
     """Every real critical point of ``h = c . u`` on the surface, by the total-degree

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from engine.design.surface_design import MARGIN_REL, ConeTarget, check_targets, design_surface
+from engine.model.budget import Deadline
 from engine.model.errors import InvalidRequest
 from tests.engine.space.surfaces.conftest import pentagon, pentagon_betti
 
@@ -78,3 +79,13 @@ def test_targets_are_checked():
     with pytest.raises(InvalidRequest) as err:
         design_surface(lk, [ConeTarget(0, sheets=1)], ["b0"], 0.05)  # between the two pins
     assert err.value.loc == ("adjustable", 0)
+
+
+def test_a_cone_search_stopped_by_its_deadline_is_no_refusal():
+    """Cone 3 exists (the collinear pentagons: four); a search stopped before it ended found
+    none, and the answer says so instead of refusing the target as a cone that is not there."""
+    lk = pentagon(CRITICAL)
+    out = design_surface(lk, [ConeTarget(3, sheets=1)], FREE, 0.05,
+                         deadline=Deadline.after(0.0))
+    assert not out.cones_ended and out.split is None and not out.result.feasible
+    assert out.search.reason == "time" and "no cone 3" in out.search.argument_detail

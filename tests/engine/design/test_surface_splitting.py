@@ -90,3 +90,26 @@ def test_an_unproved_splitting_says_why():
     detail = res.search.argument_detail
     assert detail is not None and "did not end" in detail, detail
     assert res.search.argument is None
+
+
+@pytest.mark.parametrize(("lengths", "change", "moved"), [
+    ((1.0, 1.0, 1.0, 1.0, 1.0), 1e-3, True),  # no cone: L - dL's meshes are L + dL's, moved
+    ((2.0, 1.03, 1.0, 1.0, 1.0), 0.06, False),  # a critical value between: marched again
+])
+def test_a_splitting_without_cones_against_farber_schuetz(lengths, change, moved):
+    """Lengths with no cone: the cones' and heights' homotopy (one, along L + w dL) and the
+    re-meshings give Farber and Schuetz's homology on both sides; the second side's meshes
+    are moved from the first's where no critical value lies between them, and marched again
+    where one does (the move would be too long)."""
+    lk = pentagon(lengths)
+    d_l = np.array([0.0, change, 0.0, 0.0, 0.0])
+    res = split_surface(lk, d_l)
+    plus = pentagon_betti(tuple(np.asarray(lengths) + d_l))
+    minus = pentagon_betti(tuple(np.asarray(lengths) - d_l))
+    assert res.cones == [] and res.complete
+    assert res.betti == (plus, minus) and res.euler == (euler(plus), euler(minus))
+    assert res.search["minus_side_mesh"] == ("moved" if moved else "marched")
+    # no cone predicts no change: verified only where the spaces agree
+    assert res.predicted_euler_difference == 0
+    assert res.verified == (euler(plus) == euler(minus))
+    assert res.search.argument == ("proved" if res.verified else None)
