@@ -153,4 +153,5 @@ def test_spherical_five_bar_and_spatial_quadrilateral_geometry():
     np.testing.assert_allclose(pos["v2"], [1 + 0.5 * np.cos(2.0), 0.5 * np.sin(2.0), 0.0],
                                atol=1e-12)
     # theta = pi/2: v3 straight above its circle's centre on the diagonal (x, y along v2)
-    assert pos["v3"][2] > 0 and abs(pos["v2"][0] * pos["v3"][1] - pos["v2"][1] * pos["v3"][0]) < 1e-12
+    v2, v3 = pos["v2"], pos["v3"]
+    assert v3[2] > 0 and abs(v2[0] * v3[1] - v2[1] * v3[0]) < 1e-12
