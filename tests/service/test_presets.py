@@ -150,10 +150,13 @@ def test_mechanism_parameters_that_give_no_assembly_are_named(client, query, fie
     assert r.json()["errors"][0]["loc"] == ["query", field]
 
 
-#: (query, g, L1..L4 on the unit sphere): the defaults (genus 3) and a second generic set.
+#: (query, g, L1..L4 on the unit sphere): the defaults (genus 3), a second generic set (genus 4)
+#: and the defaults on a sphere of radius 2.
 SPHERICAL_FIVE_BARS = [
     ("spherical-five-bar", (1.2, 0.6, 1.0, 0.9, 0.7)),
     ("spherical-five-bar?g=1.0&L1=0.8&L2=0.9&L3=1.1&L4=0.6&side=-1", (1.0, 0.8, 0.9, 1.1, 0.6)),
+    # every length doubled with the radius: the same space, scaled
+    ("spherical-five-bar?R=2&g=2.4&L1=1.2&L2=2&L3=1.8&L4=1.4", (1.2, 0.6, 1.0, 0.9, 0.7)),
 ]
 
 
