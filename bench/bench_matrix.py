@@ -6,6 +6,11 @@ HTTP on a warm service and in-process; time and completeness per cell.
     .venv/bin/python bench/bench_matrix.py [--repeat 3] [--only kl-chain] [--no-in-process]
         [--json bench/results/matrix.json] [--markdown docs/preset-matrix.md]
 
+With ``--only``, the rows of those presets (and of their variants) replace theirs in the JSON
+file already there (the runs merged into it are listed in its ``merged``) and in the Markdown
+page already there (its other rows and sentences kept as written, the count of cells met
+recounted, a sentence on the run added); the others are kept as they were measured.
+
 The cases are those of ``tests/service/preset_matrix.py`` (the maps: the first two bars with a
 free end as axes over ``[0.8 L, 1.2 L]`` each, resolution and budget by default), for each
 variant in ``preset_matrix.VARIANTS``, plus the gate slice (``preset_matrix.gate_slice``).
@@ -31,6 +36,7 @@ import importlib.util
 import json
 import os
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -160,6 +166,18 @@ def met(row: Json) -> bool:
             and row["http_s"] <= row["target_s"])
 
 
+def table_row(r: Json) -> str:
+    """One cell of the matrix as a row of the Markdown table."""
+    why = r.get("problem") or r.get("reason") or r.get("argument") or ""
+    if r.get("reason") and r.get("proved"):
+        why += " (" + ", ".join(f"{k} {v}" for k, v in r["proved"].items()
+                                if k != "homotopy") + ")"
+    ip = "" if r.get("in_process_s") is None else f"{r['in_process_s']:.3f}"
+    complete = {True: "yes", False: "**no**", None: "n/a"}[r.get("complete")]
+    return (f"| {r['preset']} | `{r['cell']}` | {r['http_s']:.3f} | {r['first_s']:.3f} | {ip} "
+            f"| {complete} | {why} | {'yes' if met(r) else '**no**'} |")
+
+
 def markdown(rows: list[Json], meta: Json) -> str:
     """The matrix as a Markdown page (``docs/preset-matrix.md``)."""
     lines = [
@@ -186,19 +204,11 @@ def markdown(rows: list[Json], meta: Json) -> str:
         "| met |",
         "| --- | --- | ---: | ---: | ---: | --- | --- | --- |",
     ]
-    for r in rows:
-        why = r.get("problem") or r.get("reason") or r.get("argument") or ""
-        if r.get("reason") and r.get("proved"):
-            why += " (" + ", ".join(f"{k} {v}" for k, v in r["proved"].items()
-                                    if k != "homotopy") + ")"
-        ip = "" if r.get("in_process_s") is None else f"{r['in_process_s']:.3f}"
-        complete = {True: "yes", False: "**no**", None: "n/a"}[r.get("complete")]
-        lines.append(
-            f"| {r['preset']} | `{r['cell']}` | {r['http_s']:.3f} | {r['first_s']:.3f} | {ip} "
-            f"| {complete} | {why} | {'yes' if met(r) else '**no**'} |")
+    lines += [table_row(r) for r in rows]
     n_met = sum(met(r) for r in rows)
     lines += ["", f"{n_met} of {len(rows)} cells met; wall time of the run "
-              f"{meta['wall_s']:.0f} s.", "", *WHY_INCOMPLETE, ""]
+              f"{meta['wall_s']:.0f} s."]
+    lines += ["", *WHY_INCOMPLETE, ""]
     return "\n".join(lines)
 
 
@@ -233,6 +243,9 @@ WHY_INCOMPLETE = [
     "are traced: the turning points of their slices need more homotopy paths than the bound "
     "(2,400 for a 3D two-rotor chain), so their regions' counts are exact but the curves "
     "are `searched`.",
+    "- `searched` on the `spherical-five-bar`'s `splitting` (D = 2): the homotopy for the "
+    "cones of a five-bar chain on the sphere did not end on every path, so a cone may be "
+    "missing (`argument_detail` says so); its configuration space is complete (`derived`).",
     "- a figure is complete when the analysis it draws is (the JSON cell of the same preset: "
     "`draws` names its reason); the figure says so in its title.",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
@@ -256,6 +269,61 @@ def figures_complete(rows: list[Json]) -> None:
             r["complete"] = drawn["complete"]
             if not drawn["complete"]:
                 r["reason"] = f"draws `{drawn['cell']}`: {drawn['reason']}"
+
+
+def merge(old: Json, rows: list[Json], meta: Json, only: list[str]) -> Json:
+    """``old`` (a previous run's JSON) with the rows of the presets in ``only`` replaced by
+    ``rows``: they take the place of the first row they replace, or (new presets) go before
+    the variants (labels with a query) and the gate slice; ``meta`` joins ``merged``."""
+    mine = {_base(r["preset"]) for r in rows} | set(only)
+    kept = [r for r in old["rows"] if _base(r["preset"]) not in mine]
+    replaced = [k for k, r in enumerate(old["rows"]) if _base(r["preset"]) in mine]
+    if replaced:
+        at = sum(1 for r in old["rows"][:replaced[0]] if _base(r["preset"]) not in mine)
+    else:
+        at = next((k for k, r in enumerate(kept) if "?" in r["preset"]), len(kept))
+    merged = {k: v for k, v in old.items() if k != "rows"}
+    merged["merged"] = [*old.get("merged", []), {**meta, "only": sorted(only)}]
+    return {**merged, "rows": kept[:at] + rows + kept[at:]}
+
+
+def _base(preset: str) -> str:
+    return preset.split("?")[0]
+
+
+def merge_markdown(text: str, rows: list[Json], meta: Json, only: list[str]) -> str:
+    """The page ``text`` (``docs/preset-matrix.md``, whose other rows and sentences may have
+    been written since) with the table rows of the presets in ``only`` replaced by ``rows``
+    (placed as :func:`merge` places them), the count of cells met recounted from the table,
+    and a sentence saying what was measured when."""
+    mine = {_base(r["preset"]) for r in rows} | set(only)
+    lines = text.split("\n")
+    body = [k for k, line in enumerate(lines) if line.startswith("| ") and "`/v1/" in line
+            or line.startswith(f"| gated-kl-chain?n=4&gate=2 | `{GATE_SLICE}`")]
+    if not body:
+        raise SystemExit("no table rows in the page to merge into")
+    first, last = body[0], body[-1]
+    table = lines[first:last + 1]
+
+    def preset_of(line: str) -> str:
+        return _base(line.split("|")[1].strip())
+
+    kept = [line for line in table if preset_of(line) not in mine]
+    replaced = [k for k, line in enumerate(table) if preset_of(line) in mine]
+    at = (sum(1 for line in table[:replaced[0]] if preset_of(line) not in mine) if replaced
+          else next((k for k, line in enumerate(kept) if "?" in line.split("|")[1]),
+                    len(kept)))
+    table = kept[:at] + [table_row(r) for r in rows] + kept[at:]
+    n_met = sum(line.rstrip().endswith("| yes |") for line in table)
+    note = (f" The rows of {', '.join(f'`{o}`' for o in sorted(only))} were measured "
+            f"{meta['date']}, commit `{meta['commit']}` (`bench/bench_matrix.py --only "
+            f"{' '.join(sorted(only))}`: median of {meta['repeat']}; load average "
+            f"{meta['load_before']} before, {meta['load_after']} after; {meta['wall_s']:.0f} s) "
+            "and merged into the table.")
+    rest = [re.sub(r"^\d+ of \d+ cells met", f"{n_met} of {len(table)} cells met", line)
+            + (note if re.match(r"^\d+ of \d+ cells met", line) else "")
+            for line in lines[last + 1:]]
+    return "\n".join(lines[:first] + table + rest)
 
 
 def commit() -> str:
@@ -334,9 +402,15 @@ def main() -> None:
             "commit": served, "repeat": args.repeat, "load_before": load_before,
             "load_after": [round(x, 2) for x in os.getloadavg()],
             "wall_s": time.perf_counter() - t_start}
+    document: Json = {**meta, "rows": rows}
+    if args.only is not None and args.json.exists():
+        document = merge(json.loads(args.json.read_text()), rows, meta, args.only)
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps({**meta, "rows": rows}, indent=2) + "\n")
-    if args.markdown is not None:
+    args.json.write_text(json.dumps(document, indent=2) + "\n")
+    if args.markdown is not None and args.only is not None and args.markdown.exists():
+        args.markdown.write_text(merge_markdown(args.markdown.read_text(), rows, meta,
+                                                args.only))
+    elif args.markdown is not None:
         args.markdown.write_text(markdown(rows, meta))
 
 

@@ -86,3 +86,13 @@ class PresetRoutes(Generic[R]):
     def get_preset_sphere_slider(self, **parameters: float) -> R:
         """``d, r, s, c, theta, side``: a sphere and a slider in 3D, a torus (D = 2)."""
         return self.get_preset("sphere-slider", **parameters)
+
+    def get_preset_spherical_five_bar(self, **parameters: float) -> R:
+        """``R, g, L1, L2, L3, L4, theta1, theta2, side``: a spherical five-bar of bars in 3D
+        (D = 2)."""
+        return self.get_preset("spherical-five-bar", **parameters)
+
+    def get_preset_spatial_quadrilateral(self, **parameters: float) -> R:
+        """``l1, l2, l3, l4, phi, theta``: a spatial quadrilateral, ``v2`` sliding in a plane
+        (D = 2)."""
+        return self.get_preset("spatial-quadrilateral", **parameters)

@@ -1,4 +1,4 @@
-"""Mechanisms for issue 25, registered as presets: two planar linkages and one 3D linkage with
+"""Mechanisms for issue 25, registered as presets: two planar linkages and three 3D linkages with
 two degrees of freedom, and a spherical four-bar (one).
 
 The planar ones are two cranks on pins, their tips ``A`` and ``C`` joined through a middle vertex
@@ -23,6 +23,12 @@ gave (the one changed, not a default it offends).
   ``OA`` and ``OB`` and turn about ``OG1`` and ``OG2``: every axis through ``O``.
 - ``sphere-slider`` (3D, D = 2): ``A`` on a sphere about the pin ``P`` (bar ``PA``), ``B`` sliding
   in the plane z = 0 on a circle about the pin ``Q`` (bar ``QB``), the coupler ``AB``: a torus.
+- ``spherical-five-bar`` (3D, D = 2): the spherical four-bar's centre and ground pins, three
+  moving points ``A``, ``B``, ``C`` on the sphere (bars ``OA``, ``OB``, ``OC``), cranks ``L1``
+  (``G1-A``) and ``L4`` (``G2-C``), couplers ``L2`` (``A-B``) and ``L3`` (``B-C``).
+- ``spatial-quadrilateral`` (3D, D = 2): ``v0`` pinned at the origin, ``v1`` at ``(l1, 0, 0)``,
+  ``v2`` sliding in the plane z = 0 at angle ``phi`` about ``v1`` (bar ``l2``), ``v3`` free at
+  angle ``theta`` about the diagonal ``v0 v2`` (bars ``l3``, ``l4``).
 """
 
 from __future__ import annotations
@@ -203,8 +209,70 @@ def _sphere_slider(p: Params) -> Specs:
     return vertices, bars
 
 
+def _spherical_five_bar(p: Params) -> Specs:
+    for key in ("L1", "L2", "L3", "L4"):
+        _chord_angle(p, key)
+    o, g1, g2 = _sphere_pins(p)
+    r = p["R"]
+
+    def attempt(t1: float, t2: float) -> Specs | None:
+        a, c = _on_circle(r, g1, p["L1"], t1), _on_circle(r, g2, p["L4"], t2)
+        b = _meet_sphere(r, a, p["L2"], c, p["L3"], p["side"])
+        if b is None:
+            return None
+        pos = {"O": o, "G1": g1, "G2": g2, "A": a, "B": b, "C": c}
+        vertices = [VertexSpec(k, x.tolist(), k in ("O", "G1", "G2")) for k, x in pos.items()]
+        bars = [BarSpec("OA", ("O", "A"), r), BarSpec("OB", ("O", "B"), r),
+                BarSpec("OC", ("O", "C"), r), BarSpec("L1", ("G1", "A"), p["L1"]),
+                BarSpec("L2", ("A", "B"), p["L2"]), BarSpec("L3", ("B", "C"), p["L3"]),
+                BarSpec("L4", ("G2", "C"), p["L4"])]
+        return vertices, bars
+
+    return _scan(p, attempt, "the spherical five-bar")
+
+
+#: The smallest radius of ``v3``'s circle (relative to its bars) a spatial quadrilateral is
+#: started on: smaller is (near) a flat triangle ``v0 v2 v3``, the next angle ``phi`` is tried.
+_CIRCLE_RTOL = 1e-3
+
+
+def _spatial_quadrilateral(p: Params) -> Specs:
+    l1, l2, l3, l4 = p["l1"], p["l2"], p["l3"], p["l4"]
+    lo, hi = max(abs(l1 - l2), abs(l3 - l4)), min(l1 + l2, l3 + l4)
+    if not lo < hi:
+        raise InvalidLinkage(
+            "the quadrilateral does not close: its diagonal v0 v2 must lie in both "
+            f"[|l1 - l2|, l1 + l2] = [{abs(l1 - l2):g}, {l1 + l2:g}] and [|l3 - l4|, l3 + l4] = "
+            f"[{abs(l3 - l4):g}, {l3 + l4:g}]")
+    v0, v1 = np.zeros(3), np.array([l1, 0.0, 0.0])
+    z = np.array([0.0, 0.0, 1.0])
+
+    def attempt(phi: float, _: float) -> Specs | None:
+        v2 = v1 + l2 * np.array([math.cos(phi), math.sin(phi), 0.0])
+        d = float(np.linalg.norm(v2))
+        if not lo < d < hi or d == 0.0:
+            return None
+        e = v2 / d
+        along = (l4**2 - l3**2 + d**2) / (2 * d)
+        radius = math.sqrt(max(l4**2 - along**2, 0.0))
+        if radius <= _CIRCLE_RTOL * min(l3, l4):
+            return None
+        u = np.cross(z, e)  # in the plane z = 0, normal to the diagonal: (u, z, e) orthonormal
+        v3 = along * e + radius * (math.cos(p["theta"]) * u + math.sin(p["theta"]) * z)
+        pos = {"v0": v0, "v1": v1, "v2": v2, "v3": v3}
+        fixed: dict[str, bool | list[bool]] = {"v0": True, "v1": True,
+                                               "v2": [False, False, True], "v3": False}
+        vertices = [VertexSpec(k, x.tolist(), fixed[k]) for k, x in pos.items()]
+        ends = (("v0", "v1"), ("v1", "v2"), ("v2", "v3"), ("v3", "v0"))
+        bars = [BarSpec(f"l{k + 1}", e_, p[f"l{k + 1}"]) for k, e_ in enumerate(ends)]
+        return vertices, bars
+
+    return _scan(p | {"theta1": p["phi"], "theta2": 0.0}, attempt, "the quadrilateral",
+                 cranks=1)
+
+
 #: Parameters that are lengths (positive) in these presets.
-LENGTHS = frozenset({"L0", "L4", "R", "g", "c", "d", "s"})
+LENGTHS = frozenset({"L0", "L4", "R", "g", "c", "d", "s", "l1", "l2", "l3", "l4"})
 
 MECHANISMS: tuple[CatalogueEntry, ...] = (
     CatalogueEntry(
@@ -248,5 +316,29 @@ MECHANISMS: tuple[CatalogueEntry, ...] = (
         "torus.",
         {"d": 2.5, "r": 1.2, "s": 0.8, "c": 2.2, "theta": 0.0, "side": 1.0},
         frozenset(), _sphere_slider, 3,
+    ),
+    CatalogueEntry(
+        "spherical-five-bar",
+        "Spherical five-bar built from bars in 3D: centre O and ground pins G1 = (R, 0, 0) and "
+        "G2 (in the plane z = 0, chord g from G1) pinned; A, B and C on the sphere of radius R "
+        "(bars OA, OB, OC), crank L1 (G1-A) at angle theta1 about the axis O G1, crank L4 "
+        "(G2-C) at theta2 about O G2, couplers L2 (A-B) and L3 (B-C); side picks B on either "
+        "side of the plane O A C. Two degrees of freedom (D = 2: a surface; the default lengths "
+        "are generic: one surface of genus 3). Chords shorter than 2 R.",
+        {"R": 1.0, "g": 1.2, "L1": 0.6, "L2": 1.0, "L3": 0.9, "L4": 0.7,
+         "theta1": 1.0, "theta2": 1.0, "side": 1.0},
+        frozenset(), _spherical_five_bar, 3,
+    ),
+    CatalogueEntry(
+        "spatial-quadrilateral",
+        "Spatial quadrilateral v0 v1 v2 v3 (a spatial polygon space): v0 pinned at the origin, "
+        "v1 at (l1, 0, 0) (the bar l1 joins two pins), v2 sliding in the plane z = 0 (its z "
+        "fixed) at angle phi about v1 (bar l2), v3 free at angle theta about the diagonal "
+        "v0 v2 (bars l3 = v2 v3, l4 = v3 v0; theta = pi/2 is above the plane). Two degrees of "
+        "freedom (D = 2): for generic lengths two spheres, one sphere or one torus (the "
+        "default), by where the diagonal's range ends. The diagonal must have room: "
+        "max(|l1 - l2|, |l3 - l4|) < min(l1 + l2, l3 + l4).",
+        {"l1": 1.0, "l2": 0.5, "l3": 1.2, "l4": 1.0, "phi": 2.0, "theta": math.pi / 2},
+        frozenset(), _spatial_quadrilateral, 3,
     ),
 )

@@ -84,7 +84,8 @@ def test_two_dof_presets_are_refused_where_one_is_needed(api, preset):
     critical values) is a 422 naming the linkage, never a 5xx nor a silent skip."""
     linkage = api.get(f"/v1/presets/{preset}").json()
     if not two_dof(linkage):
-        assert preset not in ("pentagon", "five-bar", "sphere-slider")
+        assert preset not in ("pentagon", "five-bar", "sphere-slider", "spherical-five-bar",
+                              "spatial-quadrilateral")
         return
     bars = [b["id"] for b in linkage["bars"]][-2:]
     for path in ONE_DOF_ONLY:

@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from tests.engine.space.surfaces.conftest import pentagon_betti
+from tests.engine.space.surfaces.conftest import pentagon_betti, spherical_five_bar_reference
+from tests.service.test_spatial_polygons import CASES as QUADRILATERALS
+from tests.service.test_spatial_polygons import (
+    check_positions,
+    closed_manifold,
+    reference_labels,
+    references_agree,
+)
 
 
 def test_list_presets(client):
@@ -14,7 +21,8 @@ def test_list_presets(client):
     catalogue = {"tetrahedron", "octahedron", "bricard-line", "bricard-plane", "three-prism",
                  "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
                  "rotor-chain-3d"}
-    mechanisms = {"pentagon", "five-bar", "spherical-four-bar", "sphere-slider"}
+    mechanisms = {"pentagon", "five-bar", "spherical-four-bar", "sphere-slider",
+                  "spherical-five-bar", "spatial-quadrilateral"}
     planar = {"four-bar", "three-rotor", "kl-chain", "gated-kl-chain"}
     assert set(body) == planar | catalogue | mechanisms
     assert body["tetrahedron"]["dimension"] == 3 and body["four-bar"]["dimension"] == 2
@@ -47,14 +55,14 @@ def test_kl_chain_size(client):
     assert len(lk["vertices"]) == 50 and len(lk["bars"]) == 49
 
 
-def space_of(client, query: str) -> dict:
+def space_of(client, query: str, arguments: tuple[str, ...] = ("proved",)) -> dict:
     lk = client.get(f"/v1/presets/{query}")
     assert lk.status_code == 200, lk.text
     r = client.post("/v1/analysis/configuration-space", json={"linkage": lk.json()})
     assert r.status_code == 200, (query, r.text[:500])
     body = r.json()
     assert body["search"]["complete"], (query, body["search"])
-    assert body["search"]["reason"] is None and body["search"]["argument"] == "proved"
+    assert body["search"]["reason"] is None and body["search"]["argument"] in arguments
     return body
 
 
@@ -134,8 +142,68 @@ def test_spherical_four_bar_is_a_curve(client):
 
 @pytest.mark.parametrize(("query", "field"), [
     ("pentagon?L0=5", "L0"), ("five-bar?L1=-1", "L1"), ("spherical-four-bar?L2=2.5", "L2"),
-    ("sphere-slider?c=0.5", "c")])
+    ("sphere-slider?c=0.5", "c"), ("spherical-five-bar?R=0.5", "R"),
+    ("spherical-five-bar?L4=2", "L4"), ("spatial-quadrilateral?l4=3", "l4")])
 def test_mechanism_parameters_that_give_no_assembly_are_named(client, query, field):
     r = client.get(f"/v1/presets/{query}")
     assert r.status_code == 422 and r.headers["content-type"].startswith("application/problem")
     assert r.json()["errors"][0]["loc"] == ["query", field]
+
+
+#: (query, g, L1..L4 on the unit sphere): the defaults (genus 3), a second generic set (genus 4)
+#: and the defaults on a sphere of radius 2.
+SPHERICAL_FIVE_BARS = [
+    ("spherical-five-bar", (1.2, 0.6, 1.0, 0.9, 0.7)),
+    ("spherical-five-bar?g=1.0&L1=0.8&L2=0.9&L3=1.1&L4=0.6&side=-1", (1.0, 0.8, 0.9, 1.1, 0.6)),
+    # every length doubled with the radius: the same space, scaled
+    ("spherical-five-bar?R=2&g=2.4&L1=1.2&L2=2&L3=1.8&L4=1.4", (1.2, 0.6, 1.0, 0.9, 0.7)),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("query", "lengths"), SPHERICAL_FIVE_BARS)
+def test_spherical_five_bar_against_dense_sampling(client, query, lengths):
+    """The components' Euler characteristics against the dense sampling of its crank angles
+    (tests/engine/space/surfaces/conftest.py: the branched double cover of the region of the
+    crank torus where B is real), every surface closed and orientable (a regular level set).
+    The engine's argument may be ``derived`` (the five-bar chain's band, its homotopy ended)."""
+    body = space_of(client, query, ("derived", "proved"))
+    assert body["search"]["dof"] == 2
+    surfaces = body["surfaces"]
+    assert sorted(s["euler"] for s in surfaces) == spherical_five_bar_reference(*lengths)
+    for s in surfaces:
+        assert s["closed"] and s["orientable"] and s["morse_agrees"]
+        assert s["betti_q"] == s["betti_z2"] == [1, 2 - s["euler"], 1]
+        assert s["genus"] == (2 - s["euler"]) // 2
+
+
+def test_spherical_five_bar_default_is_genus_three():
+    """What the preset's description says of its defaults, by the reference alone."""
+    assert spherical_five_bar_reference(1.2, 0.6, 1.0, 0.9, 0.7) == [-4]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "lengths"), QUADRILATERALS)
+def test_spatial_quadrilateral_against_spatial_polygon_references(client, name, lengths):
+    """Two spheres, a sphere or a torus by the lengths: the preset through HTTP against the
+    references of tests/service/test_spatial_polygons.py (Klyachko's Poincare polynomial with
+    the blow-up, the fibres over the diagonal and dense sampling), each surface in its own
+    sampled component, on the bars to residual_atol."""
+    exp = references_agree(lengths)
+    query = "spatial-quadrilateral?" + "&".join(
+        f"l{k + 1}={x}" for k, x in enumerate(lengths))
+    body = space_of(client, query)
+    surfaces = body["surfaces"]
+    assert len(surfaces) == exp["components"], name
+    seen: set[int] = set()
+    for surf, want in zip(surfaces, exp["each"], strict=True):
+        assert surf["closed"] and surf["orientable"] and surf["morse_agrees"]
+        assert (surf["euler"], surf["genus"]) == (want["euler"], want["genus"])
+        assert surf["betti_q"] == surf["betti_z2"] == want["betti"]
+        assert closed_manifold(np.array(surf["triangles"])) == (True, True)
+        pos = {v: np.array(p) for v, p in surf["positions"].items()}
+        check_positions(pos, lengths, body["tolerances"]["residual_atol"])
+        labels = reference_labels(pos, lengths, exp["label"])
+        assert len(labels) == 1 and not labels & seen
+        seen |= labels
+    assert seen == set(range(exp["components"]))

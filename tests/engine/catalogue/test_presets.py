@@ -41,7 +41,8 @@ def test_every_preset_is_listed_with_defaults():
         "three-prism-flexible", "k33-conic", "k33-dixon", "cn-symmetric-four-regular",
         "rotor-chain-3d",
         # engine/catalogue/mechanisms.py
-        "pentagon", "five-bar", "spherical-four-bar", "sphere-slider",
+        "pentagon", "five-bar", "spherical-four-bar", "sphere-slider", "spherical-five-bar",
+        "spatial-quadrilateral",
     }
     for preset in PRESETS.values():
         assert preset.description and preset.parameters
