@@ -278,7 +278,10 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
                    rng, opt.random_starts, dl, derived.seeds if derived else None)
     # cones known already: mesh through them first, then from the seeds no mesh covers
-    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
+    # the cone homotopy within the default bound, or the larger one the options allow
+    paths_max = max(opt.homotopy_paths_max, PATHS_MAX)
+    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones,
+                               paths_max) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
     given = list(meshes or [])
     first = given + ([] if cone_pass is None else cone_pass.meshes)
@@ -293,7 +296,7 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
             len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes) or any(
             k[0] or k[1] > TANGENT_ANGLE_MAX for k in checks)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
-                                   dl, cones)
+                                   dl, cones, paths_max)
         if cone_pass is not None:  # it keeps what it does not replace
             meshes, checks = [], []
             # the budget spent on the meshes it replaced (finer and finer through a cone)
@@ -366,13 +369,15 @@ def _mesh_seeds(surface: Surface, seeds: list[np.ndarray], step: float, max_tria
 def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
                    checks: list[tuple[int, float]], step: float, max_triangles: int,
                    rng: np.random.Generator, dl: Deadline,
-                   known: tuple[list[CriticalPoint], bool] | None = None) -> _ConePass | None:
+                   known: tuple[list[CriticalPoint], bool] | None = None,
+                   paths_max: int | None = None) -> _ConePass | None:
     """Mesh the components through the linkage's cones (:mod:`.cones`): find every critical
     point by homotopy, march from fans around every cone's apex at once, part the result into
     components and keep the first meshes of the other components (most of whose vertices are
-    over a step from the new ones); ``known``: the critical points found already. None where
-    there is no cone or a fan does not project."""
-    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
+    over a step from the new ones); ``known``: the critical points found already;
+    ``paths_max``: the homotopy's bound (over it no path runs: no cone found, the search not
+    ended). None where there is no cone or a fan does not project."""
+    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5), paths_max)
     cones = [cp for cp in found if is_cone(cp)]
     fans = [cone_fans(surface, cp, step) for cp in cones]
     if not cones or any(fan is None for fan in fans) or dl.expired():
