@@ -15,6 +15,7 @@ says so, naming the count and the bound (``argument = "proved"`` when every path
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -38,7 +39,7 @@ class CriticalSearch:
 
     found: list[CriticalPoint]
     ended: bool
-    argument: str
+    argument: Literal["derived", "proved"]
     method: str
     paths: int
     message: str

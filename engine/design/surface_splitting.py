@@ -311,7 +311,7 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
          "cones": len(cones), "cone_homotopy_ended": ended,
          "cone_search_paths": how.paths if how else None, "verified": verified,
          "betti_verified": betti_agrees, "minus_side_mesh": "moved" if moved else "marched"},
-        timed_out=deadline.expired(), unresolved=not verified or not ended,
+        timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
         argument=(how.argument if how else "proved") if complete and verified else None,
         argument_detail=(f"{_found_by(how, len(cones))} resolve as predicted: the complete "
