@@ -26,7 +26,7 @@ from engine.model.linkage import Linkage
 from engine.model.report import count_text
 from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import cone_paths, find_cones, refined_points
-from engine.space.surfaces.five_bar import chain_seeds, five_bar_chain
+from engine.space.surfaces.five_bar import ChainSeeds, chain_seeds, five_bar_chain
 from engine.space.surfaces.geometry import Surface
 
 
@@ -35,7 +35,8 @@ class CriticalSearch:
     """Every critical point ``found`` (cones or not), whether the search's argument holds
     (``ended``: every one found), that argument (``"derived"`` or ``"proved"``), the
     ``method``, its ``paths``, why it does not hold (``message``, '' where it does) and the
-    argument in a sentence (``detail``)."""
+    argument in a sentence (``detail``); ``chain``: a five-bar chain's seeds, which the
+    meshing of the critical space need not derive again."""
 
     found: list[CriticalPoint]
     ended: bool
@@ -44,6 +45,7 @@ class CriticalSearch:
     paths: int
     message: str
     detail: str
+    chain: ChainSeeds | None = None
 
 
 def critical_search(linkage: Linkage, tol: Tolerances, paths_max: int,
@@ -80,7 +82,7 @@ def critical_search(linkage: Linkage, tol: Tolerances, paths_max: int,
             f"{len(seeds.critical) - len(found)} critical points of |A - C|^2 on the band's "
             "edge did not refine to critical points of the linkage")
         return CriticalSearch(found, ended, "derived", "five-bar chain", seeds.paths, why,
-                              seeds.detail)
+                              seeds.detail, seeds)
     paths = cone_paths(cons.n_constraints, cons.n_free)
     if paths > paths_max:
         return CriticalSearch([], False, "proved", "cone homotopy", paths,

@@ -171,19 +171,21 @@ def _summed(homs: list[Homology | None]) -> tuple[int | None, Betti | None]:
 
 def predict_betti(linkage: Linkage, cones: list[ConeResolution],
                   found: tuple[list[CriticalPoint], bool] | None, tol: Tolerances,
-                  options: SurfaceOptions | None, deadline: Deadline
+                  options: SurfaceOptions | None, deadline: Deadline,
+                  how: CriticalSearch | None = None
                   ) -> tuple[Betti | None, tuple[Betti | None, Betti | None]]:
     """The critical space's Betti numbers over Q, and those predicted at ``L + dL`` and
     ``L - dL``: its surfaces meshed through the cones (complete), each apex resolved as its
     cone resolves (:func:`engine.space.surfaces.cones.resolve_apexes`; the other number of
     sheets at ``L - dL``; ``found``: every critical point the cone search found, cones or not,
-    and whether its every path ended, where it ran already). None where the mesh is incomplete
-    or a cone undecided."""
+    and whether its every path ended, where it ran already; ``how``: that search, whose
+    five-bar chain's seeds then seed the mesh). None where the mesh is incomplete or a cone
+    undecided."""
     none: tuple[Betti | None, tuple[Betti | None, Betti | None]] = (None, (None, None))
     if not cones or any(c.sign == 0 for c in cones):
         return none
     out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False,
-                           cones=found)
+                           cones=found, chain=None if how is None else how.chain)
     if not out.search.complete:
         return none
     apex_at = np.array([c.point.u for c in cones])
@@ -291,7 +293,7 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
     critical, predicted_betti = predict_betti(
         linkage, cones, None if found is None else (found, ended), tol, options,
-        deadline.fraction(1 / 3))
+        deadline.fraction(1 / 3), how)
     eulers, bettis, complete, moved = _remesh_sides(linkage, d_l, tol, options, deadline,
                                                      not cps, witnesses or {})
     complete &= ended

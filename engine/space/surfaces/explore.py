@@ -234,8 +234,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      deadline: Deadline | None = None,
                      cones: tuple[list[CriticalPoint], bool] | None = None,
                      meshes: list[Mesh] | None = None,
-                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None
-                     ) -> SurfaceResult:
+                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None,
+                     chain: ChainSeeds | None = None) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
     with its topology (module docstring); ``cones``: the critical points and whether every
     path ended, where :func:`.cones.find_cones` has run already for this linkage; ``meshes``:
@@ -243,7 +243,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     checked as marched ones are, the seeds they cover not marched again; ``witnesses``: a
     height ``c`` (M,) and its critical points on this surface found by a homotopy elsewhere
     (:func:`engine.design.surface_homotopy.line_witnesses`), used instead of solving its
-    Lagrange system here.
+    Lagrange system here; ``chain``: a five-bar chain's seeds of this linkage
+    (:func:`.five_bar.chain_seeds`) where they were derived already.
 
     Examples
     --------
@@ -266,8 +267,9 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     else:
         wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
             if opt.homotopy_paths_max > 0 else None
-    chain = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
-    derived = chain_seeds(surface, chain, rng, dl.fraction(0.3)) if chain else None
+    five = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
+    derived = None if five is None else chain if chain is not None else chain_seeds(
+        surface, five, rng, dl.fraction(0.3))
     if derived is not None and cones is None:  # every critical point: no cone homotopy
         refs = [refine_critical(cons, u, tol) for u in derived.critical]
         cones = ([CriticalPoint(r.u, classify(linkage, r.u, tol), r.length_residual,
