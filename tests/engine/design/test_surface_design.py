@@ -91,7 +91,7 @@ def test_a_cone_search_stopped_by_its_deadline_is_no_refusal():
     assert out.search.reason == "time" and "no cone 3" in out.search.argument_detail
 
 
-@pytest.mark.parametrize("sheets", [1, 2])
+@pytest.mark.parametrize("sheets", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_a_spherical_five_bar_cone_resolves_as_asked(sheets):
     """The spherical five-bar's cone (derived: 24 paths, not the cone homotopy's 4,608) asked
     for one sheet or two by changing ``L3``: the re-meshed Euler characteristics at

@@ -115,7 +115,7 @@ def test_a_splitting_without_cones_against_farber_schuetz(lengths, change, moved
     assert res.search.argument == ("proved" if res.verified else None)
 
 
-@pytest.mark.parametrize("change", [0.05, -0.05, 0.02])
+@pytest.mark.parametrize("change", [0.05, -0.05, pytest.param(0.02, marks=pytest.mark.slow)])
 def test_a_spherical_five_bar_cone_resolves_as_the_crank_angle_grid_says(change):
     """A spherical five-bar with ``L3`` at a cone (``A``, ``B``, ``C`` on one great circle; the
     cone homotopy would need 4,608 paths): the chain's argument derives the cone (24 paths),
