@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.design import DesignResult, Target, check_request, design
+from engine.design.surface_critical import CriticalSearch, critical_search
 from engine.design.surface_homotopy import line_witnesses
 from engine.design.surface_splitting import SurfaceSplit, cone_sign, one_homotopy, remesh_split
 from engine.local.critical import CriticalPoint
@@ -32,7 +33,7 @@ from engine.model.errors import InvalidRequest
 from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
-from engine.space.surfaces.cones import find_cones, is_cone
+from engine.space.surfaces.cones import is_cone
 from engine.space.surfaces.explore import SurfaceOptions, require_two_dof, search_height
 
 #: Share of the deadline the cone search may use (the rest meshes the two perturbed spaces).
@@ -90,14 +91,15 @@ def check_targets(targets: list[ConeTarget]) -> None:
 
 
 def _unfound(cones: list[CriticalPoint], targets: list[ConeTarget], bars: int,
-             deadline: Deadline) -> SurfaceDesign:
-    """The answer where the cone search stopped (its deadline) before finding a target's cone:
-    no design, and a report saying why (not a refusal: the cone may exist)."""
+             deadline: Deadline, how: CriticalSearch) -> SurfaceDesign:
+    """The answer where the cone search stopped (its deadline, or its path bound before any
+    path ran) before finding a target's cone: no design, and a report saying why (not a
+    refusal: the cone may exist)."""
     missing = next(t.cone for t in targets if not 0 <= t.cone < len(cones))
-    message = (f"the cones' homotopy stopped before every path ended: {len(cones)} cones "
-               f"found, no cone {missing} to design for")
+    message = f"{how.message}: {len(cones)} cones found, no cone {missing} to design for"
     result = DesignResult(False, np.zeros(bars), 0.0, [], False, message)
-    report = SearchReport({"method": "cone homotopy", "cones": len(cones),
+    report = SearchReport({"method": how.method, "cones": len(cones),
+                           "cone_search_paths": how.paths,
                            "cone_homotopy_ended": False}, timed_out=deadline.expired(),
                           unresolved=True, time_budget_s=granted(deadline),
                           argument_detail="no proof: " + message)
@@ -132,22 +134,25 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
     require_two_dof(linkage, cons)
     check_targets(targets)
     check_request(linkage, [Target(t.cone, 1) for t in targets], adjustable)
-    found, ended = find_cones(linkage, tol, np.random.default_rng(seed),
-                              deadline.fraction(CONE_SHARE))
+    paths_max = (options or SurfaceOptions()).homotopy_paths_max
+    how = critical_search(linkage, tol, paths_max, np.random.default_rng(seed),
+                          deadline.fraction(CONE_SHARE))
+    found, ended = how.found, how.ended
     cones = [cp for cp in found if is_cone(cp)]
     for k, t in enumerate(targets):
         if not 0 <= t.cone < len(cones) and ended:
             raise InvalidRequest(f"no cone {t.cone} (found {len(cones)})",
                                  loc=("targets", k, "branch_point"))
     if any(not 0 <= t.cone < len(cones) for t in targets):
-        return _unfound(cones, targets, len(linkage.lengths), deadline)
+        return _unfound(cones, targets, len(linkage.lengths), deadline, how)
     signs = np.array([t.sign if not t.sheets else cone_sign(cones[t.cone], t.sheets)
                       for t in targets], dtype=np.int64)
     result = design(linkage, cones, [Target(t.cone, int(s)) for t, s in zip(targets, signs,
                                                                             strict=True)],
                     adjustable, margin, max_change)
     if not result.feasible or deadline.expired():
-        report = SearchReport({"method": "cone homotopy", "cones": len(cones),
+        report = SearchReport({"method": how.method, "cones": len(cones),
+                               "cone_search_paths": how.paths,
                                "cone_homotopy_ended": ended}, timed_out=deadline.expired(),
                               unresolved=not ended, time_budget_s=granted(deadline))
         return SurfaceDesign(result, cones, signs, None, None, None, ended, report)
@@ -157,7 +162,7 @@ def design_surface(linkage: Linkage, targets: list[ConeTarget], adjustable: list
         if one_homotopy(cons, options) else None
     split = remesh_split(linkage, cones, ended, result.perturbation, tol, options, deadline,
                          found=found, witnesses=None if line is None else {
-                             w: (line.height, h) for w, h in line.heights.items()})
+                             w: (line.height, h) for w, h in line.heights.items()}, how=how)
     decided = all(c.sign != 0 for c in split.cones)
     change = sum(c.euler_change for c in split.cones) if decided else None
     met = all(split.cones[t.cone].sign == s for t, s in zip(targets, signs, strict=True))

@@ -27,7 +27,13 @@ link is two cycles) and each apex is resolved in the complex as its cone resolve
 at ``L + dL`` (and, with the other number of sheets everywhere, at ``L - dL``), checked by the
 re-meshing too.
 
-**Every cone** is found by the homotopy of :func:`engine.space.surfaces.cones.find_cones`.
+**Every cone** is found by one homotopy along ``L + w dL`` with the heights' critical points
+at ``w = +-1`` (:func:`engine.design.surface_homotopy.line_witnesses`) where its paths are
+within ``homotopy_paths_max``; otherwise by :func:`engine.design.surface_critical.
+critical_search`: a five-bar chain's cones are derived from the critical points of
+``|A - C|^2`` on its band's edge (24 paths; the re-meshings at ``L +- dL`` are then seeded by
+the chain's argument too, and the answer is ``derived``), any other linkage's by the cone
+homotopy within the bound (over it none runs, and the answer says so).
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.design.splitting import conic_delta
+from engine.design.surface_critical import CriticalSearch, critical_search
 from engine.design.surface_homotopy import line_witnesses
 from engine.local.critical import CriticalPoint
 from engine.model.budget import NEVER, Deadline, granted
@@ -45,7 +52,7 @@ from engine.model.linkage import Linkage
 from engine.model.report import SearchReport
 from engine.model.tolerances import Tolerances
 from engine.space.linear_product import bezout
-from engine.space.surfaces.cones import cone_structure, find_cones, is_cone, resolve_apexes
+from engine.space.surfaces.cones import cone_structure, is_cone, resolve_apexes
 from engine.space.surfaces.explore import (
     SurfaceOptions,
     SurfaceResult,
@@ -131,9 +138,10 @@ def split_surface(linkage: Linkage, d_l: np.ndarray, tol: Tolerances | None = No
     require_two_dof(linkage, cons)
     rng = np.random.default_rng(seed)
     if not one_homotopy(cons, options):
-        cps, ended = find_cones(linkage, tol, rng, deadline.fraction(0.3))
-        return remesh_split(linkage, [cp for cp in cps if is_cone(cp)], ended, d_l, tol,
-                            options, deadline, found=cps)
+        got = critical_search(linkage, tol, (options or SurfaceOptions()).homotopy_paths_max,
+                              rng, deadline.fraction(0.3))
+        return remesh_split(linkage, [cp for cp in got.found if is_cone(cp)], got.ended, d_l,
+                            tol, options, deadline, found=got.found, how=got)
     line = line_witnesses(linkage, d_l, tol, rng, deadline.fraction(LINE_SHARE),
                           height=search_height(cons.n_free, options))
     return remesh_split(linkage, [cp for cp in line.cones if is_cone(cp)], line.ended, d_l,
@@ -163,19 +171,21 @@ def _summed(homs: list[Homology | None]) -> tuple[int | None, Betti | None]:
 
 def predict_betti(linkage: Linkage, cones: list[ConeResolution],
                   found: tuple[list[CriticalPoint], bool] | None, tol: Tolerances,
-                  options: SurfaceOptions | None, deadline: Deadline
+                  options: SurfaceOptions | None, deadline: Deadline,
+                  how: CriticalSearch | None = None
                   ) -> tuple[Betti | None, tuple[Betti | None, Betti | None]]:
     """The critical space's Betti numbers over Q, and those predicted at ``L + dL`` and
     ``L - dL``: its surfaces meshed through the cones (complete), each apex resolved as its
     cone resolves (:func:`engine.space.surfaces.cones.resolve_apexes`; the other number of
     sheets at ``L - dL``; ``found``: every critical point the cone search found, cones or not,
-    and whether its every path ended, where it ran already). None where the mesh is incomplete
-    or a cone undecided."""
+    and whether its every path ended, where it ran already; ``how``: that search, whose
+    five-bar chain's seeds then seed the mesh). None where the mesh is incomplete or a cone
+    undecided."""
     none: tuple[Betti | None, tuple[Betti | None, Betti | None]] = (None, (None, None))
     if not cones or any(c.sign == 0 for c in cones):
         return none
     out = explore_surfaces(linkage, tol, options, deadline=deadline, start_on_space=False,
-                           cones=found)
+                           cones=found, chain=None if how is None else how.chain)
     if not out.search.complete:
         return none
     apex_at = np.array([c.point.u for c in cones])
@@ -243,34 +253,47 @@ def _moved(at: Linkage, out: SurfaceResult, tol: Tolerances) -> list[Mesh] | Non
     return [m for m in moved if m is not None]
 
 
-def _why_not(ended: bool, complete: bool, verified: bool, message: str) -> str:
-    """The sentence of why a surface splitting has no argument (what it did establish)."""
-    why = [] if ended else ["the cones' homotopy did not end on every path, so a cone may be "
-                            "missing"]
+def _why_not(ended: bool, complete: bool, verified: bool, message: str,
+             how: CriticalSearch | None = None) -> str:
+    """The sentence of why a surface splitting has no argument (what it did establish);
+    ``how``: the critical-point search where it was not the cones' homotopy along the line."""
+    search = how.message if how is not None and how.message else \
+        "the cones' homotopy did not end on every path"
+    why = [] if ended else [f"{search}, so a cone may be missing"]
     if ended and not complete:
         why.append("a re-meshing at L + dL or L - dL is incomplete")
     return "no proof: " + "; ".join([*why, message])
 
 
+def _found_by(how: CriticalSearch | None, n: int) -> str:
+    """How the ``n`` cones were found, in the words of the answer's argument."""
+    if how is not None and how.argument == "derived":
+        return (f"the {n} cones, derived as every critical point of the linkage by the "
+                f"five-bar chain's argument ({how.detail}),")
+    return f"the {n} cones found by homotopy (every path ended)"
+
+
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
                  tol: Tolerances, options: SurfaceOptions | None = None,
                  deadline: Deadline = NEVER, found: list[CriticalPoint] | None = None,
-                 witnesses: dict[float, tuple[np.ndarray, HeightWitnesses]] | None = None
-                 ) -> SurfaceSplit:
-    """How the cones ``cps`` (found by :func:`find_cones`; ``ended``: every path of its
-    homotopy ended) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
+                 witnesses: dict[float, tuple[np.ndarray, HeightWitnesses]] | None = None,
+                 how: CriticalSearch | None = None) -> SurfaceSplit:
+    """How the cones ``cps`` (found by a homotopy or ``how``,
+    :func:`engine.design.surface_critical.critical_search`; ``ended``: its argument holds, every
+    critical point found) resolve under ``dL``, the predicted ``chi(+dL) - chi(-dL)`` and Betti
     numbers (:func:`predict_betti`) and their check by meshing the linkage at ``L + dL`` and
     ``L - dL`` (:func:`split_surface`); ``found``: every critical point the search found
     (the cones among them), which the critical space's meshing then need not search again;
     ``witnesses``: the height and its critical points at ``L + w dL`` for ``w = +-1``
     (:func:`engine.design.surface_homotopy.line_witnesses`), which the re-meshings then need
-    not solve for."""
+    not solve for; the answer's argument is ``how``'s (``derived`` for a five-bar chain),
+    else ``proved``."""
     cones = [resolve_cone(linkage, cp, d_l) for cp in cps]
     decided = all(c.sign != 0 for c in cones)
     predicted = 2 * sum(c.euler_change for c in cones) if decided else None
     critical, predicted_betti = predict_betti(
         linkage, cones, None if found is None else (found, ended), tol, options,
-        deadline.fraction(1 / 3))
+        deadline.fraction(1 / 3), how)
     eulers, bettis, complete, moved = _remesh_sides(linkage, d_l, tol, options, deadline,
                                                      not cps, witnesses or {})
     complete &= ended
@@ -286,20 +309,21 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
                "the re-meshing did not finish" if None in eulers else
                "the re-meshed topology differs from the prediction")
     report = SearchReport(
-        {"method": "cone homotopy and re-meshing", "cones": len(cones),
-         "cone_homotopy_ended": ended, "verified": verified, "betti_verified": betti_agrees,
-         "minus_side_mesh": "moved" if moved else "marched"},
+        {"method": f"{how.method if how else 'cone homotopy'} and re-meshing",
+         "cones": len(cones), "cone_homotopy_ended": ended,
+         "cone_search_paths": how.paths if how else None, "verified": verified,
+         "betti_verified": betti_agrees, "minus_side_mesh": "moved" if moved else "marched"},
         timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
-        argument="proved" if complete and verified else None,
-        argument_detail=(f"the {len(cones)} cones found by homotopy (every path ended) resolve "
-                         "as predicted: the complete re-meshings at L + dL and L - dL differ in "
-                         "Euler characteristic by the predicted amount" + (
+        argument=(how.argument if how else "proved") if complete and verified else None,
+        argument_detail=(f"{_found_by(how, len(cones))} resolve as predicted: the complete "
+                         "re-meshings at L + dL and L - dL differ in Euler characteristic by "
+                         "the predicted amount" + (
                              " (L - dL's meshes moved from L + dL's and checked as marched "
                              "ones: folds, tangent planes, the Morse count of its own height "
                              "homotopy)" if moved else "") + (
                              ", and their Betti numbers are those of the critical space's mesh "
                              "with each apex resolved" if betti_agrees else ""))
-        if complete and verified else _why_not(ended, complete, verified, message))
+        if complete and verified else _why_not(ended, complete, verified, message, how))
     return SurfaceSplit(cones, predicted, (eulers[0], eulers[1]), (bettis[0], bettis[1]),
                         verified, complete, message, report, critical, predicted_betti)

@@ -583,3 +583,57 @@ def test_two_degrees_of_freedom_design_refusals(client):
         assert r.headers["content-type"].startswith("application/problem+json")
         assert r.json()["errors"][0]["loc"][:len(loc)] == loc
     assert client.get("/health").status_code == 200
+
+
+def test_spherical_five_bar_splitting_at_a_cone_is_derived_through_http(client):
+    """A spherical five-bar at a cone (``L3`` puts ``A``, ``B``, ``C`` on one great circle; the
+    cone homotopy would need 4,608 paths, past the default 512): splitting and design take the
+    chain's derived cone (24 paths) and answer complete, ``derived``, with the Euler
+    characteristics at ``L3 +- dL`` of the dense crank-angle grid (``B`` where three spheres
+    meet) and their difference predicted."""
+    from tests.engine.design.test_surface_critical import AT_CONE, cone_lengths
+    from tests.engine.space.surfaces.conftest import (
+        spherical_five_bar,
+        spherical_five_bar_reference,
+    )
+
+    lengths, _ = cone_lengths(*AT_CONE)
+    lk = linkage_body(spherical_five_bar(*lengths)) | {"dimension": 3}
+
+    def chi(change: float) -> list[int]:
+        return [sum(spherical_five_bar_reference(*np.add(lengths, (0, 0, 0, s * change, 0))))
+                for s in (1, -1)]
+
+    body = post(client, "/v1/analysis/splitting", {"linkage": lk, "perturbation": {"L3": 0.05}})
+    search, surf = body["search"], body["surface"]
+    assert search["complete"] and search["argument"] == "derived", search
+    assert "24 paths" in search["argument_detail"] and search["cone_search_paths"] == 24
+    (cone,) = surf["cones"]
+    assert cone["sheets"] in (1, 2) and min(cone["q_eigenvalues"]) < 0 < max(cone["q_eigenvalues"])
+    want = chi(0.05)
+    assert surf["euler"] == want and surf["predicted_euler_difference"] == want[0] - want[1] != 0
+    assert surf["verified"] and surf["predicted_betti_q"] == surf["betti_q"]
+    design = post(client, "/v1/design/splitting", {
+        "linkage": lk, "adjustable": ["L3"], "targets": [{"branch_point": 0, "sheets": 1}]})
+    assert design["feasible"] and design["verified"] is True
+    assert design["search"]["complete"] and design["search"]["argument"] == "derived"
+    got = design["surface"]
+    assert got["targets_met"] and [c["sheets"] for c in got["cones"]] == [1]
+    assert got["euler"] == chi(design["perturbation"]["L3"]) and got["euler_change"] == -1
+
+
+def test_a_cone_homotopy_over_its_bound_is_named_through_http(client):
+    """No five-bar chain (``B``'s third bar to ``G1``) and 4,608 paths of the cone homotopy: the
+    splitting answers incomplete, naming the count and the bound, without running them."""
+    from tests.engine.design.test_surface_critical import AT_CONE, cone_lengths
+    from tests.engine.space.surfaces.conftest import spherical_five_bar
+
+    lengths, _ = cone_lengths(*AT_CONE)
+    lk = linkage_body(spherical_five_bar(*lengths, pin_b="G1")) | {"dimension": 3}
+    body = post(client, "/v1/analysis/splitting", {"linkage": lk, "perturbation": {"L3": 0.05},
+                                                   "options": {"time_budget_s": 4}})
+    search = body["search"]
+    assert not search["complete"] and search["argument"] is None
+    assert "4608 paths exceed the bound of 512" in search["argument_detail"], search
+    assert search["method"] == "cone homotopy and re-meshing"
+    assert search["cone_search_paths"] == 4608 and body["surface"]["cones"] == []

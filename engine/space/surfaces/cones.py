@@ -106,13 +106,24 @@ def cone_structure(e: int, m: int) -> tuple[Structure, np.ndarray]:
     return structure, np.array([2] * (e + m) + [1])
 
 
+def cone_paths(e: int, m: int) -> int:
+    """The paths of :func:`find_cones`'s homotopy for ``E`` bars and ``M`` free coordinates:
+    the linear product's ``2^E C(M, E)`` (240 for a pentagon, 4,608 for a spherical
+    five-bar)."""
+    return bezout(cone_structure(e, m)[0])
+
+
 def find_cones(linkage: Linkage, tol: Tolerances, rng: np.random.Generator,
-               deadline: Deadline = NEVER) -> tuple[list[CriticalPoint], bool]:
+               deadline: Deadline = NEVER, paths_max: int | None = None
+               ) -> tuple[list[CriticalPoint], bool]:
     """Every critical point (module docstring), refined and classified; and whether every path
-    of the homotopy ended."""
+    of the homotopy ended. Where its :func:`cone_paths` exceed ``paths_max`` (None: no bound)
+    no path is run: nothing found, not ended."""
     cons = Constraints(linkage)
-    quad, scale, centre = bar_quadrics(linkage, cons)
     e, m = cons.n_constraints, cons.n_free
+    if paths_max is not None and cone_paths(e, m) > paths_max:
+        return [], False
+    quad, scale, centre = bar_quadrics(linkage, cons)
     r = rng.normal(size=m)
     r /= np.linalg.norm(r)
     a = rng.normal(size=e)
@@ -128,9 +139,8 @@ def cones_from_ends(linkage: Linkage, tol: Tolerances, ends: np.ndarray, state: 
                     scale: float, centre: np.ndarray) -> list[CriticalPoint]:
     """The critical points among the ends (P, M + E + 2) of :func:`cone_system`'s paths (their
     ``state``): the near-real finite ends with ``t`` near 0, refined, classified, without
-    repeats, in the order of their coordinates."""
-    cons = Constraints(linkage)
-    m = cons.n_free
+    repeats, in the order of their coordinates (:func:`refined_points`)."""
+    m = Constraints(linkage).n_free
     x0 = ends[:, 0]
     y = ends[:, 1:m + 1] / np.where(np.abs(x0) > 0, x0, np.inf)[:, None]
     t = ends[:, -1] / np.where(np.abs(x0) > 0, x0, np.inf)
@@ -138,16 +148,25 @@ def cones_from_ends(linkage: Linkage, tol: Tolerances, ends: np.ndarray, state: 
     near_real = np.linalg.norm(y.imag, axis=1) <= SINGULAR_IMAG_TOL * np.maximum(
         np.linalg.norm(y, axis=1), 1.0)
     cand = ok & near_real & (np.abs(t) <= T_TOL)
+    return refined_points(linkage, tol, centre + scale * y[cand].real)
+
+
+def refined_points(linkage: Linkage, tol: Tolerances, candidates: np.ndarray
+                   ) -> list[CriticalPoint]:
+    """The critical points the ``candidates`` (N, M) refine to by Newton, classified, without
+    repeats, in the order of their coordinates (rounded well above the refinement's error),
+    not of the candidates: the cones' numbers, which a design names, do not depend on the
+    method's seed or paths."""
+    cons = Constraints(linkage)
+    m = cons.n_free
     found: list[CriticalPoint] = []
     same = 1e-6 * float(np.median(linkage.lengths[cons.bars]))
-    for u0 in centre + scale * y[cand].real:
+    for u0 in np.asarray(candidates, dtype=float).reshape(-1, m):
         ref = refine_critical(cons, u0, tol)
         if not ref.critical or any(np.linalg.norm(cp.u - ref.u) <= same for cp in found):
             continue
         found.append(CriticalPoint(ref.u, classify(linkage, ref.u, tol), ref.length_residual,
                                    ref.stress_residual))
-    # in the order of their coordinates (rounded well above the refinement's error), not of
-    # the homotopy's paths: the cones' numbers, which a design names, do not depend on the seed
     key = np.round(np.array([cp.u for cp in found]).reshape(len(found), m) / same, 0)
     order = np.lexsort(key.T[::-1]) if len(found) else np.zeros(0, dtype=np.int64)
     return [found[int(k)] for k in order]

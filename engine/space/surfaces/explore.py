@@ -234,8 +234,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
                      deadline: Deadline | None = None,
                      cones: tuple[list[CriticalPoint], bool] | None = None,
                      meshes: list[Mesh] | None = None,
-                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None
-                     ) -> SurfaceResult:
+                     witnesses: tuple[np.ndarray, HeightWitnesses] | None = None,
+                     chain: ChainSeeds | None = None) -> SurfaceResult:
     """Every compact component of a ``D = 2`` configuration space as a triangulated surface
     with its topology (module docstring); ``cones``: the critical points and whether every
     path ended, where :func:`.cones.find_cones` has run already for this linkage; ``meshes``:
@@ -243,7 +243,8 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     checked as marched ones are, the seeds they cover not marched again; ``witnesses``: a
     height ``c`` (M,) and its critical points on this surface found by a homotopy elsewhere
     (:func:`engine.design.surface_homotopy.line_witnesses`), used instead of solving its
-    Lagrange system here.
+    Lagrange system here; ``chain``: a five-bar chain's seeds of this linkage
+    (:func:`.five_bar.chain_seeds`) where they were derived already.
 
     Examples
     --------
@@ -266,8 +267,9 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     else:
         wit = height_witnesses(surface, c, rng, dl.fraction(0.6), opt.homotopy_paths_max) \
             if opt.homotopy_paths_max > 0 else None
-    chain = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
-    derived = chain_seeds(surface, chain, rng, dl.fraction(0.3)) if chain else None
+    five = five_bar_chain(linkage, cons) if wit is None or not wit.success else None
+    derived = None if five is None else chain if chain is not None else chain_seeds(
+        surface, five, rng, dl.fraction(0.3))
     if derived is not None and cones is None:  # every critical point: no cone homotopy
         refs = [refine_critical(cons, u, tol) for u in derived.critical]
         cones = ([CriticalPoint(r.u, classify(linkage, r.u, tol), r.length_residual,
@@ -278,7 +280,10 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
     seeds = _seeds(surface, start, wit.critical.points if wit else np.zeros((0, cons.n_free)),
                    rng, opt.random_starts, dl, derived.seeds if derived else None)
     # cones known already: mesh through them first, then from the seeds no mesh covers
-    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones) \
+    # the cone homotopy within the default bound, or the larger one the options allow
+    paths_max = max(opt.homotopy_paths_max, PATHS_MAX)
+    cone_pass = _through_cones(surface, tol, [], [], step, opt.max_triangles, rng, dl, cones,
+                               paths_max) \
         if cones is not None and any(is_cone(cp) for cp in cones[0]) else None
     given = list(meshes or [])
     first = given + ([] if cone_pass is None else cone_pass.meshes)
@@ -293,7 +298,7 @@ def explore_surfaces(linkage: Linkage, tolerances: Tolerances | None = None,
             len(m.gaps) and float(m.gaps.min()) < NEAR_CRITICAL_GAP for m in meshes) or any(
             k[0] or k[1] > TANGENT_ANGLE_MAX for k in checks)):
         cone_pass = _through_cones(surface, tol, meshes, checks, step, opt.max_triangles, rng,
-                                   dl, cones)
+                                   dl, cones, paths_max)
         if cone_pass is not None:  # it keeps what it does not replace
             meshes, checks = [], []
             # the budget spent on the meshes it replaced (finer and finer through a cone)
@@ -366,13 +371,15 @@ def _mesh_seeds(surface: Surface, seeds: list[np.ndarray], step: float, max_tria
 def _through_cones(surface: Surface, tol: Tolerances, meshes: list[Mesh],
                    checks: list[tuple[int, float]], step: float, max_triangles: int,
                    rng: np.random.Generator, dl: Deadline,
-                   known: tuple[list[CriticalPoint], bool] | None = None) -> _ConePass | None:
+                   known: tuple[list[CriticalPoint], bool] | None = None,
+                   paths_max: int | None = None) -> _ConePass | None:
     """Mesh the components through the linkage's cones (:mod:`.cones`): find every critical
     point by homotopy, march from fans around every cone's apex at once, part the result into
     components and keep the first meshes of the other components (most of whose vertices are
-    over a step from the new ones); ``known``: the critical points found already. None where
-    there is no cone or a fan does not project."""
-    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5))
+    over a step from the new ones); ``known``: the critical points found already;
+    ``paths_max``: the homotopy's bound (over it no path runs: no cone found, the search not
+    ended). None where there is no cone or a fan does not project."""
+    found, ended = known or find_cones(surface.linkage, tol, rng, dl.fraction(0.5), paths_max)
     cones = [cp for cp in found if is_cone(cp)]
     fans = [cone_fans(surface, cp, step) for cp in cones]
     if not cones or any(fan is None for fan in fans) or dl.expired():

@@ -89,3 +89,30 @@ def test_a_cone_search_stopped_by_its_deadline_is_no_refusal():
                          deadline=Deadline.after(0.0))
     assert not out.cones_ended and out.split is None and not out.result.feasible
     assert out.search.reason == "time" and "no cone 3" in out.search.argument_detail
+
+
+@pytest.mark.parametrize("sheets", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_a_spherical_five_bar_cone_resolves_as_asked(sheets):
+    """The spherical five-bar's cone (derived: 24 paths, not the cone homotopy's 4,608) asked
+    for one sheet or two by changing ``L3``: the re-meshed Euler characteristics at
+    ``L +- dL`` are the dense crank-angle grid's, and differ by ``2 (2 sheets - 3)``."""
+    from tests.engine.design.test_surface_critical import AT_CONE, cone_lengths
+    from tests.engine.space.surfaces.conftest import (
+        spherical_five_bar,
+        spherical_five_bar_reference,
+    )
+
+    lengths, _ = cone_lengths(*AT_CONE)
+    lk = spherical_five_bar(*lengths)
+    out = design_surface(lk, [ConeTarget(0, sheets=sheets)], ["L3"], MARGIN_REL)
+    assert out.result.feasible and out.cones_ended and len(out.cones) == 1
+    change = float(out.result.perturbation[lk.bar_ids.index("L3")])
+    assert change != 0.0
+    split = out.split
+    assert split is not None and out.targets_met and split.cones[0].sheets == sheets
+    chi = tuple(sum(spherical_five_bar_reference(*np.add(lengths, (0, 0, 0, s * change, 0))))
+                for s in (1, -1))
+    assert out.euler_change == 2 * sheets - 3
+    assert split.euler == chi and chi[0] - chi[1] == 2 * out.euler_change
+    assert split.verified and split.complete
+    assert out.search.complete and out.search.argument == "derived"

@@ -113,3 +113,41 @@ def test_a_splitting_without_cones_against_farber_schuetz(lengths, change, moved
     assert res.predicted_euler_difference == 0
     assert res.verified == (euler(plus) == euler(minus))
     assert res.search.argument == ("proved" if res.verified else None)
+
+
+@pytest.mark.parametrize("change", [0.05, -0.05, pytest.param(0.02, marks=pytest.mark.slow)])
+def test_a_spherical_five_bar_cone_resolves_as_the_crank_angle_grid_says(change):
+    """A spherical five-bar with ``L3`` at a cone (``A``, ``B``, ``C`` on one great circle; the
+    cone homotopy would need 4,608 paths): the chain's argument derives the cone (24 paths),
+    and the Euler characteristics at ``L3 +- dL`` and their predicted difference are those of
+    the dense grid of crank angles with ``B`` where three spheres meet (a double cover of the
+    band, branched along its edge); the critical space's is the grid's at ``L3`` less one (the
+    cone's apex pinches the cover)."""
+    from tests.engine.design.test_surface_critical import AT_CONE, cone_lengths
+    from tests.engine.space.surfaces.conftest import (
+        spherical_five_bar,
+        spherical_five_bar_reference,
+    )
+
+    lengths, _ = cone_lengths(*AT_CONE)
+    lk = spherical_five_bar(*lengths)
+    d_l = np.zeros(7)
+    d_l[lk.bar_ids.index("L3")] = change
+    res = split_surface(lk, d_l)
+    chi = [sum(spherical_five_bar_reference(*np.add(lengths, (0, 0, 0, s * change, 0))))
+           for s in (1, -1)]
+    assert chi[0] != chi[1]  # the cone changes the topology
+    (cone,) = res.cones
+    assert cone.sheets in (1, 2) and cone.euler_change == 2 * cone.sheets - 3
+    assert res.predicted_euler_difference == chi[0] - chi[1]
+    assert res.euler == (chi[0], chi[1])
+    critical = res.critical_betti
+    assert critical is not None
+    assert critical[0] - critical[1] + critical[2] == \
+        sum(spherical_five_bar_reference(*lengths)) - 1
+    assert res.predicted_betti == res.betti
+    assert res.verified and res.complete
+    s = res.search
+    assert s.complete and s.argument == "derived", s.as_dict()
+    assert s["method"] == "five-bar chain and re-meshing" and s["cone_search_paths"] == 24
+    assert "24 paths" in str(s.argument_detail)
