@@ -267,10 +267,11 @@ def _why_not(ended: bool, complete: bool, verified: bool, message: str,
 
 def _found_by(how: CriticalSearch | None, n: int) -> str:
     """How the ``n`` cones were found, in the words of the answer's argument."""
+    cones = "the cone" if n == 1 else f"the {n} cones"
     if how is not None and how.argument == "derived":
-        return (f"the {n} cones, derived as every critical point of the linkage by the "
+        return (f"{cones}, derived as every critical point of the linkage by the "
                 f"five-bar chain's argument ({how.detail}),")
-    return f"the {n} cones found by homotopy (every path ended)"
+    return f"{cones} found by homotopy (every path ended)"
 
 
 def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: np.ndarray,
@@ -316,9 +317,10 @@ def remesh_split(linkage: Linkage, cps: list[CriticalPoint], ended: bool, d_l: n
         timed_out=deadline.expired(), unresolved=not verified,
         time_budget_s=granted(deadline),
         argument=(how.argument if how else "proved") if complete and verified else None,
-        argument_detail=(f"{_found_by(how, len(cones))} resolve as predicted: the complete "
-                         "re-meshings at L + dL and L - dL differ in Euler characteristic by "
-                         "the predicted amount" + (
+        argument_detail=(f"{_found_by(how, len(cones))} "
+                         f"{'resolves' if len(cones) == 1 else 'resolve'} as predicted: the "
+                         "complete re-meshings at L + dL and L - dL differ in Euler "
+                         "characteristic by the predicted amount" + (
                              " (L - dL's meshes moved from L + dL's and checked as marched "
                              "ones: folds, tangent planes, the Morse count of its own height "
                              "homotopy)" if moved else "") + (
