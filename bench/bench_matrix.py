@@ -243,9 +243,6 @@ WHY_INCOMPLETE = [
     "are traced: the turning points of their slices need more homotopy paths than the bound "
     "(2,400 for a 3D two-rotor chain), so their regions' counts are exact but the curves "
     "are `searched`.",
-    "- `searched` on the `spherical-five-bar`'s `splitting` (D = 2): the homotopy for the "
-    "cones of a five-bar chain on the sphere did not end on every path, so a cone may be "
-    "missing (`argument_detail` says so); its configuration space is complete (`derived`).",
     "- a figure is complete when the analysis it draws is (the JSON cell of the same preset: "
     "`draws` names its reason); the figure says so in its title.",
     "- a configuration-space answer of a 100-rotor chain holds some 10^4 points of 100 "
