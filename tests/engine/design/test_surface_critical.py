@@ -6,37 +6,16 @@ before any path runs, naming the count and the bound."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
 
 from engine.design.surface_critical import critical_search
 from engine.model.budget import NEVER, Deadline
 from engine.model.tolerances import Tolerances
 from engine.space.surfaces.cones import cone_paths, find_cones
-from tests.engine.space.surfaces.conftest import _on_circle, _sphere_pins, spherical_five_bar
+from tests.engine.space.surfaces.conftest import cone_lengths, spherical_five_bar
 from tests.engine.space.surfaces.test_five_bar import jacobian
 
 #: (g, L1, L2, L4) of the spherical five-bar whose L3 is put at a cone (:func:`cone_lengths`).
 AT_CONE = (1.2, 0.6, 1.0, 0.7)
-
-
-def cone_lengths(g: float, l1: float, l2: float, l4: float) -> tuple[tuple[float, ...], float]:
-    """``(g, L1, L2, L3, L4)`` with ``L3`` putting ``A``, ``B``, ``C`` on one great circle where
-    ``A`` and ``C`` are farthest apart (the largest ``|A - C|^2`` over the crank angles by
-    BFGS from a grid of starts, on the cranks' circles computed here): the band's edge
-    ``|A - C| = chord(L2) + chord(L3)`` shrinks to that point, a cone. Also that largest
-    ``|A - C|^2``."""
-    g1, g2 = _sphere_pins(g)
-
-    def minus_s(x: np.ndarray) -> float:
-        a, c = _on_circle(g1, l1, x[:1])[0], _on_circle(g2, l4, x[1:])[0]
-        return -float(np.sum((a - c) ** 2))
-
-    best = min((minimize(minus_s, [t1, t2], method="BFGS", options={"gtol": 1e-12})
-                for t1 in np.linspace(0, 6, 4) for t2 in np.linspace(0, 6, 4)),
-               key=lambda r: r.fun)
-    chord = np.sqrt(-best.fun)
-    l3 = 2 * np.sin(np.arcsin(chord / 2) - np.arcsin(l2 / 2))
-    return (g, l1, l2, float(l3), l4), float(-best.fun)
 
 
 def test_a_spherical_five_bar_cone_is_derived():

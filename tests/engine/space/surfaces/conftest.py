@@ -5,6 +5,7 @@ from __future__ import annotations
 from itertools import combinations
 
 import numpy as np
+from scipy.optimize import minimize
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -217,3 +218,23 @@ def spherical_five_bar_reference(g: float, l1: float, l2: float, l3: float, l4: 
         chis.append(2 * int((m & inside).sum() - (m & inside & right).sum()
                             - (m & inside & up).sum() + (m & square).sum()))
     return sorted(chis * (2 if inside.all() else 1))
+
+
+def cone_lengths(g: float, l1: float, l2: float, l4: float) -> tuple[tuple[float, ...], float]:
+    """``(g, L1, L2, L3, L4)`` with ``L3`` putting ``A``, ``B``, ``C`` on one great circle where
+    ``A`` and ``C`` are farthest apart (the largest ``|A - C|^2`` over the crank angles by
+    BFGS from a grid of starts, on the cranks' circles computed here): the band's edge
+    ``|A - C| = chord(L2) + chord(L3)`` shrinks to that point, a cone. Also that largest
+    ``|A - C|^2``."""
+    g1, g2 = _sphere_pins(g)
+
+    def minus_s(x: np.ndarray) -> float:
+        a, c = _on_circle(g1, l1, x[:1])[0], _on_circle(g2, l4, x[1:])[0]
+        return -float(np.sum((a - c) ** 2))
+
+    best = min((minimize(minus_s, [t1, t2], method="BFGS", options={"gtol": 1e-12})
+                for t1 in np.linspace(0, 6, 4) for t2 in np.linspace(0, 6, 4)),
+               key=lambda r: r.fun)
+    chord = np.sqrt(-best.fun)
+    l3 = 2 * np.sin(np.arcsin(chord / 2) - np.arcsin(l2 / 2))
+    return (g, l1, l2, float(l3), l4), float(-best.fun)

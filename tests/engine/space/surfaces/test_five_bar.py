@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.optimize import minimize
 
 from engine.catalogue.presets import build_preset
 from engine.model.budget import NEVER
@@ -18,6 +17,7 @@ from tests.engine.space.surfaces.conftest import (
     _middle,
     _on_circle,
     _sphere_pins,
+    cone_lengths,
     five_bar,
     pentagon,
     slider_torus,
@@ -76,17 +76,7 @@ def test_a_cone_is_found_by_the_argument():
     point, a cone (``J`` of rank ``E - 1``, ``sigma J = 0``, ``Q`` indefinite); the space is
     the double cover branched over ``dR`` and the point: ``chi = 2 chi(R) - 1``."""
     g, l1, l2, l4 = 1.2, 0.6, 1.0, 0.7
-    g1, g2 = _sphere_pins(g)
-
-    def minus_s(x: np.ndarray) -> float:
-        a, c = _on_circle(g1, l1, x[:1])[0], _on_circle(g2, l4, x[1:])[0]
-        return -float(np.sum((a - c) ** 2))
-
-    best = min((minimize(minus_s, [t1, t2], method="BFGS", options={"gtol": 1e-12})
-                for t1 in np.linspace(0, 6, 4) for t2 in np.linspace(0, 6, 4)),
-               key=lambda r: r.fun)
-    chord = np.sqrt(-best.fun)
-    l3 = 2 * np.sin(np.arcsin(chord / 2) - np.arcsin(l2 / 2))
+    (_, _, _, l3, _), s_max = cone_lengths(g, l1, l2, l4)
     lk = spherical_five_bar(g, l1, l2, l3, l4)
     res = explore_surfaces(lk)
     s = res.search
@@ -100,7 +90,7 @@ def test_a_cone_is_found_by_the_argument():
     pos = lk.positions_of(cp.u)
     a, b, c = pos[3], pos[4], pos[5]
     assert abs(np.linalg.det(np.stack([a, b, c]))) < 1e-6  # on one great circle
-    assert np.isclose(np.sum((a - c) ** 2), -best.fun, atol=1e-8)
+    assert np.isclose(np.sum((a - c) ** 2), s_max, atol=1e-8)
     q = cp.analysis.q_eigenvalues
     assert q is not None and q.max() > 0 > q.min()
     (comp,) = res.components
